@@ -1,0 +1,91 @@
+//! Scene loading for `prt`: TOML scene files, OBJ and glTF 2.0 meshes, OpenEXR and Radiance
+//! HDR environment maps, and the in-memory [`Scene`] every later stage reads.
+//!
+//! Entry points: [`load_scene`] (a whole scene), [`load_mesh`] / [`load_obj`] / [`load_gltf`]
+//! (one mesh file), [`load_env_image`] / [`load_environment`] (one map). Each returns the
+//! warnings it produced next to its result; a caller prints them. Scenes built in code use
+//! [`Scene::new`], [`Scene::add_material`], [`Scene::add_mesh`] and the shapes of
+//! [`test_util`]; [`Scene::validate`] checks any scene.
+//!
+//! # Scene file
+//! ```toml
+//! [camera]
+//! eye = [0.0, 1.0, 3.0]
+//! target = [0.0, 0.5, 0.0]
+//! up = [0.0, 1.0, 0.0]        # optional, default +Y
+//! fov_y = 40.0                # vertical field of view, degrees, in (0, 180)
+//! resolution = [160, 120]     # width, height
+//!
+//! [environment]
+//! file = "env.exr"            # .exr or Radiance .hdr, linear RGB, relative to the TOML file
+//! mapping = "latlong"         # or "angular"; default "latlong"
+//! rotation_y = 0.0            # degrees about +Y, optional (Mitsuba's to_world rotate)
+//! scale = 1.0                 # radiance multiplier ≥ 0, optional
+//!
+//! [materials.stone]           # lambert | phong | blinn_phong | ward | cook_torrance | mirror
+//! type = "lambert"
+//! albedo = [0.8, 0.8, 0.8]
+//!
+//! [[objects]]
+//! mesh = "bunny.obj"          # .obj, .gltf or .glb, relative to the TOML file
+//! material = "stone"          # required for OBJ; optional for glTF (its materials are used)
+//! translate = [0.0, 0.0, 0.0] # optional
+//! rotate = [0.0, 0.0, 0.0]    # optional, degrees: v' = Rz·Ry·Rx·v
+//! scale = 1.0                 # optional, number or [sx, sy, sz], non-zero
+//!
+//! [render]                    # optional
+//! spp = 64                    # ≥ 1
+//! bounces = 0                 # -1 = unlimited (Russian roulette)
+//! seed = 0
+//! ```
+//! World position = `translate + R·(S·v)`; normals transform by the inverse transpose. A
+//! mirroring scale (negative determinant) also reverses the triangles' winding.
+//!
+//! Material parameters (CONVENTIONS.md): every type needs `albedo`; `phong` and `blinn_phong`
+//! need `specular` and `exponent ≥ 0`; `ward` needs `specular` and `roughness > 0`;
+//! `cook_torrance` needs `specular`, `roughness > 0` and takes `ior > 1` (default 1.5);
+//! `mirror` needs `specular`. Colours are in `[0, 1]`. A parameter that the type does not use
+//! gives a warning, and so does `albedo + specular > 1` in a channel. Materials are stored
+//! sorted by name.
+//!
+//! # glTF material mapping
+//! With `c` = baseColorFactor RGB, `m` = metallicFactor, `r` = roughnessFactor:
+//! `m < 0.5` and `r ≥ 0.8` gives `lambert { albedo = c }`; anything else gives
+//! `cook_torrance { albedo = (1−m)c, specular = m·c + (1−m), roughness = max(r², 0.01),
+//! ior = 1.5 + 18.5m }` (see [`map_material`]). Textures are ignored with a warning.
+//!
+//! # Meshes
+//! Positions must be finite and indices in range; degenerate triangles (a repeated index or
+//! exactly zero area) are dropped and counted in a warning; a mesh with no triangle left is an
+//! error. File normals (OBJ `vn`, glTF `NORMAL`) are used when every vertex has one; otherwise
+//! angle-weighted vertex normals are computed ([`angle_weighted_normals`]); zero or NaN file
+//! normals are replaced by computed ones with a warning.
+//!
+//! # Error policy
+//! Nothing in this crate panics on bad input. Every error is a [`SceneError`] whose message
+//! starts with the file it is about; scene-file errors also name the key
+//! (`materials.stone.albedo`, `objects[2].mesh`); an error in a file that the scene names is
+//! wrapped with the scene file and key. Problems that have an obvious, harmless repair
+//! (negative texels from lossy compression, degenerate triangles, bad normals, skipped line
+//! primitives, ignored textures or keys, unexpected chromaticities) are repaired and reported
+//! as warnings instead; anything that would change the picture silently (NaN texels, NaN
+//! positions, bad indices, unsupported required glTF extensions, sparse accessors) is an error.
+
+pub mod envmap;
+mod envmap_io;
+mod error;
+mod gltf_io;
+mod mesh;
+mod obj;
+mod scene_file;
+pub mod test_util;
+mod types;
+mod validate;
+
+pub use envmap_io::{load_env_image, load_environment, LoadedImage, REC709_CHROMATICITIES};
+pub use error::SceneError;
+pub use gltf_io::{load_gltf, map_material};
+pub use mesh::{angle_weighted_normals, load_mesh, normal_matrix, object_transform};
+pub use obj::load_obj;
+pub use scene_file::load_scene;
+pub use types::*;

@@ -1,0 +1,184 @@
+//! The in-memory scene: what every later stage (tracer, bakes, relighting) reads.
+
+use glam::{DVec3, Vec3};
+
+/// An RGB radiance or reflectance triple, linear Rec.709.
+pub type Rgb = [f32; 3];
+
+/// How an environment image maps to directions (see CONVENTIONS.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Mapping {
+    /// Equirectangular: row 0 is +Y, `u = 0` looks down -Z, `u = 0.25` down +X.
+    #[default]
+    LatLong,
+    /// Debevec's angular light probe: centre +Z, rim -Z.
+    Angular,
+}
+
+/// A linear RGB image of an environment, row-major, row 0 at the top.
+#[derive(Clone, Debug, Default)]
+pub struct EnvImage {
+    /// Width in texels.
+    pub width: usize,
+    /// Height in texels.
+    pub height: usize,
+    /// `width * height` texels, row-major.
+    pub texels: Vec<Rgb>,
+}
+
+/// A distant environment: an image, its mapping, a rotation about +Y and a radiance scale.
+#[derive(Clone, Debug)]
+pub struct Environment {
+    /// The texels (already scaled by `scale`; negative texels already clamped to 0).
+    pub image: EnvImage,
+    /// How texels map to directions.
+    pub mapping: Mapping,
+    /// Rotation about +Y in degrees, same sense as Mitsuba's `to_world` rotate:
+    /// radiance towards world direction `d` is the map's value at `R_y(rotation_y)^-1 d`.
+    pub rotation_y_deg: f64,
+}
+
+/// A BRDF, with the parameters of CONVENTIONS.md. All glossy types include `albedo/π`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Material {
+    /// `albedo/π`.
+    Lambert {
+        /// Diffuse reflectance.
+        albedo: Rgb,
+    },
+    /// Normalised modified Phong: `albedo/π + specular (e+2)/(2π) max(0, r·ω_i)^e`.
+    Phong {
+        /// Diffuse reflectance.
+        albedo: Rgb,
+        /// Specular reflectance.
+        specular: Rgb,
+        /// Exponent `e ≥ 0`.
+        exponent: f32,
+    },
+    /// `albedo/π + specular (e+8)/(8π) max(0, n·h)^e`.
+    BlinnPhong {
+        /// Diffuse reflectance.
+        albedo: Rgb,
+        /// Specular reflectance.
+        specular: Rgb,
+        /// Exponent `e ≥ 0`.
+        exponent: f32,
+    },
+    /// Isotropic Ward.
+    Ward {
+        /// Diffuse reflectance.
+        albedo: Rgb,
+        /// Specular reflectance.
+        specular: Rgb,
+        /// Roughness `α > 0`.
+        roughness: f32,
+    },
+    /// Cook–Torrance with Beckmann distribution, V-groove masking and dielectric Fresnel.
+    CookTorrance {
+        /// Diffuse reflectance.
+        albedo: Rgb,
+        /// Specular reflectance.
+        specular: Rgb,
+        /// Beckmann roughness `m > 0`.
+        roughness: f32,
+        /// Index of refraction (default 1.5).
+        ior: f32,
+    },
+    /// `albedo/π` plus a perfect mirror of reflectance `specular`.
+    Mirror {
+        /// Diffuse reflectance.
+        albedo: Rgb,
+        /// Mirror reflectance.
+        specular: Rgb,
+    },
+}
+
+/// A triangle mesh in world space (transform already applied).
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    /// Name for messages (file name, plus glTF node/mesh names).
+    pub name: String,
+    /// World-space vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Unit world-space shading normals, one per vertex.
+    pub normals: Vec<Vec3>,
+    /// Triangles as vertex index triples (degenerate triangles already dropped).
+    pub indices: Vec<[u32; 3]>,
+    /// Index into [`Scene::materials`].
+    pub material: usize,
+}
+
+/// A pinhole camera.
+#[derive(Clone, Debug)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: DVec3,
+    /// Point looked at.
+    pub target: DVec3,
+    /// Up vector (default +Y).
+    pub up: DVec3,
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f64,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+}
+
+/// Defaults of the `[render]` table.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Indirect bounces; `-1` means unlimited with Russian roulette.
+    pub bounces: i32,
+    /// Global seed.
+    pub seed: u64,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            spp: 64,
+            bounces: 0,
+            seed: 0,
+        }
+    }
+}
+
+/// A loaded scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The camera.
+    pub camera: Camera,
+    /// The distant environment.
+    pub environment: Environment,
+    /// Materials, referenced by index from meshes.
+    pub materials: Vec<Material>,
+    /// Material names, parallel to `materials`.
+    pub material_names: Vec<String>,
+    /// Meshes in world space, one per `[[objects]]` entry (glTF files may add several).
+    pub meshes: Vec<Mesh>,
+    /// `[render]` defaults.
+    pub render: RenderSettings,
+}
+
+/// Meshes read from one mesh file, with the materials the file defines and the warnings.
+#[derive(Clone, Debug, Default)]
+pub struct LoadedMeshes {
+    /// World-space meshes; `material` indexes `materials` (OBJ: 0, and `materials` is empty).
+    pub meshes: Vec<Mesh>,
+    /// Materials defined by the file (glTF only), `(name, material)`.
+    pub materials: Vec<(String, Material)>,
+    /// Things a user should know; each names the file.
+    pub warnings: Vec<String>,
+}
+
+/// A scene read from a TOML scene file, with the warnings of every file it read.
+#[derive(Clone, Debug)]
+pub struct LoadedScene {
+    /// The scene, valid ([`Scene::validate`] passes).
+    pub scene: Scene,
+    /// Things a user should know; each names the file it is about.
+    pub warnings: Vec<String>,
+}
