@@ -1,0 +1,400 @@
+//! The writer: `Bake` → bytes of format 1.0, canonical layout (SPEC.md, "Canonical files").
+
+use crate::error::BakeFileError;
+use crate::layout::{
+    align_up, Tag, BLKT_RECORD, BRDF_RECORD, GLSY_RECORD, HEADER_SIZE, MAGIC, OBJT_RECORD,
+    PAYLOAD_ALIGNMENT, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE, VERSION_MAJOR,
+    VERSION_MINOR,
+};
+use crate::meta::{
+    hash_string, BlockJson, BrdfJson, EnvJson, GlossyJson, MetaJson, ObjectJson, ShConvention,
+    COLOUR_SPACE, FORMAT_NAME,
+};
+use crate::model::{Bake, BrdfLobe, EnvPrecision, SampleKind, ScalarType};
+
+fn u32_of(x: usize, what: &str) -> Result<u32, BakeFileError> {
+    u32::try_from(x).map_err(|_| BakeFileError::InvalidBake(format!("{what} exceeds u32")))
+}
+
+#[derive(Default)]
+struct Buf(Vec<u8>);
+
+impl Buf {
+    fn u32(&mut self, v: u32) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn u64(&mut self, v: u64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn f64(&mut self, v: f64) {
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn table_header(&mut self, count: usize, record_size: usize) -> Result<(), BakeFileError> {
+        self.u32(u32_of(count, "table record count")?);
+        self.u32(record_size as u32);
+        self.u64(0);
+        Ok(())
+    }
+}
+
+/// A string pool under construction.
+#[derive(Default)]
+struct Strings(Vec<u8>);
+
+impl Strings {
+    fn add(&mut self, s: &str) -> Result<(u32, u32), BakeFileError> {
+        let off = u32_of(self.0.len(), "string pool size")?;
+        let len = u32_of(s.len(), "string length")?;
+        self.0.extend_from_slice(s.as_bytes());
+        u32_of(self.0.len(), "string pool size")?;
+        Ok((off, len))
+    }
+}
+
+enum Payload {
+    Bytes(Vec<u8>),
+    Block { object: usize, block: usize },
+}
+
+struct Planned {
+    tag: Tag,
+    payload: Payload,
+    length: u64,
+}
+
+/// Encodes a bake into the bytes of a format-1.0 file, transfer coefficients stored as
+/// `scalar`.
+///
+/// The output is canonical: the same `Bake` and `scalar` always give the same bytes, and
+/// `encode(&decode(bytes)?, scalar)` reproduces a canonical file exactly.
+///
+/// # Errors
+/// [`BakeFileError::InvalidBake`] / [`BakeFileError::NonFinite`] /
+/// [`BakeFileError::InconsistentCounts`] when the bake breaks a rule of the format
+/// (see [`Bake::validate`]), [`BakeFileError::OutOfF16Range`] when `scalar` is f16 and a value
+/// rounds beyond ±65504.
+pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError> {
+    bake.validate()?;
+    let m = &bake.meta;
+    let mut strings = Strings::default();
+
+    let fixed_sections = 5
+        + usize::from(bake.environment.is_some())
+        + usize::from(!bake.brdfs.is_empty())
+        + usize::from(!bake.glossy.is_empty());
+
+    // BINF
+    let mut binf = Buf::default();
+    let (width, height) = match m.sample_kind {
+        SampleKind::Vertex => (0, 0),
+        SampleKind::Pixel { width, height } => (width, height),
+    };
+    binf.u32(m.sample_kind.code());
+    binf.u32(m.bounces);
+    binf.u32(width);
+    binf.u32(height);
+    binf.u32(m.rays_per_point);
+    binf.u32(m.shard.index);
+    binf.u32(m.shard.count);
+    binf.u32(0);
+    binf.u64(m.seed);
+
+    // OBJT and BLKT
+    let block_count: usize = bake.objects.iter().map(|o| o.blocks.len()).sum();
+    let mut objt = Buf::default();
+    objt.table_header(bake.objects.len(), OBJT_RECORD)?;
+    let mut blkt = Buf::default();
+    blkt.table_header(block_count, BLKT_RECORD)?;
+    let mut objects_json = Vec::with_capacity(bake.objects.len());
+    let mut xfer = Vec::with_capacity(block_count);
+    for (oi, o) in bake.objects.iter().enumerate() {
+        let (name_off, name_len) = strings.add(&o.name)?;
+        objt.u32(name_off);
+        objt.u32(name_len);
+        objt.u64(o.geometry_hash);
+        objt.u64(o.point_count);
+        objt.u64(o.point_first);
+        objt.u64(o.points_in_file);
+        objt.u32(o.order);
+        objt.u32(o.channels);
+        objt.u32(u32_of(xfer.len(), "block count")?);
+        objt.u32(u32_of(o.blocks.len(), "block count")?);
+        let mut blocks_json = Vec::with_capacity(o.blocks.len());
+        for (bi, b) in o.blocks.iter().enumerate() {
+            let section = u32_of(fixed_sections + xfer.len(), "section count")?;
+            let length = (b.data.len() as u64)
+                .checked_mul(scalar.size() as u64)
+                .ok_or_else(|| BakeFileError::InvalidBake("block too large".into()))?;
+            blkt.u32(u32_of(oi, "object count")?);
+            blkt.u32(b.kind.code());
+            blkt.u32(b.kind.bounces());
+            blkt.u32(o.channels);
+            blkt.u32(o.order);
+            blkt.u32(scalar.code());
+            blkt.u64(o.points_in_file);
+            blkt.u32(section);
+            blkt.u32(0);
+            blkt.u64(length);
+            blocks_json.push(BlockJson {
+                kind: b.kind.name().to_owned(),
+                bounces: b.kind.bounces(),
+                section,
+            });
+            xfer.push(Planned {
+                tag: Tag::XFER,
+                payload: Payload::Block {
+                    object: oi,
+                    block: bi,
+                },
+                length,
+            });
+        }
+        objects_json.push(ObjectJson {
+            name: o.name.clone(),
+            geometry_hash: hash_string(o.geometry_hash),
+            point_count: o.point_count,
+            point_first: o.point_first,
+            points_in_file: o.points_in_file,
+            order: o.order,
+            channels: o.channels,
+            blocks: blocks_json,
+        });
+    }
+
+    // ENVL
+    let envl = bake.environment.as_ref().map(|env| {
+        let mut b = Buf::default();
+        b.u32(env.order);
+        b.u32(3);
+        b.u32(env.precision.code());
+        b.u32(0);
+        for &v in &env.values {
+            match env.precision {
+                EnvPrecision::F32 => b.0.extend_from_slice(&(v as f32).to_le_bytes()),
+                EnvPrecision::F64 => b.f64(v),
+            }
+        }
+        b.0
+    });
+
+    // BRDF
+    let mut brdf = None;
+    if !bake.brdfs.is_empty() {
+        let mut b = Buf::default();
+        b.table_header(bake.brdfs.len(), BRDF_RECORD)?;
+        let mut values_off = (TABLE_HEADER_SIZE + bake.brdfs.len() * BRDF_RECORD) as u64;
+        for p in &bake.brdfs {
+            let (off, len) = strings.add(&p.material)?;
+            let (code, exponent) = match p.lobe {
+                BrdfLobe::ClampedCosine => (1, 0.0),
+                BrdfLobe::Phong { exponent } => (2, exponent),
+            };
+            b.u32(off);
+            b.u32(len);
+            b.u32(code);
+            b.u32(p.order);
+            b.f64(exponent);
+            b.u64(values_off);
+            values_off += 8 * p.values.len() as u64;
+        }
+        for p in &bake.brdfs {
+            p.values.iter().for_each(|&v| b.f64(v));
+        }
+        brdf = Some(b.0);
+    }
+
+    // GLSY
+    let mut glsy = None;
+    if !bake.glossy.is_empty() {
+        let mut b = Buf::default();
+        b.table_header(bake.glossy.len(), GLSY_RECORD)?;
+        let mut off = (TABLE_HEADER_SIZE + bake.glossy.len() * GLSY_RECORD) as u64;
+        for g in &bake.glossy {
+            let (name_off, name_len) = strings.add(&g.material)?;
+            b.u32(name_off);
+            b.u32(name_len);
+            b.u32(u32_of(g.elevations.len(), "elevation count")?);
+            b.u32(g.order);
+            b.u64(off);
+            off += 8 * g.elevations.len() as u64;
+            b.u64(off);
+            off += 8 * g.values.len() as u64;
+            b.u64(off);
+            off += 8 * g.projection_error.len() as u64;
+        }
+        for g in &bake.glossy {
+            g.elevations.iter().for_each(|&v| b.f64(v));
+            g.values.iter().for_each(|&v| b.f64(v));
+            g.projection_error.iter().for_each(|&v| b.f64(v));
+        }
+        glsy = Some(b.0);
+    }
+
+    // META
+    let meta = MetaJson {
+        format: FORMAT_NAME.to_owned(),
+        format_version: [VERSION_MAJOR, VERSION_MINOR],
+        sh: ShConvention::current(),
+        colour_space: COLOUR_SPACE.to_owned(),
+        scalar_type: scalar,
+        sample_kind: m.sample_kind,
+        rays_per_point: m.rays_per_point,
+        bounces: m.bounces,
+        seed: m.seed,
+        shard: m.shard,
+        tool: m.tool.clone(),
+        settings: m.settings.clone(),
+        decisions: m.decisions.clone(),
+        objects: objects_json,
+        environment: bake.environment.as_ref().map(|e| EnvJson {
+            order: e.order,
+            precision: e.precision,
+        }),
+        brdfs: bake
+            .brdfs
+            .iter()
+            .map(|p| BrdfJson {
+                material: p.material.clone(),
+                lobe: match p.lobe {
+                    BrdfLobe::ClampedCosine => "clamped-cosine".into(),
+                    BrdfLobe::Phong { .. } => "phong".into(),
+                },
+                exponent: match p.lobe {
+                    BrdfLobe::ClampedCosine => None,
+                    BrdfLobe::Phong { exponent } => Some(exponent),
+                },
+                order: p.order,
+            })
+            .collect(),
+        glossy: bake
+            .glossy
+            .iter()
+            .map(|g| GlossyJson {
+                material: g.material.clone(),
+                elevations: g.elevations.len() as u64,
+                order: g.order,
+            })
+            .collect(),
+    };
+    let meta_bytes = serde_json::to_vec_pretty(&meta)
+        .map_err(|e| BakeFileError::Metadata(format!("cannot serialise: {e}")))?;
+
+    // Section plan, in canonical order.
+    let bytes = |tag, v: Vec<u8>| Planned {
+        tag,
+        length: v.len() as u64,
+        payload: Payload::Bytes(v),
+    };
+    let mut plan = vec![
+        bytes(Tag::BINF, binf.0),
+        bytes(Tag::STRS, strings.0),
+        bytes(Tag::OBJT, objt.0),
+        bytes(Tag::BLKT, blkt.0),
+    ];
+    if let Some(v) = envl {
+        plan.push(bytes(Tag::ENVL, v));
+    }
+    if let Some(v) = brdf {
+        plan.push(bytes(Tag::BRDF, v));
+    }
+    if let Some(v) = glsy {
+        plan.push(bytes(Tag::GLSY, v));
+    }
+    plan.push(bytes(Tag::META, meta_bytes));
+    debug_assert_eq!(plan.len(), fixed_sections);
+    plan.extend(xfer);
+    let section_count = u32_of(plan.len(), "section count")?;
+
+    // Offsets.
+    let align = PAYLOAD_ALIGNMENT as u64;
+    let table_end = (HEADER_SIZE + plan.len() * SECTION_ENTRY_SIZE) as u64;
+    let mut cursor = table_end;
+    let mut offsets = Vec::with_capacity(plan.len());
+    for p in &plan {
+        let off = align_up(cursor, align);
+        offsets.push(off);
+        cursor = off
+            .checked_add(p.length)
+            .ok_or_else(|| BakeFileError::InvalidBake("file too large".into()))?;
+    }
+    let file_size = cursor;
+    let total = usize::try_from(file_size)
+        .map_err(|_| BakeFileError::InvalidBake("file too large for this machine".into()))?;
+    let mut out = vec![0u8; total];
+
+    // Payloads and the section table.
+    for (i, (p, &off)) in plan.iter().zip(&offsets).enumerate() {
+        let range = off as usize..(off + p.length) as usize;
+        let dst = &mut out[range.clone()];
+        match &p.payload {
+            Payload::Bytes(v) => dst.copy_from_slice(v),
+            Payload::Block { object, block } => {
+                let data = &bake.objects[*object].blocks[*block].data;
+                write_scalars(dst, data, scalar, *object, *block)?;
+            }
+        }
+        let crc = crc32fast::hash(&out[range]);
+        let e = HEADER_SIZE + i * SECTION_ENTRY_SIZE;
+        let entry = &mut out[e..e + SECTION_ENTRY_SIZE];
+        entry[0..4].copy_from_slice(&p.tag.0);
+        entry[4..8].copy_from_slice(&SECTION_FLAG_REQUIRED.to_le_bytes());
+        entry[8..16].copy_from_slice(&off.to_le_bytes());
+        entry[16..24].copy_from_slice(&p.length.to_le_bytes());
+        entry[24..28].copy_from_slice(&crc.to_le_bytes());
+    }
+
+    // Header.
+    let h = &mut out[..HEADER_SIZE];
+    h[0..8].copy_from_slice(&MAGIC);
+    h[8..12].copy_from_slice(&VERSION_MAJOR.to_le_bytes());
+    h[12..16].copy_from_slice(&VERSION_MINOR.to_le_bytes());
+    h[16..20].copy_from_slice(&(HEADER_SIZE as u32).to_le_bytes());
+    h[20..24].copy_from_slice(&0u32.to_le_bytes());
+    h[24..32].copy_from_slice(&file_size.to_le_bytes());
+    h[32..40].copy_from_slice(&(HEADER_SIZE as u64).to_le_bytes());
+    h[40..44].copy_from_slice(&section_count.to_le_bytes());
+    h[44..48].copy_from_slice(&(SECTION_ENTRY_SIZE as u32).to_le_bytes());
+    h[48..52].copy_from_slice(&(PAYLOAD_ALIGNMENT as u32).to_le_bytes());
+    h[52..56].copy_from_slice(&scalar.code().to_le_bytes());
+    let crc = header_crc(&out[..HEADER_SIZE], &out[HEADER_SIZE..table_end as usize]);
+    out[60..64].copy_from_slice(&crc.to_le_bytes());
+    Ok(out)
+}
+
+/// CRC-32 of header bytes `[0, 60)` followed by the section table.
+pub(crate) fn header_crc(header: &[u8], table: &[u8]) -> u32 {
+    let mut h = crc32fast::Hasher::new();
+    h.update(&header[..60]);
+    h.update(table);
+    h.finalize()
+}
+
+fn write_scalars(
+    dst: &mut [u8],
+    data: &[f32],
+    scalar: ScalarType,
+    object: usize,
+    block: usize,
+) -> Result<(), BakeFileError> {
+    match scalar {
+        ScalarType::F32 => {
+            for (d, v) in dst.chunks_exact_mut(4).zip(data) {
+                d.copy_from_slice(&v.to_le_bytes());
+            }
+        }
+        ScalarType::F16 => {
+            for (i, (d, &v)) in dst.chunks_exact_mut(2).zip(data).enumerate() {
+                let h = half::f16::from_f32(v);
+                if h.is_infinite() {
+                    return Err(BakeFileError::OutOfF16Range {
+                        section: format!("object {object} block {block}"),
+                        index: i as u64,
+                        value: v,
+                    });
+                }
+                d.copy_from_slice(&h.to_le_bytes());
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,52 @@
+//! Reading and atomically writing bake files.
+
+use std::io::Write;
+use std::path::Path;
+
+use crate::error::BakeFileError;
+use crate::model::{Bake, ScalarType};
+
+/// Encodes `bake` and writes it to `path` atomically: the bytes go to a temporary file in the
+/// same directory, which is flushed to disk (`fsync`) and then renamed over `path`; the
+/// directory is synced afterwards where the platform allows it. On any error, no file at
+/// `path` is created or changed and no temporary file is left behind.
+///
+/// # Errors
+/// Everything [`crate::encode`] refuses, and I/O errors; every error names `path`.
+pub fn write_bake(path: &Path, bake: &Bake, scalar: ScalarType) -> Result<(), BakeFileError> {
+    write_inner(path, bake, scalar).map_err(|e| e.in_file(path))
+}
+
+fn write_inner(path: &Path, bake: &Bake, scalar: ScalarType) -> Result<(), BakeFileError> {
+    let bytes = crate::encode(bake, scalar)?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    // Dropping `tmp` on any early return deletes the temporary file.
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".prtbake-")
+        .suffix(".tmp")
+        .tempfile_in(dir)?;
+    tmp.write_all(&bytes)?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| BakeFileError::Io(e.error))?;
+    #[cfg(unix)]
+    {
+        // Make the rename itself durable. A failure here leaves a complete file behind, so it
+        // is not reported as an error.
+        if let Ok(d) = std::fs::File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    Ok(())
+}
+
+/// Reads and decodes the bake file at `path` (see [`crate::decode`]).
+///
+/// # Errors
+/// I/O errors and everything [`crate::decode`] refuses; every error names `path`.
+pub fn read_bake(path: &Path) -> Result<Bake, BakeFileError> {
+    let bytes = std::fs::read(path).map_err(|e| BakeFileError::from(e).in_file(path))?;
+    crate::decode(&bytes).map_err(|e| e.in_file(path))
+}

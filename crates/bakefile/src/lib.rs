@@ -1,0 +1,70 @@
+//! The binary file format of PRT bakes (`.prtbake`), format version 1.0.
+//!
+//! A bake file holds, per object of a scene, blocks of spherical-harmonic transfer
+//! coefficients (unshadowed, shadowed, visibility, interreflected), plus the environment
+//! lighting, BRDF projections and everything needed to interpret them: the SH convention,
+//! colour space, seed, tool, settings and the baker's decisions. `SPEC.md` beside this crate
+//! describes every byte so that an engine can read bakes without this code.
+//!
+//! - [`encode`] / [`write_bake`] (atomic) write a [`Bake`] with f32 or f16 coefficients.
+//! - [`decode`] / [`read_bake`] validate everything and return an owned [`Bake`].
+//! - [`BakeView`] validates once and then lends coefficient arrays in place (zero-copy).
+//! - [`merge`] joins shards of a sharded bake into the bytes an unsharded bake would have;
+//!   [`split`] is its inverse.
+//! - [`summary`] / [`BakeView::summary`] describe a bake for `prt inspect`.
+//! - [`geometry_hash`] ties a bake to its mesh.
+//!
+//! ```
+//! use prt_bakefile::*;
+//!
+//! let bake = Bake {
+//!     objects: vec![ObjectBake {
+//!         name: "floor".into(),
+//!         geometry_hash: geometry_hash(&[[0.0, 0.0, 0.0]], &[]),
+//!         point_count: 2,
+//!         point_first: 0,
+//!         points_in_file: 2,
+//!         order: 2,
+//!         channels: 1,
+//!         blocks: vec![TransferBlock {
+//!             kind: TransferKind::ShadowedDiffuse,
+//!             data: vec![0.5; 2 * 4],
+//!         }],
+//!     }],
+//!     ..Bake::default()
+//! };
+//! let bytes = encode(&bake, ScalarType::F16)?;
+//! let view = BakeView::new(&bytes)?;
+//! assert_eq!(view.objects()[0].order, 2);
+//! assert_eq!(decode(&bytes)?, bake);
+//! # Ok::<(), BakeFileError>(())
+//! ```
+
+mod encode;
+mod error;
+mod hash;
+mod io;
+mod layout;
+mod merge;
+mod meta;
+mod model;
+mod summary;
+mod view;
+
+pub use encode::encode;
+pub use error::BakeFileError;
+pub use hash::geometry_hash;
+pub use io::{read_bake, write_bake};
+pub use layout::{
+    Tag, HEADER_SIZE, MAGIC, MUST_UNDERSTAND_FLAGS, PAYLOAD_ALIGNMENT, SECTION_ENTRY_SIZE,
+    SECTION_FLAG_REQUIRED, VERSION_MAJOR, VERSION_MINOR,
+};
+pub use merge::{merge, split};
+pub use meta::ShConvention;
+pub use model::{
+    Bake, BakeMeta, BrdfLobe, BrdfProjection, Decision, EnvCoefficients, EnvPrecision,
+    GlossyBrdfTable, ObjectBake, SampleKind, ScalarType, ShardInfo, ToolInfo, TransferBlock,
+    TransferKind,
+};
+pub use summary::{summary, BlockSummary, FileSummary, ObjectSummary, SectionSummary, Summary};
+pub use view::{decode, BakeView, BlockInfo, Coefficients, ObjectInfo, SectionEntry};

@@ -1,0 +1,223 @@
+//! Sharded bakes: splitting a bake into shards and merging shards back.
+
+use crate::error::BakeFileError;
+use crate::model::{Bake, ObjectBake, ShardInfo, TransferBlock};
+
+fn fail(msg: impl Into<String>) -> BakeFileError {
+    BakeFileError::Merge(msg.into())
+}
+
+/// Merges the shards of one bake into the unsharded bake.
+///
+/// The shards may come in any order. They must all be valid, carry the same shard count with
+/// each index exactly once, identical metadata apart from [`crate::ShardInfo`] (settings, seed,
+/// tool, decisions, ...), identical objects (name, geometry hash, point count, order,
+/// channels, block kinds) and identical global sections; for every object the shards' point
+/// ranges must tile `0..point_count` without gap or overlap.
+///
+/// The result encodes to exactly the bytes of the same bake made without sharding.
+///
+/// # Errors
+/// [`BakeFileError::Merge`] naming the first disagreement; validation errors of a shard.
+pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
+    let first = shards.first().ok_or_else(|| fail("no shards"))?;
+    for (i, s) in shards.iter().enumerate() {
+        s.validate()
+            .map_err(|e| fail(format!("shard at position {i} is invalid: {e}")))?;
+    }
+    let count = first.meta.shard.count;
+    if shards.len() as u64 != u64::from(count) {
+        return Err(fail(format!(
+            "{} shards given, the shards say there are {count}",
+            shards.len()
+        )));
+    }
+    let mut seen = vec![false; shards.len()];
+    for s in shards {
+        if s.meta.shard.count != count {
+            return Err(fail("shards disagree on the shard count"));
+        }
+        let slot = &mut seen[s.meta.shard.index as usize];
+        if *slot {
+            return Err(fail(format!(
+                "shard index {} given twice",
+                s.meta.shard.index
+            )));
+        }
+        *slot = true;
+    }
+    let mut meta = first.meta.clone();
+    meta.shard = ShardInfo::default();
+    for s in shards {
+        let mut m = s.meta.clone();
+        m.shard = ShardInfo::default();
+        if m != meta {
+            return Err(fail(format!(
+                "shard {} has different metadata (settings, seed, tool, decisions, ...)",
+                s.meta.shard.index
+            )));
+        }
+        if s.environment != first.environment || s.brdfs != first.brdfs || s.glossy != first.glossy
+        {
+            return Err(fail(format!(
+                "shard {} has different environment or BRDF sections",
+                s.meta.shard.index
+            )));
+        }
+        if s.objects.len() != first.objects.len() {
+            return Err(fail(format!(
+                "shard {} has a different object count",
+                s.meta.shard.index
+            )));
+        }
+    }
+    let mut objects = Vec::with_capacity(first.objects.len());
+    for (oi, o0) in first.objects.iter().enumerate() {
+        let mut parts: Vec<&ObjectBake> = Vec::with_capacity(shards.len());
+        for s in shards {
+            let o = &s.objects[oi];
+            let same = o.name == o0.name
+                && o.geometry_hash == o0.geometry_hash
+                && o.point_count == o0.point_count
+                && o.order == o0.order
+                && o.channels == o0.channels
+                && o.blocks.len() == o0.blocks.len()
+                && o.blocks
+                    .iter()
+                    .zip(&o0.blocks)
+                    .all(|(a, b)| a.kind == b.kind);
+            if !same {
+                return Err(fail(format!(
+                    "object {oi} ({:?}) differs between shards (name, geometry, counts, order, channels or kinds)",
+                    o0.name
+                )));
+            }
+            parts.push(o);
+        }
+        parts.sort_by_key(|o| (o.point_first, o.points_in_file));
+        let mut next = 0u64;
+        for p in &parts {
+            if p.point_first != next {
+                return Err(fail(format!(
+                    "object {:?}: points {}..{} are {}",
+                    o0.name,
+                    next.min(p.point_first),
+                    next.max(p.point_first),
+                    if p.point_first > next {
+                        "in no shard"
+                    } else {
+                        "in two shards"
+                    }
+                )));
+            }
+            next += p.points_in_file;
+        }
+        if next != o0.point_count {
+            return Err(fail(format!(
+                "object {:?}: shards cover {next} of {} points",
+                o0.name, o0.point_count
+            )));
+        }
+        let blocks = o0
+            .blocks
+            .iter()
+            .enumerate()
+            .map(|(bi, b)| TransferBlock {
+                kind: b.kind,
+                data: parts
+                    .iter()
+                    .flat_map(|p| p.blocks[bi].data.iter().copied())
+                    .collect(),
+            })
+            .collect();
+        objects.push(ObjectBake {
+            name: o0.name.clone(),
+            geometry_hash: o0.geometry_hash,
+            point_count: o0.point_count,
+            point_first: 0,
+            points_in_file: o0.point_count,
+            order: o0.order,
+            channels: o0.channels,
+            blocks,
+        });
+    }
+    let merged = Bake {
+        meta,
+        objects,
+        environment: first.environment.clone(),
+        brdfs: first.brdfs.clone(),
+        glossy: first.glossy.clone(),
+    };
+    merged.validate()?;
+    Ok(merged)
+}
+
+/// Splits an unsharded bake into `shard_count` shards: shard `k` holds points
+/// `⌊k·N/count⌋ .. ⌊(k+1)·N/count⌋` of every object (N its point count). The inverse of
+/// [`merge`]; useful to test a sharded baker against an unsharded one.
+///
+/// # Errors
+/// [`BakeFileError::InvalidBake`] if `bake` is invalid, already a shard, or `shard_count` is 0.
+pub fn split(bake: &Bake, shard_count: u32) -> Result<Vec<Bake>, BakeFileError> {
+    bake.validate()?;
+    if shard_count == 0 || bake.meta.shard.count != 1 {
+        return Err(BakeFileError::InvalidBake(
+            "split needs an unsharded bake and at least one shard".into(),
+        ));
+    }
+    let count = u128::from(shard_count);
+    Ok((0..shard_count)
+        .map(|k| {
+            let mut meta = bake.meta.clone();
+            meta.shard = ShardInfo {
+                index: k,
+                count: shard_count,
+            };
+            let objects = bake
+                .objects
+                .iter()
+                .map(|o| {
+                    let n = u128::from(o.point_count);
+                    let start = (u128::from(k) * n / count) as u64;
+                    let end = ((u128::from(k) + 1) * n / count) as u64;
+                    let per = o.scalars_per_point() as usize;
+                    ObjectBake {
+                        point_first: start,
+                        points_in_file: end - start,
+                        blocks: o
+                            .blocks
+                            .iter()
+                            .map(|b| TransferBlock {
+                                kind: b.kind,
+                                data: b.data[start as usize * per..end as usize * per].to_vec(),
+                            })
+                            .collect(),
+                        ..o.clone_without_data()
+                    }
+                })
+                .collect();
+            Bake {
+                meta,
+                objects,
+                environment: bake.environment.clone(),
+                brdfs: bake.brdfs.clone(),
+                glossy: bake.glossy.clone(),
+            }
+        })
+        .collect())
+}
+
+impl ObjectBake {
+    fn clone_without_data(&self) -> ObjectBake {
+        ObjectBake {
+            name: self.name.clone(),
+            geometry_hash: self.geometry_hash,
+            point_count: self.point_count,
+            point_first: self.point_first,
+            points_in_file: self.points_in_file,
+            order: self.order,
+            channels: self.channels,
+            blocks: Vec::new(),
+        }
+    }
+}

@@ -1,0 +1,533 @@
+//! The in-memory data model of a bake, and the rules it must satisfy (`Bake::validate`).
+
+use std::collections::BTreeSet;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::BakeFileError;
+
+/// How coefficients of transfer blocks are stored in the file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScalarType {
+    /// IEEE 754 binary32, 4 bytes.
+    F32,
+    /// IEEE 754 binary16, 2 bytes; values beyond ±65504 are refused by the encoder.
+    F16,
+}
+
+impl ScalarType {
+    /// Size of one scalar in bytes.
+    #[must_use]
+    pub const fn size(self) -> usize {
+        match self {
+            ScalarType::F32 => 4,
+            ScalarType::F16 => 2,
+        }
+    }
+
+    /// The u32 code used in the binary tables (SPEC.md: 1 = f32, 2 = f16).
+    #[must_use]
+    pub const fn code(self) -> u32 {
+        match self {
+            ScalarType::F32 => 1,
+            ScalarType::F16 => 2,
+        }
+    }
+
+    /// Inverse of [`ScalarType::code`].
+    #[must_use]
+    pub const fn from_code(code: u32) -> Option<Self> {
+        match code {
+            1 => Some(ScalarType::F32),
+            2 => Some(ScalarType::F16),
+            _ => None,
+        }
+    }
+
+    /// The name used in the metadata JSON (`"f32"`, `"f16"`).
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            ScalarType::F32 => "f32",
+            ScalarType::F16 => "f16",
+        }
+    }
+}
+
+/// What a "point" of an object is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase", tag = "kind")]
+pub enum SampleKind {
+    /// One point per mesh vertex, in the mesh's vertex order.
+    Vertex,
+    /// One point per texel of a `width × height` image per object, row-major, row 0 first
+    /// (point index `y * width + x`).
+    Pixel {
+        /// Image width in texels (≥ 1).
+        width: u32,
+        /// Image height in texels (≥ 1).
+        height: u32,
+    },
+}
+
+impl SampleKind {
+    /// The u32 code used in the binary tables (1 = vertex, 2 = pixel).
+    #[must_use]
+    pub const fn code(self) -> u32 {
+        match self {
+            SampleKind::Vertex => 1,
+            SampleKind::Pixel { .. } => 2,
+        }
+    }
+}
+
+/// The kind of light transport a block of transfer coefficients describes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", tag = "kind")]
+pub enum TransferKind {
+    /// Clamped cosine only, visibility ignored (code 1).
+    UnshadowedDiffuse,
+    /// Clamped cosine times visibility (code 2).
+    ShadowedDiffuse,
+    /// Visibility alone, no cosine (code 3).
+    Visibility,
+    /// Shadowed diffuse plus `bounces` interreflections (code 4), `1 ≤ bounces ≤ meta.bounces`.
+    InterreflectedDiffuse {
+        /// Number of indirect bounces included.
+        bounces: u32,
+    },
+}
+
+impl TransferKind {
+    /// The u32 kind code of SPEC.md.
+    #[must_use]
+    pub const fn code(self) -> u32 {
+        match self {
+            TransferKind::UnshadowedDiffuse => 1,
+            TransferKind::ShadowedDiffuse => 2,
+            TransferKind::Visibility => 3,
+            TransferKind::InterreflectedDiffuse { .. } => 4,
+        }
+    }
+
+    /// The bounce count stored beside the code (0 except for interreflected diffuse).
+    #[must_use]
+    pub const fn bounces(self) -> u32 {
+        match self {
+            TransferKind::InterreflectedDiffuse { bounces } => bounces,
+            _ => 0,
+        }
+    }
+
+    /// Builds a kind from its code and bounce field; `None` for an unknown code or a
+    /// bounce count that the code does not allow.
+    #[must_use]
+    pub const fn from_code(code: u32, bounces: u32) -> Option<Self> {
+        match (code, bounces) {
+            (1, 0) => Some(TransferKind::UnshadowedDiffuse),
+            (2, 0) => Some(TransferKind::ShadowedDiffuse),
+            (3, 0) => Some(TransferKind::Visibility),
+            (4, b) if b > 0 => Some(TransferKind::InterreflectedDiffuse { bounces: b }),
+            _ => None,
+        }
+    }
+
+    /// The name used in the metadata JSON.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            TransferKind::UnshadowedDiffuse => "unshadowed-diffuse",
+            TransferKind::ShadowedDiffuse => "shadowed-diffuse",
+            TransferKind::Visibility => "visibility",
+            TransferKind::InterreflectedDiffuse { .. } => "interreflected-diffuse",
+        }
+    }
+}
+
+/// The program that made the bake.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct ToolInfo {
+    /// Program name, e.g. `prt-bake`.
+    pub name: String,
+    /// Program version, e.g. `0.1.0`.
+    pub version: String,
+}
+
+/// One entry of the decisions log: what the baker chose for an object (or globally) and why.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Decision {
+    /// The object's name, or `None` for a decision about the whole bake.
+    pub object: Option<String>,
+    /// What was decided, e.g. `"order 6"` or `"skip interreflected-diffuse"`.
+    pub decision: String,
+    /// Why, in words a person can check.
+    pub reason: String,
+}
+
+/// Which part of a sharded bake a file holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ShardInfo {
+    /// Index of this shard, `0 ≤ index < count`.
+    pub index: u32,
+    /// Number of shards; 1 for an unsharded (or merged) bake.
+    pub count: u32,
+}
+
+impl Default for ShardInfo {
+    fn default() -> Self {
+        ShardInfo { index: 0, count: 1 }
+    }
+}
+
+/// Bake-wide metadata.
+///
+/// Nothing here may depend on the time, the machine, the thread count or the shard layout
+/// (except [`BakeMeta::shard`] itself): merged shards must encode to the same bytes as an
+/// unsharded bake. See SPEC.md, "Determinism".
+#[derive(Debug, Clone, PartialEq)]
+pub struct BakeMeta {
+    /// Per-vertex or per-pixel.
+    pub sample_kind: SampleKind,
+    /// Rays traced per point.
+    pub rays_per_point: u32,
+    /// Bounces of the light transport (CONVENTIONS.md, "Light paths").
+    pub bounces: u32,
+    /// The global seed of every random stream.
+    pub seed: u64,
+    /// The program that made the bake.
+    pub tool: ToolInfo,
+    /// Creation settings as given to the baker: a JSON object (free-form, but deterministic).
+    pub settings: serde_json::Value,
+    /// The baker's decisions log.
+    pub decisions: Vec<Decision>,
+    /// Which shard this is.
+    pub shard: ShardInfo,
+}
+
+impl Default for BakeMeta {
+    fn default() -> Self {
+        BakeMeta {
+            sample_kind: SampleKind::Vertex,
+            rays_per_point: 0,
+            bounces: 0,
+            seed: 0,
+            tool: ToolInfo::default(),
+            settings: serde_json::Value::Object(serde_json::Map::new()),
+            decisions: Vec::new(),
+            shard: ShardInfo::default(),
+        }
+    }
+}
+
+/// One block of transfer coefficients of one object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TransferBlock {
+    /// What transport the block describes.
+    pub kind: TransferKind,
+    /// `points_in_file × channels × order²` scalars, laid out `[point][channel][coefficient]`:
+    /// the scalar of point `p`, channel `c`, SH index `i` is at
+    /// `(p * channels + c) * order² + i`.
+    pub data: Vec<f32>,
+}
+
+/// The transfer of one object (mesh).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjectBake {
+    /// Object name, unique within the bake, not empty.
+    pub name: String,
+    /// [`crate::geometry_hash`] of the object's positions and indices.
+    pub geometry_hash: u64,
+    /// Number of points of the whole object (vertices, or `width × height` texels).
+    pub point_count: u64,
+    /// First point held here: 0 unless this is a shard.
+    pub point_first: u64,
+    /// Number of points held here, starting at `point_first`; `point_count` unless a shard.
+    pub points_in_file: u64,
+    /// SH order n (band count): `n²` coefficients per channel. At least 1.
+    pub order: u32,
+    /// Channels per point: 1 (scalar) or 3 (RGB).
+    pub channels: u32,
+    /// The transfer blocks; each kind (with its bounce count) at most once.
+    pub blocks: Vec<TransferBlock>,
+}
+
+impl ObjectBake {
+    /// Scalars per point of every block: `channels × order²`.
+    #[must_use]
+    pub fn scalars_per_point(&self) -> u64 {
+        u64::from(self.channels) * u64::from(self.order) * u64::from(self.order)
+    }
+}
+
+/// Storage precision of the environment coefficients.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EnvPrecision {
+    /// Stored as f32 (code 1): values are rounded to f32 on encoding.
+    F32,
+    /// Stored as f64 (code 3).
+    F64,
+}
+
+impl EnvPrecision {
+    /// The u32 code of SPEC.md.
+    #[must_use]
+    pub const fn code(self) -> u32 {
+        match self {
+            EnvPrecision::F32 => 1,
+            EnvPrecision::F64 => 3,
+        }
+    }
+}
+
+/// SH projection of the environment lighting (RGB radiance).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvCoefficients {
+    /// SH order n (band count), at least 1.
+    pub order: u32,
+    /// How the values are stored in the file.
+    pub precision: EnvPrecision,
+    /// `3 × order²` values laid out `[channel][coefficient]` (R row, then G, then B).
+    pub values: Vec<f64>,
+}
+
+/// The lobe of a zonal BRDF projection.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case", tag = "lobe")]
+pub enum BrdfLobe {
+    /// `max(0, cos θ)` (code 1): the Lambert transfer lobe.
+    ClampedCosine,
+    /// Normalised Phong lobe `(e+2)/(2π) max(0, cos θ)^e` about the reflection direction (code 2).
+    Phong {
+        /// The exponent `e ≥ 0`.
+        exponent: f64,
+    },
+}
+
+/// Zonal-harmonic projection of a material's BRDF lobe.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BrdfProjection {
+    /// Material name, unique among the zonal projections.
+    pub material: String,
+    /// The lobe projected.
+    pub lobe: BrdfLobe,
+    /// SH order n: `values` holds `g_0 … g_{n-1}`.
+    pub order: u32,
+    /// The `order` zonal coefficients `g_l` (CONVENTIONS.md, "Zonal harmonics").
+    pub values: Vec<f64>,
+}
+
+/// Per-view-elevation SH projections of an isotropic glossy BRDF.
+///
+/// In the local frame (normal +Z), for view elevation `θ_o` the view direction is
+/// `(sin θ_o, 0, cos θ_o)`; row `e` holds the projection over `ω_i` of
+/// `f(ω_i, ω_o) max(0, cos θ_i)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GlossyBrdfTable {
+    /// Material name, unique among the tables.
+    pub material: String,
+    /// SH order n of each row.
+    pub order: u32,
+    /// View elevations `θ_o` in radians, one per row.
+    pub elevations: Vec<f64>,
+    /// `elevations.len() × order²` values laid out `[elevation][coefficient]`.
+    pub values: Vec<f64>,
+    /// `order` numbers: `projection_error[k-1]` is the relative L2 error of the projection
+    /// truncated to order `k`, as measured by the baker.
+    pub projection_error: Vec<f64>,
+}
+
+/// A whole bake: what a `.prtbake` file holds.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Bake {
+    /// Bake-wide metadata.
+    pub meta: BakeMeta,
+    /// Per-object transfer.
+    pub objects: Vec<ObjectBake>,
+    /// Environment lighting, if the bake carries it.
+    pub environment: Option<EnvCoefficients>,
+    /// Zonal BRDF projections per material.
+    pub brdfs: Vec<BrdfProjection>,
+    /// Tabulated glossy BRDF projections per material.
+    pub glossy: Vec<GlossyBrdfTable>,
+}
+
+fn bad(msg: impl Into<String>) -> BakeFileError {
+    BakeFileError::InvalidBake(msg.into())
+}
+
+pub(crate) fn check_finite64(section: &str, values: &[f64]) -> Result<(), BakeFileError> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(BakeFileError::NonFinite {
+            section: section.to_owned(),
+            index: i as u64,
+        }),
+        None => Ok(()),
+    }
+}
+
+pub(crate) fn check_finite32(section: &str, values: &[f32]) -> Result<(), BakeFileError> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(BakeFileError::NonFinite {
+            section: section.to_owned(),
+            index: i as u64,
+        }),
+        None => Ok(()),
+    }
+}
+
+fn sq(order: u32) -> u64 {
+    u64::from(order) * u64::from(order)
+}
+
+impl Bake {
+    /// Checks every rule of the format that the in-memory data can break (SPEC.md,
+    /// "Validity rules"). [`crate::encode`] calls it; [`crate::decode`] calls it on what it read.
+    pub fn validate(&self) -> Result<(), BakeFileError> {
+        self.check(true)
+    }
+
+    /// [`Bake::validate`] without looking at the transfer data (for skeletons read from files
+    /// whose data was checked in place).
+    pub(crate) fn validate_structure(&self) -> Result<(), BakeFileError> {
+        self.check(false)
+    }
+
+    fn check(&self, with_data: bool) -> Result<(), BakeFileError> {
+        let m = &self.meta;
+        if m.shard.count == 0 || m.shard.index >= m.shard.count {
+            return Err(bad(format!(
+                "shard index {} of {} shards",
+                m.shard.index, m.shard.count
+            )));
+        }
+        if !m.settings.is_object() {
+            return Err(bad("settings must be a JSON object"));
+        }
+        if let SampleKind::Pixel { width, height } = m.sample_kind {
+            if width == 0 || height == 0 {
+                return Err(bad("pixel bake with an empty image"));
+            }
+        }
+        let mut names = BTreeSet::new();
+        for (oi, o) in self.objects.iter().enumerate() {
+            let what = format!("object {oi} ({:?})", o.name);
+            if o.name.is_empty() || !names.insert(o.name.as_str()) {
+                return Err(bad(format!("{what}: name empty or not unique")));
+            }
+            if o.order == 0 || o.order > u32::from(u16::MAX) {
+                return Err(bad(format!("{what}: order {} out of 1..=65535", o.order)));
+            }
+            if o.channels != 1 && o.channels != 3 {
+                return Err(bad(format!("{what}: {} channels (1 or 3)", o.channels)));
+            }
+            if let SampleKind::Pixel { width, height } = m.sample_kind {
+                if o.point_count != u64::from(width) * u64::from(height) {
+                    return Err(bad(format!(
+                        "{what}: {} points in a {width}×{height} pixel bake",
+                        o.point_count
+                    )));
+                }
+            }
+            let end = o.point_first.checked_add(o.points_in_file);
+            if end.is_none_or(|e| e > o.point_count) {
+                return Err(bad(format!(
+                    "{what}: points {}+{} beyond {}",
+                    o.point_first, o.points_in_file, o.point_count
+                )));
+            }
+            if m.shard.count == 1 && (o.point_first != 0 || o.points_in_file != o.point_count) {
+                return Err(bad(format!("{what}: unsharded bake holds a partial range")));
+            }
+            let expected_len = o.points_in_file.checked_mul(o.scalars_per_point());
+            let mut kinds = BTreeSet::new();
+            for (bi, b) in o.blocks.iter().enumerate() {
+                if !kinds.insert(b.kind) {
+                    return Err(bad(format!("{what}: kind {:?} twice", b.kind)));
+                }
+                if let TransferKind::InterreflectedDiffuse { bounces } = b.kind {
+                    if bounces == 0 || bounces > m.bounces {
+                        return Err(bad(format!(
+                            "{what}: interreflected block with {bounces} bounces in a {}-bounce bake",
+                            m.bounces
+                        )));
+                    }
+                }
+                if !with_data {
+                    continue;
+                }
+                if expected_len != Some(b.data.len() as u64) {
+                    return Err(BakeFileError::InconsistentCounts {
+                        what: format!("{what} block {bi}: points × channels × order² scalars"),
+                        expected: expected_len.unwrap_or(u64::MAX),
+                        found: b.data.len() as u64,
+                    });
+                }
+                check_finite32(&format!("{what} block {bi}"), &b.data)?;
+            }
+        }
+        if let Some(env) = &self.environment {
+            if env.order == 0 || env.order > u32::from(u16::MAX) {
+                return Err(bad(format!("environment order {}", env.order)));
+            }
+            if env.values.len() as u64 != 3 * sq(env.order) {
+                return Err(bad("environment: values.len() != 3 × order²"));
+            }
+            check_finite64("environment", &env.values)?;
+            if env.precision == EnvPrecision::F32 {
+                if let Some(i) = env.values.iter().position(|&v| !(v as f32).is_finite()) {
+                    return Err(BakeFileError::NonFinite {
+                        section: "environment (as f32)".into(),
+                        index: i as u64,
+                    });
+                }
+            }
+        }
+        let mut names = BTreeSet::new();
+        for b in &self.brdfs {
+            let what = format!("BRDF projection {:?}", b.material);
+            if b.material.is_empty() || !names.insert(b.material.as_str()) {
+                return Err(bad(format!("{what}: material name empty or not unique")));
+            }
+            if let BrdfLobe::Phong { exponent } = b.lobe {
+                if !(exponent.is_finite() && exponent >= 0.0) {
+                    return Err(bad(format!("{what}: Phong exponent {exponent}")));
+                }
+            }
+            if b.order == 0 || b.values.len() as u64 != u64::from(b.order) {
+                return Err(bad(format!(
+                    "{what}: order {} with {} values",
+                    b.order,
+                    b.values.len()
+                )));
+            }
+            check_finite64(&what, &b.values)?;
+        }
+        let mut names = BTreeSet::new();
+        for g in &self.glossy {
+            let what = format!("glossy table {:?}", g.material);
+            if g.material.is_empty() || !names.insert(g.material.as_str()) {
+                return Err(bad(format!("{what}: material name empty or not unique")));
+            }
+            if g.order == 0 || g.order > u32::from(u16::MAX) || g.elevations.is_empty() {
+                return Err(bad(format!(
+                    "{what}: order {} with {} elevations",
+                    g.order,
+                    g.elevations.len()
+                )));
+            }
+            if g.values.len() as u64 != g.elevations.len() as u64 * sq(g.order)
+                || g.projection_error.len() as u64 != u64::from(g.order)
+            {
+                return Err(bad(format!(
+                    "{what}: array lengths do not match order and elevations"
+                )));
+            }
+            check_finite64(&format!("{what} elevations"), &g.elevations)?;
+            check_finite64(&format!("{what} values"), &g.values)?;
+            check_finite64(&format!("{what} projection_error"), &g.projection_error)?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,291 @@
+//! A compact description of a bake for `prt inspect` (human-readable or `--json`).
+
+use serde::Serialize;
+
+use crate::meta::hash_string;
+use crate::model::{
+    Bake, BrdfLobe, Decision, EnvPrecision, SampleKind, ScalarType, ShardInfo, ToolInfo,
+};
+use crate::view::{BakeView, Coefficients};
+
+/// What the file itself says (present when the summary was made from a file).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FileSummary {
+    /// Format version `[major, minor]`.
+    pub version: [u32; 2],
+    /// Storage type of the transfer coefficients.
+    pub scalar_type: ScalarType,
+    /// File size in bytes.
+    pub file_size: u64,
+    /// The section table: `(tag, offset, length)`.
+    pub sections: Vec<SectionSummary>,
+}
+
+/// One section-table entry.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SectionSummary {
+    /// Tag, e.g. `XFER`.
+    pub tag: String,
+    /// Byte offset.
+    pub offset: u64,
+    /// Byte length.
+    pub length: u64,
+}
+
+/// Statistics of one transfer block.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BlockSummary {
+    /// Kind name, e.g. `shadowed-diffuse`.
+    pub kind: String,
+    /// Bounce count (interreflected diffuse only, else 0).
+    pub bounces: u32,
+    /// Number of scalars.
+    pub scalars: u64,
+    /// Smallest finite value (`None` when there is none).
+    pub min: Option<f32>,
+    /// Largest finite value (`None` when there is none).
+    pub max: Option<f32>,
+    /// Number of NaNs (always 0 in a file: the reader refuses them).
+    pub nan_count: u64,
+    /// Number of infinities (always 0 in a file).
+    pub inf_count: u64,
+}
+
+/// One object.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ObjectSummary {
+    /// Object name.
+    pub name: String,
+    /// Geometry hash as `0x` and 16 hex digits.
+    pub geometry_hash: String,
+    /// Points of the whole object.
+    pub point_count: u64,
+    /// First point held.
+    pub point_first: u64,
+    /// Points held.
+    pub points_in_file: u64,
+    /// SH order (band count).
+    pub order: u32,
+    /// 1 or 3.
+    pub channels: u32,
+    /// Its blocks.
+    pub blocks: Vec<BlockSummary>,
+}
+
+/// Summary of a bake: header facts, per-object orders, kinds, counts and value statistics.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    /// File facts, when summarised from a file ([`BakeView::summary`]).
+    pub file: Option<FileSummary>,
+    /// Vertex or pixel bake.
+    pub sample_kind: SampleKind,
+    /// Rays per point.
+    pub rays_per_point: u32,
+    /// Bounces.
+    pub bounces: u32,
+    /// Seed.
+    pub seed: u64,
+    /// Shard.
+    pub shard: ShardInfo,
+    /// Tool.
+    pub tool: ToolInfo,
+    /// Decisions log.
+    pub decisions: Vec<Decision>,
+    /// Objects.
+    pub objects: Vec<ObjectSummary>,
+    /// Environment `(order, precision)`, if present.
+    pub environment: Option<(u32, EnvPrecision)>,
+    /// Zonal BRDF projections: `(material, lobe, order)`.
+    pub brdfs: Vec<(String, String, u32)>,
+    /// Glossy tables: `(material, order, elevation count)`.
+    pub glossy: Vec<(String, u32, usize)>,
+}
+
+fn block_stats(values: impl Iterator<Item = f32>) -> (u64, Option<f32>, Option<f32>, u64, u64) {
+    let (mut n, mut min, mut max, mut nan, mut inf) = (0u64, None::<f32>, None::<f32>, 0, 0);
+    for v in values {
+        n += 1;
+        if v.is_nan() {
+            nan += 1;
+        } else if v.is_infinite() {
+            inf += 1;
+        } else {
+            min = Some(min.map_or(v, |m| m.min(v)));
+            max = Some(max.map_or(v, |m| m.max(v)));
+        }
+    }
+    (n, min, max, nan, inf)
+}
+
+fn lobe_name(l: BrdfLobe) -> String {
+    match l {
+        BrdfLobe::ClampedCosine => "clamped-cosine".into(),
+        BrdfLobe::Phong { exponent } => format!("phong (exponent {exponent})"),
+    }
+}
+
+/// Summarises an in-memory bake.
+#[must_use]
+pub fn summary(bake: &Bake) -> Summary {
+    summarise(bake, None, |oi, bi| {
+        block_stats(bake.objects[oi].blocks[bi].data.iter().copied())
+    })
+}
+
+fn summarise(
+    bake: &Bake,
+    file: Option<FileSummary>,
+    stats: impl Fn(usize, usize) -> (u64, Option<f32>, Option<f32>, u64, u64),
+) -> Summary {
+    let m = &bake.meta;
+    Summary {
+        file,
+        sample_kind: m.sample_kind,
+        rays_per_point: m.rays_per_point,
+        bounces: m.bounces,
+        seed: m.seed,
+        shard: m.shard,
+        tool: m.tool.clone(),
+        decisions: m.decisions.clone(),
+        objects: bake
+            .objects
+            .iter()
+            .enumerate()
+            .map(|(oi, o)| ObjectSummary {
+                name: o.name.clone(),
+                geometry_hash: hash_string(o.geometry_hash),
+                point_count: o.point_count,
+                point_first: o.point_first,
+                points_in_file: o.points_in_file,
+                order: o.order,
+                channels: o.channels,
+                blocks: o
+                    .blocks
+                    .iter()
+                    .enumerate()
+                    .map(|(bi, b)| {
+                        let (scalars, min, max, nan_count, inf_count) = stats(oi, bi);
+                        BlockSummary {
+                            kind: b.kind.name().into(),
+                            bounces: b.kind.bounces(),
+                            scalars,
+                            min,
+                            max,
+                            nan_count,
+                            inf_count,
+                        }
+                    })
+                    .collect(),
+            })
+            .collect(),
+        environment: bake.environment.as_ref().map(|e| (e.order, e.precision)),
+        brdfs: bake
+            .brdfs
+            .iter()
+            .map(|b| (b.material.clone(), lobe_name(b.lobe), b.order))
+            .collect(),
+        glossy: bake
+            .glossy
+            .iter()
+            .map(|g| (g.material.clone(), g.order, g.elevations.len()))
+            .collect(),
+    }
+}
+
+impl BakeView<'_> {
+    /// Summarises the file, reading coefficients in place.
+    #[must_use]
+    pub fn summary(&self) -> Summary {
+        let skeleton = self.skeleton();
+        let file = FileSummary {
+            version: [self.version().0, self.version().1],
+            scalar_type: self.scalar_type(),
+            file_size: self.bytes().len() as u64,
+            sections: self
+                .sections()
+                .iter()
+                .map(|s| SectionSummary {
+                    tag: s.tag.to_string(),
+                    offset: s.offset,
+                    length: s.length,
+                })
+                .collect(),
+        };
+        summarise(&skeleton, Some(file), |oi, bi| {
+            match self.coefficients(oi, bi) {
+                Some(Coefficients::F32(v)) => block_stats(v.iter().copied()),
+                Some(Coefficients::F16(v)) => block_stats(v.iter().map(|h| h.to_f32())),
+                None => (0, None, None, 0, 0),
+            }
+        })
+    }
+}
+
+impl std::fmt::Display for Summary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if let Some(file) = &self.file {
+            writeln!(
+                f,
+                "PRT bake format {}.{}, {} coefficients, {} bytes, {} sections",
+                file.version[0],
+                file.version[1],
+                file.scalar_type.name(),
+                file.file_size,
+                file.sections.len()
+            )?;
+        }
+        let kind = match self.sample_kind {
+            SampleKind::Vertex => "per-vertex".to_owned(),
+            SampleKind::Pixel { width, height } => format!("per-pixel {width}×{height}"),
+        };
+        writeln!(
+            f,
+            "{kind}, {} rays/point, {} bounces, seed {}, shard {}/{}, made by {} {}",
+            self.rays_per_point,
+            self.bounces,
+            self.seed,
+            self.shard.index,
+            self.shard.count,
+            self.tool.name,
+            self.tool.version
+        )?;
+        for o in &self.objects {
+            writeln!(
+                f,
+                "object {:?} hash {}: points {}..{} of {}, order {}, {} channel(s)",
+                o.name,
+                o.geometry_hash,
+                o.point_first,
+                o.point_first + o.points_in_file,
+                o.point_count,
+                o.order,
+                o.channels
+            )?;
+            for b in &o.blocks {
+                write!(f, "  {}", b.kind)?;
+                if b.bounces > 0 {
+                    write!(f, " ({} bounces)", b.bounces)?;
+                }
+                write!(f, ": {} scalars", b.scalars)?;
+                if let (Some(lo), Some(hi)) = (b.min, b.max) {
+                    write!(f, ", min {lo}, max {hi}")?;
+                }
+                writeln!(f, ", {} NaN, {} inf", b.nan_count, b.inf_count)?;
+            }
+        }
+        if let Some((order, precision)) = self.environment {
+            writeln!(f, "environment: order {order}, {precision:?}")?;
+        }
+        for (m, lobe, order) in &self.brdfs {
+            writeln!(f, "BRDF {m:?}: {lobe}, order {order}")?;
+        }
+        for (m, order, n) in &self.glossy {
+            writeln!(f, "glossy table {m:?}: order {order}, {n} elevations")?;
+        }
+        for d in &self.decisions {
+            let who = d.object.as_deref().unwrap_or("(bake)");
+            writeln!(f, "decision {who}: {} because {}", d.decision, d.reason)?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,1002 @@
+//! The reader: validates a whole file once, then lends coefficient arrays in place.
+
+use std::borrow::Cow;
+use std::collections::BTreeSet;
+
+use half::f16;
+
+use crate::encode::header_crc;
+use crate::error::{inconsistent, invalid, BakeFileError};
+use crate::layout::{
+    Tag, BINF_SIZE, BLKT_RECORD, BRDF_RECORD, ENVL_HEADER, GLSY_RECORD, HEADER_SIZE, MAGIC,
+    MUST_UNDERSTAND_FLAGS, OBJT_RECORD, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED,
+    TABLE_HEADER_SIZE, VERSION_MAJOR,
+};
+use crate::meta::{agree, hash_string, MetaJson, ShConvention, COLOUR_SPACE, FORMAT_NAME};
+use crate::model::{
+    check_finite64, Bake, BakeMeta, BrdfLobe, BrdfProjection, EnvCoefficients, EnvPrecision,
+    GlossyBrdfTable, ObjectBake, SampleKind, ScalarType, ShardInfo, TransferBlock, TransferKind,
+};
+
+/// One entry of the section table, as read (and checked) from the file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SectionEntry {
+    /// Section tag.
+    pub tag: Tag,
+    /// Section flags.
+    pub flags: u32,
+    /// Byte offset of the payload from the start of the file.
+    pub offset: u64,
+    /// Payload length in bytes.
+    pub length: u64,
+    /// CRC-32 of the payload.
+    pub crc32: u32,
+}
+
+/// One transfer block as located in the file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BlockInfo {
+    /// What transport the block describes.
+    pub kind: TransferKind,
+    /// Index of its XFER section in the section table.
+    pub section_index: u32,
+    /// Byte offset of the coefficients from the start of the file.
+    pub offset: u64,
+    /// Byte length of the coefficients.
+    pub length: u64,
+}
+
+/// One object as located in the file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ObjectInfo {
+    /// Object name.
+    pub name: String,
+    /// Geometry hash ([`crate::geometry_hash`]).
+    pub geometry_hash: u64,
+    /// Points of the whole object.
+    pub point_count: u64,
+    /// First point held in this file.
+    pub point_first: u64,
+    /// Points held in this file.
+    pub points_in_file: u64,
+    /// SH order (band count).
+    pub order: u32,
+    /// 1 or 3.
+    pub channels: u32,
+    /// Its transfer blocks.
+    pub blocks: Vec<BlockInfo>,
+}
+
+/// Coefficients of one block, borrowed from the file bytes when they are suitably aligned
+/// (and the host is little-endian), copied otherwise.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Coefficients<'a> {
+    /// Stored as f32.
+    F32(Cow<'a, [f32]>),
+    /// Stored as f16.
+    F16(Cow<'a, [f16]>),
+}
+
+impl Coefficients<'_> {
+    /// Is this a view into the file bytes rather than a copy?
+    #[must_use]
+    pub fn is_borrowed(&self) -> bool {
+        matches!(
+            self,
+            Coefficients::F32(Cow::Borrowed(_)) | Coefficients::F16(Cow::Borrowed(_))
+        )
+    }
+
+    /// Number of scalars.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        match self {
+            Coefficients::F32(v) => v.len(),
+            Coefficients::F16(v) => v.len(),
+        }
+    }
+
+    /// True when there are no scalars.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The values widened to f32 (exact for both storage types).
+    #[must_use]
+    pub fn to_f32_vec(&self) -> Vec<f32> {
+        match self {
+            Coefficients::F32(v) => v.to_vec(),
+            Coefficients::F16(v) => v.iter().map(|h| h.to_f32()).collect(),
+        }
+    }
+}
+
+/// A validated bake file, borrowing its bytes.
+///
+/// [`BakeView::new`] checks everything [`decode`] checks (structure, checksums, counts,
+/// metadata agreement, finiteness); afterwards coefficient slices are lent without copying
+/// when the bytes are aligned.
+#[derive(Debug, Clone)]
+pub struct BakeView<'a> {
+    bytes: &'a [u8],
+    version: (u32, u32),
+    scalar: ScalarType,
+    sections: Vec<SectionEntry>,
+    meta: BakeMeta,
+    objects: Vec<ObjectInfo>,
+    environment: Option<EnvCoefficients>,
+    brdfs: Vec<BrdfProjection>,
+    glossy: Vec<GlossyBrdfTable>,
+}
+
+/// Decodes and validates a whole bake file held in memory.
+///
+/// Nothing in the input is trusted before it is checked: every count and offset is checked
+/// against the actual byte length before it is used, so no allocation is sized by an
+/// unchecked field, and no input makes it panic.
+///
+/// # Errors
+/// A typed [`BakeFileError`] for every way the bytes can be malformed.
+pub fn decode(bytes: &[u8]) -> Result<Bake, BakeFileError> {
+    BakeView::new(bytes)?.to_bake()
+}
+
+fn rd_u32(b: &[u8], off: usize) -> u32 {
+    u32::from_le_bytes(b[off..off + 4].try_into().expect("4 bytes"))
+}
+
+fn rd_u64(b: &[u8], off: usize) -> u64 {
+    u64::from_le_bytes(b[off..off + 8].try_into().expect("8 bytes"))
+}
+
+fn rd_f64(b: &[u8], off: usize) -> f64 {
+    f64::from_bits(rd_u64(b, off))
+}
+
+fn section_name(tag: Tag, index: usize) -> String {
+    format!("{tag}#{index}")
+}
+
+/// Reads a table section's 16-byte header and checks its length; returns (count, record size).
+fn table(payload: &[u8], name: &str, min_record: usize) -> Result<(usize, usize), BakeFileError> {
+    if payload.len() < TABLE_HEADER_SIZE {
+        return Err(inconsistent(
+            format!("{name} length"),
+            TABLE_HEADER_SIZE as u64,
+            payload.len() as u64,
+        ));
+    }
+    let count = rd_u32(payload, 0) as usize;
+    let record = rd_u32(payload, 4) as usize;
+    if record < min_record {
+        return Err(invalid(
+            format!("{name} record size"),
+            format!("{record} < {min_record}"),
+        ));
+    }
+    let records_end = (count as u64) * (record as u64) + TABLE_HEADER_SIZE as u64;
+    if records_end > payload.len() as u64 {
+        return Err(inconsistent(
+            format!("{name} length for {count} records"),
+            records_end,
+            payload.len() as u64,
+        ));
+    }
+    Ok((count, record))
+}
+
+fn string(strs: &[u8], off: u32, len: u32, field: &str) -> Result<String, BakeFileError> {
+    let end = u64::from(off) + u64::from(len);
+    if end > strs.len() as u64 {
+        return Err(invalid(
+            field,
+            format!("string {off}+{len} beyond the {}-byte pool", strs.len()),
+        ));
+    }
+    std::str::from_utf8(&strs[off as usize..end as usize])
+        .map(str::to_owned)
+        .map_err(|e| invalid(field, format!("not UTF-8: {e}")))
+}
+
+/// Reads `count` f64 at byte `off` of `payload`, which must be exactly `expected_off`.
+fn f64s(
+    payload: &[u8],
+    off: u64,
+    expected_off: u64,
+    count: u64,
+    name: &str,
+) -> Result<Vec<f64>, BakeFileError> {
+    if off != expected_off {
+        return Err(inconsistent(format!("{name} offset"), expected_off, off));
+    }
+    let end = count
+        .checked_mul(8)
+        .and_then(|n| n.checked_add(off))
+        .filter(|&e| e <= payload.len() as u64)
+        .ok_or_else(|| {
+            inconsistent(
+                format!("{name}: bytes for {count} f64 at offset {off}"),
+                count.saturating_mul(8).saturating_add(off),
+                payload.len() as u64,
+            )
+        })?;
+    let v: Vec<f64> = payload[off as usize..end as usize]
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+        .collect();
+    check_finite64(name, &v)?;
+    Ok(v)
+}
+
+fn sample_kind(code: u32, width: u32, height: u32) -> Result<SampleKind, BakeFileError> {
+    match (code, width, height) {
+        (1, 0, 0) => Ok(SampleKind::Vertex),
+        (2, w, h) if w > 0 && h > 0 => Ok(SampleKind::Pixel {
+            width: w,
+            height: h,
+        }),
+        _ => Err(invalid(
+            "BINF sample kind",
+            format!("code {code} with image {width}×{height}"),
+        )),
+    }
+}
+
+impl<'a> BakeView<'a> {
+    /// Validates `bytes` as a bake file (everything [`decode`] checks) without copying the
+    /// coefficient arrays.
+    ///
+    /// # Errors
+    /// A typed [`BakeFileError`] for every way the bytes can be malformed.
+    pub fn new(bytes: &'a [u8]) -> Result<Self, BakeFileError> {
+        let len = bytes.len() as u64;
+        // Magic, version, size: in this order, so that every prefix of a valid file is
+        // reported as Truncated and every future major version as UnsupportedVersion.
+        let head = &bytes[..bytes.len().min(8)];
+        if head != &MAGIC[..head.len()] {
+            return Err(BakeFileError::BadMagic {
+                found: head.to_vec(),
+            });
+        }
+        if bytes.len() < HEADER_SIZE {
+            return Err(BakeFileError::Truncated {
+                needed: HEADER_SIZE as u64,
+                available: len,
+            });
+        }
+        let (major, minor) = (rd_u32(bytes, 8), rd_u32(bytes, 12));
+        if major != VERSION_MAJOR {
+            return Err(BakeFileError::UnsupportedVersion {
+                major,
+                minor,
+                supported: VERSION_MAJOR,
+            });
+        }
+        let file_size = rd_u64(bytes, 24);
+        if len < file_size {
+            return Err(BakeFileError::Truncated {
+                needed: file_size,
+                available: len,
+            });
+        }
+        if len > file_size {
+            return Err(inconsistent("file size (trailing bytes)", file_size, len));
+        }
+        let header_size = rd_u32(bytes, 16);
+        if header_size as usize != HEADER_SIZE {
+            return Err(inconsistent(
+                "header size",
+                HEADER_SIZE as u64,
+                header_size.into(),
+            ));
+        }
+        let table_off = rd_u64(bytes, 32);
+        let section_count = rd_u32(bytes, 40) as u64;
+        let entry_size = rd_u32(bytes, 44);
+        if entry_size as usize != SECTION_ENTRY_SIZE {
+            return Err(inconsistent(
+                "section entry size",
+                SECTION_ENTRY_SIZE as u64,
+                entry_size.into(),
+            ));
+        }
+        let table_end = section_count
+            .checked_mul(SECTION_ENTRY_SIZE as u64)
+            .and_then(|n| n.checked_add(table_off))
+            .filter(|&e| table_off >= HEADER_SIZE as u64 && table_off % 8 == 0 && e <= len)
+            .ok_or_else(|| BakeFileError::OutOfBounds {
+                section: "section table".into(),
+                offset: table_off,
+                length: section_count.saturating_mul(SECTION_ENTRY_SIZE as u64),
+                file_size: len,
+            })?;
+        let table_bytes = &bytes[table_off as usize..table_end as usize];
+        let stored = rd_u32(bytes, 60);
+        let computed = header_crc(&bytes[..HEADER_SIZE], table_bytes);
+        if stored != computed {
+            return Err(BakeFileError::ChecksumMismatch {
+                section: "header".into(),
+                stored,
+                computed,
+            });
+        }
+        // The header is now known to be what the writer wrote.
+        let flags = rd_u32(bytes, 20);
+        if flags & MUST_UNDERSTAND_FLAGS != 0 {
+            return Err(BakeFileError::UnsupportedFlags {
+                location: "header".into(),
+                flags: flags & MUST_UNDERSTAND_FLAGS,
+            });
+        }
+        let alignment = u64::from(rd_u32(bytes, 48));
+        if !alignment.is_power_of_two() || !(16..=4096).contains(&alignment) {
+            return Err(invalid(
+                "payload alignment",
+                format!("{alignment} is not a power of two in 16..=4096"),
+            ));
+        }
+        let scalar_code = rd_u32(bytes, 52);
+        let scalar = ScalarType::from_code(scalar_code)
+            .ok_or_else(|| invalid("scalar type", format!("unknown code {scalar_code}")))?;
+
+        // Section table: bounds, alignment, flags, overlap, padding, checksums.
+        let mut sections = Vec::with_capacity(section_count as usize);
+        for (i, e) in table_bytes.chunks_exact(SECTION_ENTRY_SIZE).enumerate() {
+            let s = SectionEntry {
+                tag: Tag(e[0..4].try_into().expect("4 bytes")),
+                flags: rd_u32(e, 4),
+                offset: rd_u64(e, 8),
+                length: rd_u64(e, 16),
+                crc32: rd_u32(e, 24),
+            };
+            let name = section_name(s.tag, i);
+            let unknown = s.flags & MUST_UNDERSTAND_FLAGS & !SECTION_FLAG_REQUIRED;
+            if unknown != 0 {
+                return Err(BakeFileError::UnsupportedFlags {
+                    location: name,
+                    flags: unknown,
+                });
+            }
+            if s.offset % alignment != 0 {
+                return Err(BakeFileError::Misaligned {
+                    section: name,
+                    offset: s.offset,
+                    alignment,
+                });
+            }
+            if s.offset.checked_add(s.length).is_none_or(|end| end > len) {
+                return Err(BakeFileError::OutOfBounds {
+                    section: name,
+                    offset: s.offset,
+                    length: s.length,
+                    file_size: len,
+                });
+            }
+            sections.push(s);
+        }
+        let mut regions: Vec<(u64, u64, String)> = vec![
+            (0, HEADER_SIZE as u64, "file header".into()),
+            (table_off, table_end, "section table".into()),
+        ];
+        for (i, s) in sections.iter().enumerate() {
+            if s.length > 0 {
+                regions.push((s.offset, s.offset + s.length, section_name(s.tag, i)));
+            }
+        }
+        regions.sort();
+        let mut covered = 0u64;
+        let mut last = String::new();
+        for (start, end, name) in &regions {
+            if *start < covered {
+                return Err(BakeFileError::Overlap {
+                    first: last,
+                    second: name.clone(),
+                });
+            }
+            if bytes[covered as usize..*start as usize]
+                .iter()
+                .any(|&b| b != 0)
+            {
+                return Err(invalid(
+                    "padding",
+                    format!("non-zero byte between offsets {covered} and {start}"),
+                ));
+            }
+            covered = *end;
+            last.clone_from(name);
+        }
+        if bytes[covered as usize..].iter().any(|&b| b != 0) {
+            return Err(invalid("padding", "non-zero byte after the last section"));
+        }
+        for (i, s) in sections.iter().enumerate() {
+            let computed =
+                crc32fast::hash(&bytes[s.offset as usize..(s.offset + s.length) as usize]);
+            if computed != s.crc32 {
+                return Err(BakeFileError::ChecksumMismatch {
+                    section: section_name(s.tag, i),
+                    stored: s.crc32,
+                    computed,
+                });
+            }
+        }
+
+        // Find the sections by tag.
+        let mut single: [(Tag, Option<usize>, bool); 8] = [
+            (Tag::BINF, None, true),
+            (Tag::STRS, None, true),
+            (Tag::OBJT, None, true),
+            (Tag::BLKT, None, true),
+            (Tag::META, None, true),
+            (Tag::ENVL, None, false),
+            (Tag::BRDF, None, false),
+            (Tag::GLSY, None, false),
+        ];
+        for (i, s) in sections.iter().enumerate() {
+            if let Some(slot) = single.iter_mut().find(|(t, _, _)| *t == s.tag) {
+                if slot.1.is_some() {
+                    return Err(BakeFileError::DuplicateSection(s.tag.to_string()));
+                }
+                slot.1 = Some(i);
+            } else if s.tag != Tag::XFER && s.flags & SECTION_FLAG_REQUIRED != 0 {
+                return Err(BakeFileError::UnknownRequiredSection(section_name(
+                    s.tag, i,
+                )));
+            }
+        }
+        for (tag, index, required) in &single {
+            if *required && index.is_none() {
+                return Err(BakeFileError::MissingSection(tag.to_string()));
+            }
+        }
+        let payload = |i: usize| {
+            let s = &sections[i];
+            &bytes[s.offset as usize..(s.offset + s.length) as usize]
+        };
+        let get = |k: usize| single[k].1.map(payload);
+        let (binf, strs, objt, blkt, meta_bytes) = (
+            get(0).unwrap_or_default(),
+            get(1).unwrap_or_default(),
+            get(2).unwrap_or_default(),
+            get(3).unwrap_or_default(),
+            get(4).unwrap_or_default(),
+        );
+
+        // BINF
+        if binf.len() < BINF_SIZE {
+            return Err(inconsistent(
+                "BINF length",
+                BINF_SIZE as u64,
+                binf.len() as u64,
+            ));
+        }
+        let sample = sample_kind(rd_u32(binf, 0), rd_u32(binf, 8), rd_u32(binf, 12))?;
+        let bounces = rd_u32(binf, 4);
+        let rays_per_point = rd_u32(binf, 16);
+        let shard = ShardInfo {
+            index: rd_u32(binf, 20),
+            count: rd_u32(binf, 24),
+        };
+        let seed = rd_u64(binf, 32);
+
+        // OBJT, BLKT
+        let (object_count, orec) = table(objt, "OBJT", OBJT_RECORD)?;
+        let (block_count, brec) = table(blkt, "BLKT", BLKT_RECORD)?;
+        let mut used_sections = BTreeSet::new();
+        let mut objects = Vec::with_capacity(object_count);
+        let mut next_block = 0u64;
+        for oi in 0..object_count {
+            let r = &objt[TABLE_HEADER_SIZE + oi * orec..][..orec];
+            let name = string(
+                strs,
+                rd_u32(r, 0),
+                rd_u32(r, 4),
+                &format!("object {oi} name"),
+            )?;
+            let mut o = ObjectInfo {
+                name,
+                geometry_hash: rd_u64(r, 8),
+                point_count: rd_u64(r, 16),
+                point_first: rd_u64(r, 24),
+                points_in_file: rd_u64(r, 32),
+                order: rd_u32(r, 40),
+                channels: rd_u32(r, 44),
+                blocks: Vec::new(),
+            };
+            let first_block = u64::from(rd_u32(r, 48));
+            let n_blocks = u64::from(rd_u32(r, 52));
+            if first_block != next_block {
+                return Err(inconsistent(
+                    format!("object {oi} first block"),
+                    next_block,
+                    first_block,
+                ));
+            }
+            next_block += n_blocks;
+            if next_block > block_count as u64 {
+                return Err(inconsistent(
+                    format!("blocks of objects 0..={oi}"),
+                    block_count as u64,
+                    next_block,
+                ));
+            }
+            if o.order == 0
+                || o.order > u32::from(u16::MAX)
+                || !(o.channels == 1 || o.channels == 3)
+            {
+                return Err(invalid(
+                    format!("object {oi}"),
+                    format!("order {} / channels {}", o.order, o.channels),
+                ));
+            }
+            let per_point = u64::from(o.channels) * u64::from(o.order) * u64::from(o.order);
+            for bi in first_block..next_block {
+                let r = &blkt[TABLE_HEADER_SIZE + bi as usize * brec..][..brec];
+                let what = format!("block {bi}");
+                let kind =
+                    TransferKind::from_code(rd_u32(r, 4), rd_u32(r, 8)).ok_or_else(|| {
+                        invalid(
+                            format!("{what} kind"),
+                            format!("code {} with {} bounces", rd_u32(r, 4), rd_u32(r, 8)),
+                        )
+                    })?;
+                let pairs = [
+                    ("object index", u64::from(rd_u32(r, 0)), oi as u64),
+                    ("channels", rd_u32(r, 12).into(), o.channels.into()),
+                    ("order", rd_u32(r, 16).into(), o.order.into()),
+                    ("scalar type", rd_u32(r, 20).into(), scalar.code().into()),
+                    ("point count", rd_u64(r, 24), o.points_in_file),
+                ];
+                for (field, found, expected) in pairs {
+                    if found != expected {
+                        return Err(inconsistent(format!("{what} {field}"), expected, found));
+                    }
+                }
+                let section_index = rd_u32(r, 32);
+                let data_length = rd_u64(r, 40);
+                let s = sections
+                    .get(section_index as usize)
+                    .filter(|s| s.tag == Tag::XFER)
+                    .ok_or_else(|| {
+                        invalid(
+                            format!("{what} section"),
+                            format!("{section_index} is not an XFER section"),
+                        )
+                    })?;
+                if !used_sections.insert(section_index) {
+                    return Err(invalid(
+                        format!("{what} section"),
+                        format!("section {section_index} used by two blocks"),
+                    ));
+                }
+                let expected = o
+                    .points_in_file
+                    .checked_mul(per_point)
+                    .and_then(|n| n.checked_mul(scalar.size() as u64));
+                if expected != Some(data_length) || data_length != s.length {
+                    return Err(inconsistent(
+                        format!("{what} data length (points × channels × order² × scalar size)"),
+                        expected.unwrap_or(u64::MAX),
+                        if expected == Some(data_length) {
+                            s.length
+                        } else {
+                            data_length
+                        },
+                    ));
+                }
+                let data = payload(section_index as usize);
+                let bad = match scalar {
+                    ScalarType::F32 => data
+                        .chunks_exact(4)
+                        .position(|c| rd_u32(c, 0) & 0x7f80_0000 == 0x7f80_0000),
+                    ScalarType::F16 => data
+                        .chunks_exact(2)
+                        .position(|c| u16::from_le_bytes([c[0], c[1]]) & 0x7c00 == 0x7c00),
+                };
+                if let Some(index) = bad {
+                    return Err(BakeFileError::NonFinite {
+                        section: section_name(Tag::XFER, section_index as usize),
+                        index: index as u64,
+                    });
+                }
+                o.blocks.push(BlockInfo {
+                    kind,
+                    section_index,
+                    offset: s.offset,
+                    length: s.length,
+                });
+            }
+            objects.push(o);
+        }
+        if next_block != block_count as u64 {
+            return Err(inconsistent(
+                "blocks referenced by objects",
+                block_count as u64,
+                next_block,
+            ));
+        }
+        let xfer_count = sections.iter().filter(|s| s.tag == Tag::XFER).count();
+        if xfer_count != used_sections.len() {
+            return Err(inconsistent(
+                "XFER sections",
+                used_sections.len() as u64,
+                xfer_count as u64,
+            ));
+        }
+
+        // ENVL
+        let environment = match get(5) {
+            None => None,
+            Some(p) => {
+                if p.len() < ENVL_HEADER {
+                    return Err(inconsistent(
+                        "ENVL length",
+                        ENVL_HEADER as u64,
+                        p.len() as u64,
+                    ));
+                }
+                let order = rd_u32(p, 0);
+                let channels = rd_u32(p, 4);
+                let (precision, size) = match rd_u32(p, 8) {
+                    1 => (EnvPrecision::F32, 4),
+                    3 => (EnvPrecision::F64, 8),
+                    c => return Err(invalid("ENVL precision", format!("unknown code {c}"))),
+                };
+                if channels != 3 || order == 0 || order > u32::from(u16::MAX) {
+                    return Err(invalid(
+                        "ENVL",
+                        format!("order {order}, {channels} channels"),
+                    ));
+                }
+                let n = 3 * u64::from(order) * u64::from(order);
+                let expected = ENVL_HEADER as u64 + n * size;
+                if expected != p.len() as u64 {
+                    return Err(inconsistent("ENVL length", expected, p.len() as u64));
+                }
+                let values: Vec<f64> = match precision {
+                    EnvPrecision::F32 => p[ENVL_HEADER..]
+                        .chunks_exact(4)
+                        .map(|c| f64::from(f32::from_bits(rd_u32(c, 0))))
+                        .collect(),
+                    EnvPrecision::F64 => p[ENVL_HEADER..]
+                        .chunks_exact(8)
+                        .map(|c| rd_f64(c, 0))
+                        .collect(),
+                };
+                check_finite64("ENVL", &values)?;
+                Some(EnvCoefficients {
+                    order,
+                    precision,
+                    values,
+                })
+            }
+        };
+
+        // BRDF
+        let mut brdfs = Vec::new();
+        if let Some(p) = get(6) {
+            let (count, rec) = table(p, "BRDF", BRDF_RECORD)?;
+            let mut off = (TABLE_HEADER_SIZE + count * rec) as u64;
+            for i in 0..count {
+                let r = &p[TABLE_HEADER_SIZE + i * rec..][..rec];
+                let what = format!("BRDF record {i}");
+                let material = string(
+                    strs,
+                    rd_u32(r, 0),
+                    rd_u32(r, 4),
+                    &format!("{what} material"),
+                )?;
+                let exponent = rd_f64(r, 16);
+                let lobe = match rd_u32(r, 8) {
+                    1 if exponent == 0.0 => BrdfLobe::ClampedCosine,
+                    2 if exponent.is_finite() && exponent >= 0.0 => BrdfLobe::Phong { exponent },
+                    c => {
+                        return Err(invalid(
+                            format!("{what} lobe"),
+                            format!("code {c}, exponent {exponent}"),
+                        ))
+                    }
+                };
+                let order = rd_u32(r, 12);
+                let values = f64s(p, rd_u64(r, 24), off, order.into(), &what)?;
+                off += 8 * u64::from(order);
+                brdfs.push(BrdfProjection {
+                    material,
+                    lobe,
+                    order,
+                    values,
+                });
+            }
+            if off != p.len() as u64 {
+                return Err(inconsistent("BRDF length", off, p.len() as u64));
+            }
+        }
+
+        // GLSY
+        let mut glossy = Vec::new();
+        if let Some(p) = get(7) {
+            let (count, rec) = table(p, "GLSY", GLSY_RECORD)?;
+            let mut off = (TABLE_HEADER_SIZE + count * rec) as u64;
+            for i in 0..count {
+                let r = &p[TABLE_HEADER_SIZE + i * rec..][..rec];
+                let what = format!("GLSY record {i}");
+                let material = string(
+                    strs,
+                    rd_u32(r, 0),
+                    rd_u32(r, 4),
+                    &format!("{what} material"),
+                )?;
+                let n_elev = u64::from(rd_u32(r, 8));
+                let order = rd_u32(r, 12);
+                let elevations =
+                    f64s(p, rd_u64(r, 16), off, n_elev, &format!("{what} elevations"))?;
+                off += 8 * n_elev;
+                let n_values = n_elev
+                    .checked_mul(u64::from(order) * u64::from(order))
+                    .ok_or_else(|| invalid(what.clone(), "too many values"))?;
+                let values = f64s(p, rd_u64(r, 24), off, n_values, &format!("{what} values"))?;
+                off += 8 * n_values;
+                let projection_error = f64s(
+                    p,
+                    rd_u64(r, 32),
+                    off,
+                    order.into(),
+                    &format!("{what} errors"),
+                )?;
+                off += 8 * u64::from(order);
+                glossy.push(GlossyBrdfTable {
+                    material,
+                    order,
+                    elevations,
+                    values,
+                    projection_error,
+                });
+            }
+            if off != p.len() as u64 {
+                return Err(inconsistent("GLSY length", off, p.len() as u64));
+            }
+        }
+
+        // META, and its agreement with everything above.
+        let json: MetaJson = serde_json::from_slice(meta_bytes)
+            .map_err(|e| BakeFileError::Metadata(format!("not valid metadata JSON: {e}")))?;
+        agree("format", &json.format.as_str(), &FORMAT_NAME)?;
+        agree("format_version", &json.format_version, &[major, minor])?;
+        agree("sh", &json.sh, &ShConvention::current())?;
+        agree("colour_space", &json.colour_space.as_str(), &COLOUR_SPACE)?;
+        agree("scalar_type", &json.scalar_type, &scalar)?;
+        agree("sample_kind", &json.sample_kind, &sample)?;
+        agree("rays_per_point", &json.rays_per_point, &rays_per_point)?;
+        agree("bounces", &json.bounces, &bounces)?;
+        agree("seed", &json.seed, &seed)?;
+        agree("shard", &json.shard, &shard)?;
+        agree("objects.len()", &json.objects.len(), &objects.len())?;
+        for (j, o) in json.objects.iter().zip(&objects) {
+            let f = |x: &str| format!("objects[{:?}].{x}", o.name);
+            agree(&f("name"), &j.name, &o.name)?;
+            agree(
+                &f("geometry_hash"),
+                &j.geometry_hash,
+                &hash_string(o.geometry_hash),
+            )?;
+            agree(&f("point_count"), &j.point_count, &o.point_count)?;
+            agree(&f("point_first"), &j.point_first, &o.point_first)?;
+            agree(&f("points_in_file"), &j.points_in_file, &o.points_in_file)?;
+            agree(&f("order"), &j.order, &o.order)?;
+            agree(&f("channels"), &j.channels, &o.channels)?;
+            agree(&f("blocks.len()"), &j.blocks.len(), &o.blocks.len())?;
+            for (jb, b) in j.blocks.iter().zip(&o.blocks) {
+                agree(&f("blocks[].kind"), &jb.kind.as_str(), &b.kind.name())?;
+                agree(&f("blocks[].bounces"), &jb.bounces, &b.kind.bounces())?;
+                agree(&f("blocks[].section"), &jb.section, &b.section_index)?;
+            }
+        }
+        let env_json = environment.as_ref().map(|e| (e.order, e.precision));
+        agree(
+            "environment",
+            &json.environment.as_ref().map(|e| (e.order, e.precision)),
+            &env_json,
+        )?;
+        agree("brdfs.len()", &json.brdfs.len(), &brdfs.len())?;
+        for (j, b) in json.brdfs.iter().zip(&brdfs) {
+            let (lobe, exponent) = match b.lobe {
+                BrdfLobe::ClampedCosine => ("clamped-cosine", None),
+                BrdfLobe::Phong { exponent } => ("phong", Some(exponent)),
+            };
+            agree("brdfs[].material", &j.material, &b.material)?;
+            agree("brdfs[].lobe", &j.lobe.as_str(), &lobe)?;
+            agree(
+                "brdfs[].exponent",
+                &j.exponent.map(f64::to_bits),
+                &exponent.map(f64::to_bits),
+            )?;
+            agree("brdfs[].order", &j.order, &b.order)?;
+        }
+        agree("glossy.len()", &json.glossy.len(), &glossy.len())?;
+        for (j, g) in json.glossy.iter().zip(&glossy) {
+            agree("glossy[].material", &j.material, &g.material)?;
+            agree(
+                "glossy[].elevations",
+                &j.elevations,
+                &(g.elevations.len() as u64),
+            )?;
+            agree("glossy[].order", &j.order, &g.order)?;
+        }
+
+        let view = BakeView {
+            bytes,
+            version: (major, minor),
+            scalar,
+            sections,
+            meta: BakeMeta {
+                sample_kind: sample,
+                rays_per_point,
+                bounces,
+                seed,
+                tool: json.tool,
+                settings: json.settings,
+                decisions: json.decisions,
+                shard,
+            },
+            objects,
+            environment,
+            brdfs,
+            glossy,
+        };
+        // The semantic rules (unique names, shard ranges, ...), checked on a skeleton
+        // without the coefficient data.
+        view.skeleton().validate_structure()?;
+        Ok(view)
+    }
+
+    pub(crate) fn skeleton(&self) -> Bake {
+        Bake {
+            meta: self.meta.clone(),
+            objects: self
+                .objects
+                .iter()
+                .map(|o| ObjectBake {
+                    name: o.name.clone(),
+                    geometry_hash: o.geometry_hash,
+                    point_count: o.point_count,
+                    point_first: o.point_first,
+                    points_in_file: o.points_in_file,
+                    order: o.order,
+                    channels: o.channels,
+                    blocks: o
+                        .blocks
+                        .iter()
+                        .map(|b| TransferBlock {
+                            kind: b.kind,
+                            data: Vec::new(),
+                        })
+                        .collect(),
+                })
+                .collect(),
+            environment: self.environment.clone(),
+            brdfs: self.brdfs.clone(),
+            glossy: self.glossy.clone(),
+        }
+    }
+
+    /// Format version `(major, minor)` of the file.
+    #[must_use]
+    pub fn version(&self) -> (u32, u32) {
+        self.version
+    }
+
+    /// How transfer coefficients are stored.
+    #[must_use]
+    pub fn scalar_type(&self) -> ScalarType {
+        self.scalar
+    }
+
+    /// The section table.
+    #[must_use]
+    pub fn sections(&self) -> &[SectionEntry] {
+        &self.sections
+    }
+
+    /// Bake-wide metadata.
+    #[must_use]
+    pub fn meta(&self) -> &BakeMeta {
+        &self.meta
+    }
+
+    /// The objects and where their blocks are.
+    #[must_use]
+    pub fn objects(&self) -> &[ObjectInfo] {
+        &self.objects
+    }
+
+    /// Environment lighting, if present.
+    #[must_use]
+    pub fn environment(&self) -> Option<&EnvCoefficients> {
+        self.environment.as_ref()
+    }
+
+    /// Zonal BRDF projections.
+    #[must_use]
+    pub fn brdfs(&self) -> &[BrdfProjection] {
+        &self.brdfs
+    }
+
+    /// Tabulated glossy BRDF projections.
+    #[must_use]
+    pub fn glossy(&self) -> &[GlossyBrdfTable] {
+        &self.glossy
+    }
+
+    /// The whole file.
+    #[must_use]
+    pub fn bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+
+    /// The raw little-endian bytes of block `block` of object `object`; `None` when either
+    /// index is out of range.
+    #[must_use]
+    pub fn block_bytes(&self, object: usize, block: usize) -> Option<&'a [u8]> {
+        let b = self.objects.get(object)?.blocks.get(block)?;
+        Some(&self.bytes[b.offset as usize..(b.offset + b.length) as usize])
+    }
+
+    /// The coefficients of block `block` of object `object`, `[point][channel][coefficient]`;
+    /// borrowed in place when the bytes are aligned for the scalar type (and the host is
+    /// little-endian), copied otherwise. `None` when either index is out of range.
+    #[must_use]
+    pub fn coefficients(&self, object: usize, block: usize) -> Option<Coefficients<'a>> {
+        let raw = self.block_bytes(object, block)?;
+        Some(match self.scalar {
+            ScalarType::F32 => Coefficients::F32(
+                if cfg!(target_endian = "little") {
+                    bytemuck::try_cast_slice::<u8, f32>(raw)
+                        .ok()
+                        .map(Cow::Borrowed)
+                } else {
+                    None
+                }
+                .unwrap_or_else(|| {
+                    Cow::Owned(
+                        raw.chunks_exact(4)
+                            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                            .collect(),
+                    )
+                }),
+            ),
+            ScalarType::F16 => Coefficients::F16(
+                if cfg!(target_endian = "little") {
+                    bytemuck::try_cast_slice::<u8, f16>(raw)
+                        .ok()
+                        .map(Cow::Borrowed)
+                } else {
+                    None
+                }
+                .unwrap_or_else(|| {
+                    Cow::Owned(
+                        raw.chunks_exact(2)
+                            .map(|c| f16::from_le_bytes([c[0], c[1]]))
+                            .collect(),
+                    )
+                }),
+            ),
+        })
+    }
+
+    /// Copies everything into an owned [`Bake`] (coefficients widened to f32, exactly).
+    ///
+    /// # Errors
+    /// None in practice (the view is already validated); kept fallible for future checks.
+    pub fn to_bake(&self) -> Result<Bake, BakeFileError> {
+        let mut bake = self.skeleton();
+        for (oi, o) in bake.objects.iter_mut().enumerate() {
+            for (bi, b) in o.blocks.iter_mut().enumerate() {
+                b.data = self
+                    .coefficients(oi, bi)
+                    .map(|c| c.to_f32_vec())
+                    .unwrap_or_default();
+            }
+        }
+        Ok(bake)
+    }
+}
