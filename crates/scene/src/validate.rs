@@ -191,6 +191,16 @@ impl Scene {
         self.meshes.len() - 1
     }
 
+    /// Axis-aligned bounds `(min, max)` of every mesh vertex; `None` without vertices.
+    /// Useful to scale ray offsets to the scene.
+    #[must_use]
+    pub fn bounds(&self) -> Option<(glam::Vec3, glam::Vec3)> {
+        self.meshes
+            .iter()
+            .filter_map(Mesh::bounds)
+            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+    }
+
     /// Total number of triangles.
     #[must_use]
     pub fn triangle_count(&self) -> usize {

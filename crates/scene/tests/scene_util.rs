@@ -137,6 +137,20 @@ fn test05_memory_estimate_and_hash() {
     // icosphere(1): 42 vertices, 80 triangles; name "icosphere(1)" is 12 bytes; 1×1 map.
     let want = 42 * 12 * 2 + 80 * 12 + 12 + std::mem::size_of::<Material>() + "grey".len() + 12;
     assert_eq!(s.memory_estimate(), want);
+    let mut two = s.clone();
+    two.add_mesh(floor_quad(3.0, -2.0), 0);
+    // The floor is wider and lower than the unit sphere; the sphere is higher (its top
+    // vertex is below y = 1: no icosphere vertex lies on the axis).
+    let (_, sphere_hi) = s.meshes[0].bounds().unwrap();
+    assert!(sphere_hi.y > 0.8 && sphere_hi.y < 1.0);
+    assert_eq!(
+        two.bounds(),
+        Some((
+            Vec3::new(-3.0, -2.0, -3.0),
+            Vec3::new(3.0, sphere_hi.y, 3.0)
+        ))
+    );
+    assert_eq!(two.triangle_count(), 80 + 2);
     let h = s.geometry_hash();
     let mut moved = s.clone();
     moved.meshes[0].positions[0].z += 1e-3;
