@@ -1,0 +1,189 @@
+//! The estimators: path tracing with next-event estimation on the environment and BRDF
+//! sampling combined by Veach's multiple importance sampling, the unshadowed estimate, and
+//! ambient occlusion.
+//!
+//! At every surface vertex the geometric normal and the shading normal are both turned
+//! towards the outgoing direction `ω_o` (CONVENTIONS.md: a back-facing shading normal is
+//! flipped toward the viewer). A direction on the other side of the *geometric* surface
+//! would pass through it, so it contributes nothing (no light leaks through thin geometry)
+//! except in the unshadowed mode, which by definition ignores geometry.
+
+use crate::accel::offset_origin;
+use crate::rng::Sampler;
+use crate::settings::{MisHeuristic, Mode};
+use crate::Renderer;
+use glam::Vec3;
+use prt_scene::Material;
+use prt_shading::{eval, luminance, pdf, sample, sample_cosine_hemisphere, Frame};
+
+/// A surface point being shaded.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Vertex<'a> {
+    /// Position.
+    pub p: Vec3,
+    /// Unit geometric normal (any orientation).
+    pub ng: Vec3,
+    /// Unit shading normal (any orientation).
+    pub ns: Vec3,
+    /// Spawn offset along `ng`.
+    pub offset: f32,
+    /// The BRDF.
+    pub mat: &'a Material,
+}
+
+impl Vertex<'_> {
+    /// `(ng, ns)` turned towards `wo`.
+    fn oriented(&self, wo: Vec3) -> (Vec3, Vec3) {
+        let ng = if self.ng.dot(wo) < 0.0 {
+            -self.ng
+        } else {
+            self.ng
+        };
+        let ns = if self.ns.dot(wo) < 0.0 {
+            -self.ns
+        } else {
+            self.ns
+        };
+        (ng, ns)
+    }
+
+    fn spawn(&self, ng: Vec3, dir: Vec3) -> Vec3 {
+        offset_origin(self.p, ng, self.offset, dir)
+    }
+}
+
+/// MIS weight of strategy `a` against `b` (pdfs in solid angle).
+pub(crate) fn mis_weight(h: MisHeuristic, a: f32, b: f32) -> f32 {
+    if a.is_infinite() {
+        return 1.0;
+    }
+    let (a, b) = match h {
+        MisHeuristic::Power => (a * a, b * b),
+        MisHeuristic::Balance => (a, b),
+    };
+    if a + b > 0.0 {
+        a / (a + b)
+    } else {
+        0.0
+    }
+}
+
+impl Renderer<'_> {
+    /// Radiance leaving `v` towards `wo` (or the AO fraction as grey), per the mode.
+    pub(crate) fn li_surface(&self, v: Vertex<'_>, wo: Vec3, s: &mut Sampler) -> Vec3 {
+        match self.settings.mode {
+            Mode::Path => self.li_path(v, wo, s),
+            Mode::Unshadowed => self.li_unshadowed(v, wo, s),
+            Mode::AmbientOcclusion { max_distance } => Vec3::splat(self.ambient_occlusion(
+                &v,
+                wo,
+                s,
+                max_distance.unwrap_or(f32::INFINITY),
+            )),
+        }
+    }
+
+    /// What a ray that leaves the scene sees.
+    pub(crate) fn background(&self, dir: Vec3) -> Vec3 {
+        match self.settings.mode {
+            Mode::AmbientOcclusion { .. } => Vec3::ONE,
+            _ => self.env.radiance(dir),
+        }
+    }
+
+    fn li_path<'a>(&'a self, mut v: Vertex<'a>, mut wo: Vec3, s: &mut Sampler) -> Vec3 {
+        let h = self.settings.mis;
+        let mut radiance = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let mut indirect = 0u32;
+        loop {
+            let (ng, ns) = v.oriented(wo);
+            // Next-event estimation: one environment sample, shadow-tested.
+            if let Some(es) = self.env.sample(s.next_2d()) {
+                let cos = ns.dot(es.dir);
+                if es.pdf > 0.0 && cos > 0.0 && ng.dot(es.dir) > 0.0 {
+                    let f = eval(v.mat, ns, wo, es.dir);
+                    if f != Vec3::ZERO
+                        && !self
+                            .accel
+                            .occluded(v.spawn(ng, es.dir), es.dir, f32::INFINITY)
+                    {
+                        let w = mis_weight(h, es.pdf, pdf(v.mat, ns, wo, es.dir));
+                        radiance += beta * f * es.radiance * (cos * w / es.pdf);
+                    }
+                }
+            }
+            // BRDF sampling: continues the path and hits the environment with MIS.
+            let Some(bs) = sample(v.mat, ns, wo, s.next_3d()) else {
+                break;
+            };
+            if ng.dot(bs.wi) <= 0.0 {
+                break;
+            }
+            beta *= bs.weight;
+            if beta == Vec3::ZERO || !beta.is_finite() {
+                break;
+            }
+            let Some(hit) = self
+                .accel
+                .closest_hit(v.spawn(ng, bs.wi), bs.wi, f32::INFINITY)
+            else {
+                let w = if bs.is_delta {
+                    1.0
+                } else {
+                    mis_weight(h, bs.pdf, self.env.pdf(bs.wi))
+                };
+                radiance += beta * self.env.radiance(bs.wi) * w;
+                break;
+            };
+            indirect += 1;
+            if self.settings.bounces >= 0 {
+                if indirect > self.settings.bounces as u32 {
+                    break;
+                }
+            } else if indirect >= self.settings.rr_start_bounce {
+                let survive = luminance(beta).min(self.settings.rr_max_survival);
+                if survive.is_nan() || survive <= 0.0 || s.next_f32() >= survive {
+                    break;
+                }
+                beta /= survive;
+            }
+            v = self.vertex(&hit);
+            wo = -bs.wi;
+        }
+        radiance
+    }
+
+    fn li_unshadowed(&self, v: Vertex<'_>, wo: Vec3, s: &mut Sampler) -> Vec3 {
+        let h = self.settings.mis;
+        let (_, ns) = v.oriented(wo);
+        let mut radiance = Vec3::ZERO;
+        if let Some(es) = self.env.sample(s.next_2d()) {
+            let cos = ns.dot(es.dir);
+            if es.pdf > 0.0 && cos > 0.0 {
+                let f = eval(v.mat, ns, wo, es.dir);
+                let w = mis_weight(h, es.pdf, pdf(v.mat, ns, wo, es.dir));
+                radiance += f * es.radiance * (cos * w / es.pdf);
+            }
+        }
+        if let Some(bs) = sample(v.mat, ns, wo, s.next_3d()) {
+            let w = if bs.is_delta {
+                1.0
+            } else {
+                mis_weight(h, bs.pdf, self.env.pdf(bs.wi))
+            };
+            radiance += bs.weight * self.env.radiance(bs.wi) * w;
+        }
+        radiance
+    }
+
+    fn ambient_occlusion(&self, v: &Vertex<'_>, wo: Vec3, s: &mut Sampler, tmax: f32) -> f32 {
+        let (ng, ns) = v.oriented(wo);
+        let w = Frame::from_normal(ns).to_world(sample_cosine_hemisphere(s.next_2d()));
+        if ng.dot(w) <= 0.0 || self.accel.occluded(v.spawn(ng, w), w, tmax) {
+            0.0
+        } else {
+            1.0
+        }
+    }
+}

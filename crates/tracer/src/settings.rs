@@ -1,0 +1,149 @@
+//! Parameters of a render, read in one place with their defaults beside them.
+
+use crate::TracerError;
+
+/// What the integrator computes at the first surface a camera ray (or a given point) sees.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Mode {
+    /// Unbiased path tracing of the environment light with shadows and `bounces` indirect
+    /// reflections (the default).
+    Path,
+    /// Visibility ignored: every direction above the surface (shading-normal hemisphere) sees
+    /// the environment; no secondary surface hits (the PRT "unshadowed" transfer).
+    Unshadowed,
+    /// Fraction of cosine-weighted directions about the shading normal that are unoccluded
+    /// (within `max_distance` when given). Directions below the geometric surface count as
+    /// occluded. Written as grey; background pixels are 1.
+    AmbientOcclusion {
+        /// Rays longer than this count as unoccluded (`None`: unlimited).
+        max_distance: Option<f32>,
+    },
+}
+
+/// The multiple-importance-sampling heuristic of Veach (1997) between environment sampling
+/// and BRDF sampling (one sample from each strategy).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MisHeuristic {
+    /// `w_a = p_a² / (p_a² + p_b²)` (the default).
+    Power,
+    /// `w_a = p_a / (p_a + p_b)`.
+    Balance,
+}
+
+/// Everything a render depends on besides the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Samples per pixel (per point for [`crate::Renderer::radiance_at_points`]). Default 64.
+    pub spp: u32,
+    /// Indirect bounces per CONVENTIONS.md: `0` direct light with shadows, `B` adds `B`
+    /// interreflections (Mitsuba `max_depth = B + 2`), `-1` unlimited with Russian roulette.
+    /// Default 0.
+    pub bounces: i32,
+    /// Global seed (default 0), written into every output.
+    pub seed: u64,
+    /// What to compute (default [`Mode::Path`]).
+    pub mode: Mode,
+    /// MIS heuristic (default [`MisHeuristic::Power`]).
+    pub mis: MisHeuristic,
+    /// With `bounces = -1`: Russian roulette starts at this many indirect bounces (default 3).
+    pub rr_start_bounce: u32,
+    /// With `bounces = -1`: survival probability is `min(luminance(throughput), this)`
+    /// (default 0.95).
+    pub rr_max_survival: f32,
+    /// Square tile size in pixels for parallel rendering (default 16; no effect on the image).
+    pub tile_size: u32,
+    /// Worker threads (`None`: rayon's current pool; no effect on the image).
+    pub threads: Option<usize>,
+    /// Also produce normal, albedo, depth and variance AOVs (default false).
+    pub aovs: bool,
+    /// Show a progress bar when stderr is a terminal (default true).
+    pub progress: bool,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            spp: 64,
+            bounces: 0,
+            seed: 0,
+            mode: Mode::Path,
+            mis: MisHeuristic::Power,
+            rr_start_bounce: 3,
+            rr_max_survival: 0.95,
+            tile_size: 16,
+            threads: None,
+            aovs: false,
+            progress: true,
+        }
+    }
+}
+
+impl RenderSettings {
+    /// A quick look: 16 spp, one bounce.
+    #[must_use]
+    pub fn preview() -> Self {
+        Self {
+            spp: 16,
+            bounces: 1,
+            ..Self::default()
+        }
+    }
+
+    /// A reference: 1024 spp, unlimited bounces with Russian roulette, AOVs.
+    #[must_use]
+    pub fn final_quality() -> Self {
+        Self {
+            spp: 1024,
+            bounces: -1,
+            aovs: true,
+            ..Self::default()
+        }
+    }
+
+    /// The defaults of a scene's `[render]` table.
+    #[must_use]
+    pub fn from_scene(render: &prt_scene::RenderSettings) -> Self {
+        Self {
+            spp: render.spp,
+            bounces: render.bounces,
+            seed: render.seed,
+            ..Self::default()
+        }
+    }
+
+    /// Checks the ranges.
+    ///
+    /// # Errors
+    /// When `spp` or `tile_size` is 0, `bounces < -1`, `rr_max_survival ∉ (0, 1]`,
+    /// `threads = Some(0)` or an AO distance is not positive.
+    pub fn validate(&self) -> Result<(), TracerError> {
+        let bad = |s: String| Err(TracerError::InvalidSettings(s));
+        if self.spp == 0 {
+            return bad("spp must be at least 1".into());
+        }
+        if self.bounces < -1 {
+            return bad(format!(
+                "bounces must be -1 (unlimited) or ≥ 0, not {}",
+                self.bounces
+            ));
+        }
+        if !(self.rr_max_survival > 0.0 && self.rr_max_survival <= 1.0) {
+            return bad("rr_max_survival must be in (0, 1]".into());
+        }
+        if self.tile_size == 0 {
+            return bad("tile_size must be at least 1".into());
+        }
+        if self.threads == Some(0) {
+            return bad("threads must be at least 1".into());
+        }
+        if let Mode::AmbientOcclusion {
+            max_distance: Some(d),
+        } = self.mode
+        {
+            if d.is_nan() || d <= 0.0 {
+                return bad(format!("AO max distance must be positive, not {d}"));
+            }
+        }
+        Ok(())
+    }
+}

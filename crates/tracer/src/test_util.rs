@@ -1,0 +1,188 @@
+//! Tiny shapes and scenes with known answers, shared by tests, benchmarks and examples.
+
+use glam::{DVec3, Vec3};
+use prt_scene::{
+    Camera, EnvImage, Environment, Mapping, Material, Mesh, RenderSettings, Rgb, Scene,
+};
+use std::f32::consts::PI;
+
+/// A UV sphere (`rings ≥ 2` latitude bands, `segments ≥ 3` longitude bands), outward winding.
+/// `smooth` gives radial vertex normals; otherwise every triangle has its own three vertices
+/// with the face normal, so shading and geometric normals agree exactly.
+#[must_use]
+pub fn uv_sphere(center: Vec3, radius: f32, rings: u32, segments: u32, smooth: bool) -> Mesh {
+    let (rings, segments) = (rings.max(2), segments.max(3));
+    let dir = |r: u32, s: u32| {
+        let theta = PI * r as f32 / rings as f32;
+        let phi = 2.0 * PI * s as f32 / segments as f32;
+        Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.cos(),
+            -theta.sin() * phi.sin(),
+        )
+    };
+    let mut quads = Vec::new();
+    for r in 0..rings {
+        for s in 0..segments {
+            let a = dir(r, s);
+            let b = dir(r + 1, s);
+            let c = dir(r + 1, s + 1);
+            let d = dir(r, s + 1);
+            if r != 0 {
+                quads.push([a, b, d]);
+            }
+            if r + 1 != rings {
+                quads.push([b, c, d]);
+            }
+        }
+    }
+    let mut mesh = Mesh {
+        name: "uv_sphere".into(),
+        ..Mesh::default()
+    };
+    for tri in quads {
+        let p = tri.map(|d| center + d * radius);
+        let n = if smooth {
+            tri
+        } else {
+            let f = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+            [f; 3]
+        };
+        let base = mesh.positions.len() as u32;
+        mesh.positions.extend_from_slice(&p);
+        mesh.normals.extend_from_slice(&n);
+        mesh.indices.push([base, base + 1, base + 2]);
+    }
+    mesh
+}
+
+/// A parallelogram `corner + a·edge_u + b·edge_v`, `a, b ∈ [0, 1]`, two triangles, normal
+/// `normalize(edge_u × edge_v)`.
+#[must_use]
+pub fn quad(corner: Vec3, edge_u: Vec3, edge_v: Vec3) -> Mesh {
+    let n = edge_u.cross(edge_v).normalize();
+    Mesh {
+        name: "quad".into(),
+        positions: vec![
+            corner,
+            corner + edge_u,
+            corner + edge_u + edge_v,
+            corner + edge_v,
+        ],
+        normals: vec![n; 4],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        material: 0,
+    }
+}
+
+/// An axis-aligned box of half-size `half` centred at `center`, open at the top (+Y): five
+/// faces with inward normals (a concave shape).
+#[must_use]
+pub fn open_box(center: Vec3, half: f32) -> Mesh {
+    let h = half;
+    let c = center - Vec3::splat(h);
+    let s = 2.0 * h;
+    let faces = [
+        quad(c, Vec3::new(0.0, 0.0, s), Vec3::new(s, 0.0, 0.0)), // floor, normal +Y
+        quad(c, Vec3::new(0.0, s, 0.0), Vec3::new(0.0, 0.0, s)), // x = min, normal +X
+        quad(
+            c + Vec3::new(s, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, s),
+            Vec3::new(0.0, s, 0.0),
+        ),
+        quad(c, Vec3::new(s, 0.0, 0.0), Vec3::new(0.0, s, 0.0)), // z = min, normal +Z
+        quad(
+            c + Vec3::new(0.0, 0.0, s),
+            Vec3::new(0.0, s, 0.0),
+            Vec3::new(s, 0.0, 0.0),
+        ),
+    ];
+    merge(&faces, "open_box")
+}
+
+/// All meshes merged into one (material of the first).
+#[must_use]
+pub fn merge(meshes: &[Mesh], name: &str) -> Mesh {
+    let mut out = Mesh {
+        name: name.into(),
+        ..Mesh::default()
+    };
+    for m in meshes {
+        let base = out.positions.len() as u32;
+        out.positions.extend_from_slice(&m.positions);
+        out.normals.extend_from_slice(&m.normals);
+        out.indices
+            .extend(m.indices.iter().map(|t| t.map(|i| i + base)));
+    }
+    out.material = meshes.first().map_or(0, |m| m.material);
+    out
+}
+
+/// The same mesh with every vertex mapped by `f` (normals unchanged).
+#[must_use]
+pub fn transformed(mesh: &Mesh, f: impl Fn(Vec3) -> Vec3) -> Mesh {
+    Mesh {
+        positions: mesh.positions.iter().map(|&p| f(p)).collect(),
+        ..mesh.clone()
+    }
+}
+
+/// A lat-long environment of constant radiance.
+#[must_use]
+pub fn constant_environment(radiance: Rgb) -> Environment {
+    Environment {
+        image: EnvImage {
+            width: 4,
+            height: 2,
+            texels: vec![radiance; 8],
+        },
+        mapping: Mapping::LatLong,
+        rotation_y_deg: 0.0,
+    }
+}
+
+/// A lat-long environment from texels (`width × height`, row 0 at +Y).
+#[must_use]
+pub fn latlong_environment(width: usize, height: usize, texels: Vec<Rgb>) -> Environment {
+    Environment {
+        image: EnvImage {
+            width,
+            height,
+            texels,
+        },
+        mapping: Mapping::LatLong,
+        rotation_y_deg: 0.0,
+    }
+}
+
+/// A camera at `eye` looking at `target`, +Y up.
+#[must_use]
+pub fn camera(eye: Vec3, target: Vec3, fov_y_deg: f64, width: u32, height: u32) -> Camera {
+    Camera {
+        eye: eye.as_dvec3(),
+        target: target.as_dvec3(),
+        up: DVec3::Y,
+        fov_y_deg,
+        width,
+        height,
+    }
+}
+
+/// A scene from its parts (material names `m0`, `m1`, …; default `[render]` settings).
+#[must_use]
+pub fn scene(
+    camera: Camera,
+    environment: Environment,
+    materials: Vec<Material>,
+    meshes: Vec<Mesh>,
+) -> Scene {
+    let material_names = (0..materials.len()).map(|i| format!("m{i}")).collect();
+    Scene {
+        camera,
+        environment,
+        materials,
+        material_names,
+        meshes,
+        render: RenderSettings::default(),
+    }
+}

@@ -1,0 +1,358 @@
+//! Accel: correctness against brute force, the obvhs bug pins (A, B, C) and robust spawning.
+
+use glam::{Vec3, Vec3A};
+use obvhs::{cwbvh::builder::build_cwbvh_from_tris, ray::Ray, triangle::Triangle, BvhBuildParams};
+use prt_scene::Mesh;
+use prt_tracer::{test_util, Accel, AccelOptions};
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+use std::time::Duration;
+
+fn accel(meshes: &[Mesh]) -> Accel {
+    Accel::from_meshes(meshes, AccelOptions::default()).expect("valid meshes")
+}
+
+fn unit_dir(rng: &mut Pcg64) -> Vec3 {
+    let z: f32 = rng.random_range(-1.0..1.0);
+    let phi: f32 = rng.random_range(0.0..std::f32::consts::TAU);
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Reference: closest Möller–Trumbore hit over every triangle, in f64.
+fn brute_force(meshes: &[Mesh], o: Vec3, d: Vec3) -> Option<(f64, u32, u32)> {
+    let (o, d) = (o.as_dvec3(), d.as_dvec3());
+    let mut best: Option<(f64, u32, u32)> = None;
+    for (mi, m) in meshes.iter().enumerate() {
+        for (ti, idx) in m.indices.iter().enumerate() {
+            let [a, b, c] = idx.map(|i| m.positions[i as usize].as_dvec3());
+            let (e1, e2) = (b - a, c - a);
+            let p = d.cross(e2);
+            let det = e1.dot(p);
+            if det.abs() < 1e-300 {
+                continue;
+            }
+            let tv = o - a;
+            let u = tv.dot(p) / det;
+            let q = tv.cross(e1);
+            let v = d.dot(q) / det;
+            let t = e2.dot(q) / det;
+            if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && best.is_none_or(|bb| t < bb.0) {
+                best = Some((t, mi as u32, ti as u32));
+            }
+        }
+    }
+    best
+}
+
+#[test]
+fn test01_validate_every_preset() {
+    let meshes = vec![
+        test_util::uv_sphere(Vec3::ZERO, 1.0, 12, 24, true),
+        test_util::open_box(Vec3::new(3.0, 0.0, 0.0), 1.0),
+    ];
+    for build in [
+        BvhBuildParams::fastest_build(),
+        BvhBuildParams::fast_build(),
+        BvhBuildParams::medium_build(),
+        BvhBuildParams::slow_build(),
+    ] {
+        let a = Accel::from_meshes(
+            &meshes,
+            AccelOptions {
+                build,
+                ..AccelOptions::default()
+            },
+        )
+        .unwrap();
+        a.validate().unwrap();
+    }
+}
+
+#[test]
+fn test02_closest_hit_matches_brute_force() {
+    let meshes = vec![
+        test_util::uv_sphere(Vec3::ZERO, 1.0, 10, 20, true),
+        test_util::uv_sphere(Vec3::new(0.5, 0.3, 0.2), 0.7, 8, 16, true),
+        test_util::open_box(Vec3::new(0.0, -0.5, 0.0), 2.0),
+    ];
+    let a = accel(&meshes);
+    let mut rng = Pcg64::seed_from_u64(1);
+    let (mut hits, mut agree) = (0, 0);
+    for _ in 0..4000 {
+        let o = unit_dir(&mut rng) * rng.random_range(0.0f32..5.0);
+        let d = unit_dir(&mut rng);
+        let got = a.closest_hit(o, d, f32::INFINITY);
+        let want = brute_force(&meshes, o, d);
+        assert_eq!(
+            got.is_some(),
+            want.is_some(),
+            "hit/miss disagree for {o} {d}"
+        );
+        if let (Some(h), Some((t, mesh, tri))) = (got, want) {
+            hits += 1;
+            // Relative t agreement to 1e-4: the f32 intersection's error is a few ulps of the
+            // coordinates (≤ 5, so ~1e-6 relative); ids may differ only on shared edges.
+            assert!(
+                (f64::from(h.t) - t).abs() <= 1e-4 * (1.0 + t),
+                "t {} vs {t}",
+                h.t
+            );
+            if (h.mesh, h.tri) == (mesh, tri) {
+                agree += 1;
+            }
+            assert!((h.position - (o + d * h.t)).length() < 1e-4);
+            assert!(a.occluded(o, d, f32::INFINITY));
+            assert!(!a.occluded(o, d, h.t * 0.999 - 1e-4) || (h.mesh, h.tri) != (mesh, tri));
+        }
+    }
+    assert!(hits > 1000);
+    // Edge ties: at most a handful of 4000 rays land within rounding of a shared edge.
+    assert!(agree >= hits - 10, "{agree} of {hits} ids agree");
+}
+
+/// Bug A: a `-0.0` direction component. The wrapper must hit; the raw obvhs CWBVH misses
+/// (the second half shows this test really exercises the defect).
+#[test]
+fn test03_bug_a_negative_zero_direction() {
+    let floor = test_util::quad(
+        Vec3::new(-1.0, 0.0, -1.0),
+        Vec3::new(0.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, 0.0),
+    );
+    let meshes = vec![
+        floor,
+        test_util::uv_sphere(Vec3::new(0.0, 2.0, 0.0), 0.5, 8, 16, true),
+    ];
+    let a = accel(&meshes);
+    let dirs = [
+        Vec3::new(-0.0, -1.0, -0.0),
+        Vec3::new(-0.0, -1.0, 0.0),
+        Vec3::new(0.0, -1.0, -0.0),
+    ];
+    for d in dirs {
+        let o = Vec3::new(0.1, 1.0, 0.2);
+        let h = a
+            .closest_hit(o, d, f32::INFINITY)
+            .expect("bug A workaround: must hit the floor");
+        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!(a.occluded(o, d, f32::INFINITY));
+    }
+    // Upstream behaviour (pins that the workaround is needed).
+    let tris: Vec<Triangle> = meshes[0]
+        .indices
+        .iter()
+        .map(|t| {
+            let p = t.map(|i| Vec3A::from(meshes[0].positions[i as usize]));
+            Triangle {
+                v0: p[0],
+                v1: p[1],
+                v2: p[2],
+            }
+        })
+        .collect();
+    let bvh = build_cwbvh_from_tris(
+        &tris,
+        BvhBuildParams::medium_build(),
+        &mut Duration::default(),
+    );
+    let ray = Ray::new_inf(Vec3A::new(0.1, 1.0, 0.2), Vec3A::new(-0.0, -1.0, -0.0));
+    let mut hit = obvhs::ray::RayHit::none();
+    let raw = bvh.ray_traverse(ray, &mut hit, |r, i| {
+        tris[bvh.primitive_indices[i] as usize].intersect(r)
+    });
+    assert!(
+        !raw,
+        "obvhs no longer misses -0.0 rays: bug A fixed upstream?"
+    );
+}
+
+/// Bug B: barycentrics against the closed form for a triangle of area 4 (obvhs' own
+/// `compute_barycentric` is scaled by twice the area, 8).
+#[test]
+fn test04_bug_b_barycentrics() {
+    let m = Mesh {
+        name: "tri".into(),
+        positions: vec![
+            Vec3::ZERO,
+            Vec3::new(4.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        ],
+        normals: vec![Vec3::X, Vec3::Y, Vec3::Z],
+        indices: vec![[0, 1, 2]],
+        material: 0,
+    };
+    let a = accel(std::slice::from_ref(&m));
+    let mut rng = Pcg64::seed_from_u64(4);
+    for _ in 0..200 {
+        let (x, y): (f32, f32) = (rng.random_range(0.0..4.0), rng.random_range(0.0..2.0));
+        if x / 4.0 + y / 2.0 > 1.0 {
+            continue;
+        }
+        let o = Vec3::new(x, y, 3.0);
+        let h = a.closest_hit(o, Vec3::NEG_Z, f32::INFINITY).unwrap();
+        // Closed form: the point (x, y) = u·v1 + v·v2, so u = x/4, v = y/2.
+        assert!(
+            (h.u - x / 4.0).abs() < 1e-6 && (h.v - y / 2.0).abs() < 1e-6,
+            "{h:?}"
+        );
+        assert_eq!(h.geometric_normal, Vec3::Z);
+        let w = 1.0 - h.u - h.v;
+        let n = (Vec3::X * w + Vec3::Y * h.u + Vec3::Z * h.v).normalize();
+        assert!((h.shading_normal - n).length() < 1e-6);
+    }
+    let tri = Triangle {
+        v0: Vec3A::ZERO,
+        v1: Vec3A::new(4.0, 0.0, 0.0),
+        v2: Vec3A::new(0.0, 2.0, 0.0),
+    };
+    let raw = tri.compute_barycentric(&Ray::new_inf(Vec3A::new(1.0, 0.5, 3.0), Vec3A::NEG_Z));
+    assert!(
+        (raw.x - 0.25).abs() > 0.5,
+        "obvhs barycentrics now unscaled: bug B fixed upstream?"
+    );
+}
+
+/// Bug C: a triangle 3e-5 away (tiny-scale scene). The wrapper hits it; without the
+/// rescaling workaround the fixed 1e-4 node tmin culls it.
+#[test]
+fn test05_bug_c_tiny_scene() {
+    let s = 1e-5;
+    let tri = test_util::quad(
+        Vec3::new(-s, -s, -3.0 * s),
+        Vec3::new(2.0 * s, 0.0, 0.0),
+        Vec3::new(0.0, 2.0 * s, 0.0),
+    );
+    let meshes = vec![
+        tri,
+        test_util::uv_sphere(Vec3::new(0.0, 0.0, 5.0 * s), s, 6, 12, true),
+    ];
+    let o = Vec3::ZERO;
+    let a = accel(&meshes);
+    let h = a
+        .closest_hit(o, Vec3::NEG_Z, f32::INFINITY)
+        .expect("bug C workaround: must hit");
+    assert!((h.t - 3e-5).abs() < 1e-11);
+    assert!(a.occluded(o, Vec3::NEG_Z, f32::INFINITY));
+    let h2 = a
+        .closest_hit(o, Vec3::Z, f32::INFINITY)
+        .expect("sphere at 4e-5");
+    assert!((h2.t - 4e-5).abs() < 1e-10);
+    let raw = Accel::from_meshes(
+        &meshes,
+        AccelOptions {
+            rescale: false,
+            ..AccelOptions::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        raw.closest_hit(o, Vec3::NEG_Z, f32::INFINITY).is_none(),
+        "bug C fixed upstream?"
+    );
+}
+
+/// No speckles: AO rays spawned from real hits on a convex (flat-shaded) sphere never hit the
+/// sphere again. Every sample is a Bernoulli trial whose true probability is exactly 0, so a
+/// single occluded ray is a failure. Checked for a sphere scaled by 1e-3 and one at 1e4.
+#[test]
+fn test06_no_self_occlusion_at_extreme_scales() {
+    for (center, radius) in [
+        (Vec3::ZERO, 1e-3f32),
+        (Vec3::new(1e4, -1e4, 1e4), 1.0),
+        (Vec3::ZERO, 1.0),
+    ] {
+        let sphere = test_util::uv_sphere(center, radius, 24, 48, false);
+        let a = accel(&[sphere]);
+        let mut rng = Pcg64::seed_from_u64(6);
+        let (mut rays, mut blocked, mut naive_blocked) = (0u32, 0u32, 0u32);
+        while rays < 100_000 {
+            let o = center + unit_dir(&mut rng) * (3.0 * radius);
+            let target = center + unit_dir(&mut rng) * (0.9 * radius);
+            let d = (target - o).normalize();
+            let Some(h) = a.closest_hit(o, d, f32::INFINITY) else {
+                continue;
+            };
+            let n = h.geometric_normal * -h.geometric_normal.dot(d).signum();
+            // Cosine-weighted direction about the outward normal (Malley's method).
+            let (r, phi) = (
+                rng.random::<f32>().sqrt(),
+                rng.random_range(0.0..std::f32::consts::TAU),
+            );
+            let local = Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - r * r).max(0.0).sqrt());
+            let (t1, t2) = n.any_orthonormal_pair();
+            let w = (t1 * local.x + t2 * local.y + n * local.z).normalize();
+            if w.dot(n) <= 0.0 {
+                continue;
+            }
+            rays += 1;
+            if a.occluded(h.spawn_origin(w), w, f32::INFINITY) {
+                blocked += 1;
+            }
+            if rays <= 2000 && a.occluded(h.position, w, f32::INFINITY) {
+                naive_blocked += 1;
+            }
+        }
+        assert_eq!(
+            blocked, 0,
+            "false self-occlusion at centre {center} radius {radius}"
+        );
+        // Sensitivity check: without the offset, rounding puts about half the origins below
+        // the surface, so many of 2000 rays are blocked.
+        assert!(
+            naive_blocked > 100,
+            "unoffset rays blocked only {naive_blocked} times"
+        );
+    }
+}
+
+#[test]
+fn test07_segment_stops_short_and_bad_input() {
+    let floor = test_util::quad(
+        Vec3::new(-1.0, 0.0, -1.0),
+        Vec3::new(0.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, 0.0),
+    );
+    let a = accel(&[floor]);
+    // A segment ending exactly on the floor is not blocked by it; one passing through is.
+    assert!(!a.segment_occluded(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.3, 0.0, 0.2)));
+    assert!(a.segment_occluded(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.3, -0.1, 0.2)));
+    assert!(a.closest_hit(Vec3::NAN, Vec3::Y, 1.0).is_none());
+    assert!(!a.occluded(Vec3::ZERO, Vec3::NAN, 1.0));
+    let empty = Accel::from_meshes(&[], AccelOptions::default()).unwrap();
+    assert!(empty
+        .closest_hit(Vec3::ZERO, Vec3::Y, f32::INFINITY)
+        .is_none());
+    empty.validate().unwrap();
+    let bad = Mesh {
+        positions: vec![Vec3::ZERO],
+        indices: vec![[0, 1, 2]],
+        ..Mesh::default()
+    };
+    assert!(Accel::from_meshes(&[bad], AccelOptions::default()).is_err());
+    let nan = Mesh {
+        positions: vec![Vec3::ZERO, Vec3::X, Vec3::NAN],
+        indices: vec![[0, 1, 2]],
+        ..Mesh::default()
+    };
+    assert!(Accel::from_meshes(&[nan], AccelOptions::default()).is_err());
+}
+
+/// Bug D: without padded primitive boxes, obvhs' quantised child bounds cut into a primitive
+/// by up to half an ulp (the exact containment check of `Accel::validate` fails; obvhs' own
+/// check allows 1e-5 and misses it). With padding every triangle is inside its leaf box.
+#[test]
+fn test08_bug_d_box_quantisation() {
+    let sphere = test_util::uv_sphere(Vec3::ZERO, 1.0, 24, 48, false);
+    let unpadded = std::panic::catch_unwind(|| {
+        let options = AccelOptions {
+            pad_boxes: false,
+            ..AccelOptions::default()
+        };
+        Accel::from_meshes(std::slice::from_ref(&sphere), options)
+            .unwrap()
+            .validate()
+    });
+    assert!(!matches!(unpadded, Ok(Ok(()))), "bug D fixed upstream?");
+    accel(std::slice::from_ref(&sphere)).validate().unwrap();
+}
