@@ -283,24 +283,8 @@ impl<'a> BakeView<'a> {
         if len > file_size {
             return Err(inconsistent("file size (trailing bytes)", file_size, len));
         }
-        let header_size = rd_u32(bytes, 16);
-        if header_size as usize != HEADER_SIZE {
-            return Err(inconsistent(
-                "header size",
-                HEADER_SIZE as u64,
-                header_size.into(),
-            ));
-        }
         let table_off = rd_u64(bytes, 32);
         let section_count = rd_u32(bytes, 40) as u64;
-        let entry_size = rd_u32(bytes, 44);
-        if entry_size as usize != SECTION_ENTRY_SIZE {
-            return Err(inconsistent(
-                "section entry size",
-                SECTION_ENTRY_SIZE as u64,
-                entry_size.into(),
-            ));
-        }
         let table_end = section_count
             .checked_mul(SECTION_ENTRY_SIZE as u64)
             .and_then(|n| n.checked_add(table_off))
@@ -322,6 +306,22 @@ impl<'a> BakeView<'a> {
             });
         }
         // The header is now known to be what the writer wrote.
+        let header_size = rd_u32(bytes, 16);
+        if header_size as usize != HEADER_SIZE {
+            return Err(inconsistent(
+                "header size",
+                HEADER_SIZE as u64,
+                header_size.into(),
+            ));
+        }
+        let entry_size = rd_u32(bytes, 44);
+        if entry_size as usize != SECTION_ENTRY_SIZE {
+            return Err(inconsistent(
+                "section entry size",
+                SECTION_ENTRY_SIZE as u64,
+                entry_size.into(),
+            ));
+        }
         let flags = rd_u32(bytes, 20);
         if flags & MUST_UNDERSTAND_FLAGS != 0 {
             return Err(BakeFileError::UnsupportedFlags {

@@ -268,7 +268,10 @@ pub fn find(b: &[u8], tag: &[u8; 4]) -> (usize, usize) {
 /// Recomputes every section CRC and the header CRC, as SPEC.md defines them.
 pub fn fix_crcs(b: &mut [u8]) {
     for (_, off, len, e) in sections(b) {
-        let crc = crc32fast::hash(&b[off..off + len]);
+        let Some(payload) = off.checked_add(len).and_then(|end| b.get(off..end)) else {
+            continue;
+        };
+        let crc = crc32fast::hash(payload);
         b[e + 24..e + 28].copy_from_slice(&crc.to_le_bytes());
     }
     let table = u64_at(b, 32) as usize;

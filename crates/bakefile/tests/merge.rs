@@ -1,0 +1,118 @@
+//! Sharded bakes: merged shards are bit-identical to the unsharded bake; bad shard sets are
+//! refused.
+
+mod common;
+
+use common::*;
+use prt_bakefile::*;
+
+#[test]
+fn test01_merged_shards_encode_bit_identically() {
+    let bake = sample_bake();
+    for scalar in [ScalarType::F32, ScalarType::F16] {
+        let whole = encode(&bake, scalar).unwrap();
+        for count in [1, 2, 3, 5, 40] {
+            let shards = split(&bake, count).unwrap();
+            assert_eq!(shards.len(), count as usize);
+            // Through files, in reverse order, as a sharded bake would arrive.
+            let mut read: Vec<Bake> = shards
+                .iter()
+                .map(|s| decode(&encode(s, scalar).unwrap()).unwrap())
+                .collect();
+            read.reverse();
+            if count > 1 {
+                assert_ne!(encode(&read[0], scalar).unwrap(), whole);
+                assert_eq!(read[0].meta.shard.count, count);
+            }
+            let merged = merge(&read).unwrap();
+            assert_eq!(
+                encode(&merged, scalar).unwrap(),
+                whole,
+                "{count} shards, {scalar:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn test02_random_bakes_merge_back() {
+    let mut r = rng(11);
+    for case in 0..50 {
+        let bake = random_bake(&mut r);
+        let whole = encode(&bake, ScalarType::F32).unwrap();
+        let shards = split(&bake, 1 + case % 4).unwrap();
+        assert_eq!(
+            encode(&merge(&shards).unwrap(), ScalarType::F32).unwrap(),
+            whole,
+            "case {case}"
+        );
+    }
+}
+
+fn merge_err(shards: &[Bake]) -> String {
+    match merge(shards) {
+        Err(BakeFileError::Merge(m)) => m,
+        other => panic!("expected a merge error, got {other:?}"),
+    }
+}
+
+#[test]
+fn test03_incomplete_overlapping_or_mismatched_shards_are_refused() {
+    let bake = sample_bake();
+    let shards = split(&bake, 3).unwrap();
+    assert!(merge_err(&[]).contains("no shards"));
+    // Missing shard.
+    assert!(merge_err(&shards[..2]).contains("2 shards given"));
+    // The same shard twice.
+    let twice = [shards[0].clone(), shards[1].clone(), shards[1].clone()];
+    assert!(merge_err(&twice).contains("twice"));
+    // Overlapping ranges: shard 1 claims one point more at its start.
+    let mut overlap = shards.clone();
+    for o in &mut overlap[1].objects {
+        o.point_first -= 1;
+        o.points_in_file += 1;
+        let per = o.scalars_per_point() as usize;
+        for b in &mut o.blocks {
+            b.data.splice(0..0, std::iter::repeat_n(0.0, per));
+        }
+    }
+    assert!(merge_err(&overlap).contains("in two shards"));
+    // A gap: shard 2 misses its last point.
+    let mut gap = shards.clone();
+    for o in &mut gap[2].objects {
+        o.points_in_file -= 1;
+        let per = o.scalars_per_point() as usize;
+        for b in &mut o.blocks {
+            b.data.truncate(b.data.len() - per);
+        }
+    }
+    assert!(merge_err(&gap).contains("cover"));
+    // Different settings, seed, geometry, order.
+    let mut other = shards.clone();
+    other[1].meta.seed += 1;
+    assert!(merge_err(&other).contains("metadata"));
+    let mut other = shards.clone();
+    other[2].meta.settings["rays"] = serde_json::json!(2048);
+    assert!(merge_err(&other).contains("metadata"));
+    let mut other = shards.clone();
+    other[0].objects[1].geometry_hash ^= 1;
+    assert!(merge_err(&other).contains("differs"));
+    let mut other = shards.clone();
+    other[0].environment = None;
+    assert!(merge_err(&other).contains("environment"));
+    // Shard counts that disagree.
+    let mut other = shards.clone();
+    other[2].meta.shard.count = 4;
+    other[2].meta.shard.index = 3;
+    assert!(!merge_err(&other).is_empty());
+}
+
+#[test]
+fn test04_split_refuses_nonsense() {
+    let bake = sample_bake();
+    assert!(split(&bake, 0).is_err());
+    let shards = split(&bake, 2).unwrap();
+    assert!(split(&shards[0], 2).is_err());
+    // A shard alone is a valid file.
+    assert!(decode(&encode(&shards[1], ScalarType::F32).unwrap()).is_ok());
+}
