@@ -1,0 +1,2 @@
+//! Benchmarks of full-order and adaptive relighting (placeholder).
+fn main() {}

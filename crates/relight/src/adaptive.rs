@@ -1,0 +1,506 @@
+//! Locally adaptive relighting (Lee & Kim 2014, chapter 5): base bands everywhere, higher bands
+//! only in a region of interest (ROI) found level by level, refined by a breadth-first search
+//! and with its boundary smoothed over two tiers of neighbours.
+
+use crate::adjacency::Adjacency;
+use crate::error::RelightError;
+use crate::input::{DiffuseParams, SpecularInput, TransferView};
+use crate::kernel::{Accum, CHUNK};
+use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::time::Instant;
+
+/// The ROI threshold `T` on the accumulated high-order difference `max_c |D_c|` of a point.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub enum Threshold {
+    /// `T` in units of output radiance. Lee & Kim use `T = 0.02` on colours normalised to
+    /// `[0, 1]` from 8 bits (5.2.2), i.e. `Absolute(0.02)` when radiance 1 is displayed white
+    /// (exposure 0, before the sRGB curve).
+    Absolute(f32),
+    /// `T = factor × ` the frame's mean base radiance (over points and channels, diffuse plus
+    /// specular, bands `0..3` — the only frame-wide figure known before the adaptive levels).
+    RelativeToMean(f32),
+}
+
+/// Parameters of the adaptive path.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct AdaptiveParams {
+    /// The ROI threshold.
+    pub threshold: Threshold,
+    /// Refine the ROI by breadth-first search over neighbours (5.2.1).
+    pub refine: bool,
+    /// Smooth the ROI boundary over two tiers of neighbours (5.2.2).
+    pub smooth: bool,
+}
+
+impl AdaptiveParams {
+    /// The thesis' setting: `T = 0.02` absolute, refinement and smoothing on.
+    #[must_use]
+    pub const fn thesis() -> Self {
+        Self {
+            threshold: Threshold::Absolute(0.02),
+            refine: true,
+            smooth: true,
+        }
+    }
+
+    /// `T = 0`: every point keeps every band; the result equals the full-order one bit for bit.
+    #[must_use]
+    pub const fn exact() -> Self {
+        Self {
+            threshold: Threshold::Absolute(0.0),
+            refine: true,
+            smooth: true,
+        }
+    }
+}
+
+/// The inputs of one adaptive frame; either term may be absent.
+#[derive(Clone, Copy, Debug)]
+pub struct AdaptiveInput<'a> {
+    /// Diffuse transfer and material.
+    pub diffuse: Option<(TransferView<'a>, DiffuseParams)>,
+    /// Specular visibility, geometry, viewer and material.
+    pub specular: Option<SpecularInput<'a>>,
+    /// Vertex adjacency of the mesh (same vertex count as the transfers).
+    pub adjacency: &'a Adjacency,
+}
+
+/// Per-term statistics of one frame (fractions are of the term's active points: all points
+/// for diffuse, points facing the viewer for specular).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct TermStats {
+    /// Points evaluated (specular: facing the viewer).
+    pub active_points: usize,
+    /// `[l]`: fraction whose filtering pass (Algorithm 1, before refinement) evaluated band `l`.
+    pub level_fraction: Vec<f64>,
+    /// Fraction significant at full order after the filtering pass (the initial ROI).
+    pub initial_roi_fraction: f64,
+    /// Fraction significant at full order after refinement (the final ROI).
+    pub roi_fraction: f64,
+    /// Fraction shaded at full order in the end (ROI plus neighbours tested by the refinement).
+    pub full_order_fraction: f64,
+    /// `1 − full_order_fraction`: the thesis' "filtering ratio" (Table 6.1).
+    pub filtered_out_fraction: f64,
+    /// Points tested at full order by the refinement.
+    pub refined_points: usize,
+    /// Breadth-first rounds of the refinement.
+    pub refinement_rounds: usize,
+    /// Points given an extrapolated correction in the first / second tier.
+    pub smoothed_points: [usize; 2],
+    /// Coefficient products (multiply–adds) spent, the deterministic proxy for time.
+    pub products: u64,
+    /// Products the full-order path spends on the same points.
+    pub full_order_products: u64,
+    /// Wall time of this term, seconds.
+    pub seconds: f64,
+}
+
+/// Statistics of one adaptive frame.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct FrameStats {
+    /// SH order.
+    pub order: usize,
+    /// Number of points.
+    pub points: usize,
+    /// The absolute threshold applied (after resolving [`Threshold::RelativeToMean`]).
+    pub threshold: f32,
+    /// Diffuse term, if shaded.
+    pub diffuse: Option<TermStats>,
+    /// Specular term, if shaded.
+    pub specular: Option<TermStats>,
+    /// Wall time of the whole adaptive shading of the frame, seconds.
+    pub seconds: f64,
+}
+
+/// Result of [`Relighter::adaptive`]: radiance per point (empty for an absent term) and stats.
+#[derive(Clone, Debug)]
+pub struct AdaptiveFrame {
+    /// Diffuse radiance per point.
+    pub diffuse: Vec<[f32; 3]>,
+    /// Specular radiance per point.
+    pub specular: Vec<[f32; 3]>,
+    /// Frame statistics.
+    pub stats: FrameStats,
+}
+
+/// Evaluates a point: `(point, previous sums or None, last level, threshold, scratch) → sums`.
+type Eval<'a> = dyn Fn(usize, Option<Accum>, usize, Option<f32>, &mut [f32]) -> Accum + Sync + 'a;
+
+impl Relighter {
+    /// Shades one frame adaptively (Lee & Kim 2014, Algorithms 1–3, 5.2.1, 5.2.2), diffuse and
+    /// specular with separate ROIs. With threshold 0 the result is bit-identical to
+    /// [`Relighter::diffuse`] and [`Relighter::specular`].
+    pub fn adaptive(
+        &self,
+        input: &AdaptiveInput<'_>,
+        frame: &FrameLighting,
+        params: &AdaptiveParams,
+    ) -> Result<AdaptiveFrame, RelightError> {
+        let start = Instant::now();
+        self.check_frame(frame)?;
+        let top = self.order() - 1;
+        let b = crate::BASE_ORDER.min(self.order());
+        let mut counts: Vec<(&'static str, usize)> = Vec::new();
+        if let Some((t, p)) = &input.diffuse {
+            self.check_transfer(t, "diffuse transfer")?;
+            check_finite3(p.albedo_over_pi, "albedo/π")?;
+            counts.push(("diffuse transfer", t.point_count()));
+        }
+        if let Some(s) = &input.specular {
+            counts.push(("specular visibility", self.check_specular(s)?));
+        }
+        counts.push(("adjacency", input.adjacency.vertex_count()));
+        let points = counts[0].1;
+        if let Some(&(what, got)) = counts.iter().find(|c| c.1 != points) {
+            return Err(RelightError::PointCount {
+                what,
+                expected: points,
+                got,
+            });
+        }
+        let (t_raw, relative) = match params.threshold {
+            Threshold::Absolute(t) => (t, false),
+            Threshold::RelativeToMean(t) => (t, true),
+        };
+        if t_raw.is_nan() || t_raw < 0.0 || t_raw.is_infinite() {
+            return Err(RelightError::InvalidParameter(format!(
+                "threshold {t_raw} must be finite and ≥ 0"
+            )));
+        }
+
+        let n2 = self.order() * self.order();
+        let diffuse_eval = input.diffuse.as_ref().map(|(t, p)| {
+            let kernel = self.diffuse_kernel(frame);
+            let (t, scale) = (*t, p.albedo_over_pi);
+            move |v: usize, prev: Option<Accum>, to: usize, th: Option<f32>, _: &mut [f32]| {
+                let x = t.point(v);
+                let mut acc = prev.unwrap_or_else(|| kernel.base(x, t.channels, scale));
+                kernel.extend(&mut acc, x, t.channels, to, th);
+                acc
+            }
+        });
+        let specular_eval = match &input.specular {
+            None => None,
+            Some(s) => {
+                let kernel = self.specular_kernel(frame)?;
+                let lobe = self.lobe(&s.phong)?;
+                let s = *s;
+                Some(
+                    move |v: usize,
+                          prev: Option<Accum>,
+                          to: usize,
+                          th: Option<f32>,
+                          w: &mut [f32]| {
+                        let g = specular_point(&s, v);
+                        if !g.active {
+                            return Accum {
+                                last_level: top as u16,
+                                inactive: true,
+                                ..Accum::default()
+                            };
+                        }
+                        self.weights(&lobe, g.reflection, w);
+                        let x = s.visibility.point(v);
+                        let mut acc = prev.unwrap_or_else(|| kernel.base(x, w, g.scale));
+                        kernel.extend(&mut acc, x, w, to, th);
+                        acc
+                    },
+                )
+            }
+        };
+        let terms: [Option<&Eval<'_>>; 2] = [
+            diffuse_eval.as_ref().map(|f| f as &Eval<'_>),
+            specular_eval.as_ref().map(|f| f as &Eval<'_>),
+        ];
+
+        // Bases first when the threshold is relative to the frame's mean base radiance.
+        let mut bases: [Option<Vec<Accum>>; 2] = [None, None];
+        let threshold = if relative {
+            let mut sum = 0.0f64;
+            for (k, eval) in terms.iter().enumerate() {
+                if let Some(eval) = eval {
+                    let acc = evaluate_all(points, n2, |v, s| eval(v, None, b - 1, None, s));
+                    sum += acc
+                        .iter()
+                        .map(|a| {
+                            (0..3)
+                                .map(|c| f64::from(a.scale[c] * a.base[c]))
+                                .sum::<f64>()
+                        })
+                        .sum::<f64>();
+                    bases[k] = Some(acc);
+                }
+            }
+            let mean = if points > 0 {
+                sum / (3 * points) as f64
+            } else {
+                0.0
+            };
+            (f64::from(t_raw) * mean.abs()) as f32
+        } else {
+            t_raw
+        };
+
+        let mut radiance: [Vec<[f32; 3]>; 2] = [Vec::new(), Vec::new()];
+        let mut stats: [Option<TermStats>; 2] = [None, None];
+        let (full_d, full_s) = self.full_products();
+        for (k, eval) in terms.iter().enumerate() {
+            let Some(eval) = eval else { continue };
+            let t0 = Instant::now();
+            let mut acc = match bases[k].take() {
+                Some(base) => evaluate_all(points, n2, |v, s| {
+                    eval(v, Some(base[v]), top, Some(threshold), s)
+                }),
+                None => evaluate_all(points, n2, |v, s| eval(v, None, top, Some(threshold), s)),
+            };
+            let mut st = TermStats::default();
+            let active: Vec<bool> = acc.iter().map(|a| !a.inactive).collect();
+            st.active_points = active.iter().filter(|a| **a).count();
+            let denom = st.active_points.max(1) as f64;
+            st.level_fraction = (0..=top)
+                .map(|l| {
+                    acc.iter()
+                        .filter(|a| !a.inactive && a.last_level as usize >= l)
+                        .count() as f64
+                        / denom
+                })
+                .collect();
+            let significant = |a: &Accum| {
+                !a.inactive && a.last_level as usize == top && a.significance() >= threshold
+            };
+            st.initial_roi_fraction = acc.iter().filter(|a| significant(a)).count() as f64 / denom;
+            if params.refine {
+                let (rounds, tested) =
+                    refine_roi(input.adjacency, &mut acc, top, threshold, |v, a| {
+                        let mut w = vec![0.0f32; n2];
+                        eval(v, Some(a), top, None, &mut w)
+                    });
+                st.refinement_rounds = rounds;
+                st.refined_points = tested;
+            }
+            st.roi_fraction = acc.iter().filter(|a| significant(a)).count() as f64 / denom;
+            st.full_order_fraction = acc
+                .iter()
+                .filter(|a| !a.inactive && a.last_level as usize == top)
+                .count() as f64
+                / denom;
+            st.filtered_out_fraction = 1.0 - st.full_order_fraction;
+            let mut out: Vec<[f32; 3]> = acc.iter().map(Accum::radiance).collect();
+            if params.smooth {
+                let (corrections, tiers) = smooth_boundary(input.adjacency, &acc, top);
+                for (v, c) in corrections {
+                    let a = &acc[v];
+                    out[v] = [0, 1, 2].map(|ch| a.scale[ch] * a.base[ch] + c[ch]);
+                }
+                st.smoothed_points = tiers;
+            }
+            st.products = acc.iter().map(|a| a.products).sum();
+            let full_each = if k == 0 { full_d } else { full_s };
+            st.full_order_products = full_each * st.active_points as u64;
+            st.seconds = t0.elapsed().as_secs_f64();
+            radiance[k] = out;
+            stats[k] = Some(st);
+        }
+        let [diffuse, specular] = radiance;
+        let [diffuse_stats, specular_stats] = stats;
+        Ok(AdaptiveFrame {
+            diffuse,
+            specular,
+            stats: FrameStats {
+                order: self.order(),
+                points,
+                threshold,
+                diffuse: diffuse_stats,
+                specular: specular_stats,
+                seconds: start.elapsed().as_secs_f64(),
+            },
+        })
+    }
+}
+
+/// Runs `f(point, scratch)` for every point in parallel chunks (scratch of `n2` floats per chunk).
+fn evaluate_all(
+    points: usize,
+    n2: usize,
+    f: impl Fn(usize, &mut [f32]) -> Accum + Sync,
+) -> Vec<Accum> {
+    let mut acc = vec![Accum::default(); points];
+    acc.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(ci, chunk)| {
+            let mut w = vec![0.0f32; n2];
+            for (k, a) in chunk.iter_mut().enumerate() {
+                *a = f(ci * CHUNK + k, &mut w);
+            }
+        });
+    acc
+}
+
+/// ROI refinement (Lee & Kim 2014, 5.2.1): breadth-first from the significant full-order
+/// points, each round evaluates (in parallel) the not-yet-full-order neighbours of the points
+/// that became significant in the previous round, at full order, and continues from those that
+/// are significant (`max_c |D_c| ≥ threshold`). Tested points keep their full-order value.
+/// Returns (rounds, points tested).
+pub(crate) fn refine_roi(
+    adjacency: &Adjacency,
+    acc: &mut [Accum],
+    top: usize,
+    threshold: f32,
+    full: impl Fn(usize, Accum) -> Accum + Sync,
+) -> (usize, usize) {
+    let complete = |a: &Accum| a.inactive || a.last_level as usize == top;
+    let significant =
+        |a: &Accum| !a.inactive && a.last_level as usize == top && a.significance() >= threshold;
+    let mut seeds: Vec<usize> = (0..acc.len()).filter(|&v| significant(&acc[v])).collect();
+    let (mut rounds, mut tested) = (0, 0);
+    loop {
+        let mut frontier: Vec<usize> = seeds
+            .iter()
+            .flat_map(|&v| adjacency.neighbours(v).iter().map(|&u| u as usize))
+            .filter(|&u| !complete(&acc[u]))
+            .collect();
+        frontier.sort_unstable();
+        frontier.dedup();
+        if frontier.is_empty() {
+            return (rounds, tested);
+        }
+        rounds += 1;
+        tested += frontier.len();
+        let snapshot: &[Accum] = acc;
+        let evaluated: Vec<Accum> = frontier.par_iter().map(|&v| full(v, snapshot[v])).collect();
+        seeds.clear();
+        for (&v, a) in frontier.iter().zip(evaluated) {
+            acc[v] = a;
+            if significant(&a) {
+                seeds.push(v);
+            }
+        }
+    }
+}
+
+/// Boundary smoothing (Lee & Kim 2014, 5.2.2). Sources are the points shaded at full order;
+/// tier 1 are truncated points next to a source, tier 2 truncated points next to tier 1 (and
+/// not in it). The extrapolated correction is the mean correction `D` of the adjacent sources
+/// (tier 1) or the mean extrapolated correction of the adjacent tier-1 points (tier 2), and it
+/// is blended linearly with the point's own truncated correction, fading out over the two
+/// tiers: `D' = ⅔ D̄ + ⅓ D` on tier 1, `D' = ⅓ D̄ + ⅔ D` on tier 2.
+/// Returns the new corrections (radiance units) and the tier sizes.
+pub(crate) fn smooth_boundary(
+    adjacency: &Adjacency,
+    acc: &[Accum],
+    top: usize,
+) -> (Vec<(usize, [f32; 3])>, [usize; 2]) {
+    let source = |a: &Accum| !a.inactive && a.last_level as usize == top;
+    let truncated = |a: &Accum| !a.inactive && (a.last_level as usize) < top;
+    let mean_of = |items: &mut dyn Iterator<Item = [f32; 3]>| {
+        let (mut s, mut n) = ([0.0f32; 3], 0u32);
+        for d in items {
+            for c in 0..3 {
+                s[c] += d[c];
+            }
+            n += 1;
+        }
+        (n > 0).then(|| s.map(|x| x / n as f32))
+    };
+    // Tier 1.
+    let mut tier1: Vec<Option<[f32; 3]>> = vec![None; acc.len()];
+    for v in 0..acc.len() {
+        if truncated(&acc[v]) {
+            let nb = adjacency.neighbours(v);
+            tier1[v] = mean_of(
+                &mut nb
+                    .iter()
+                    .map(|&u| &acc[u as usize])
+                    .filter(|a| source(a))
+                    .map(Accum::correction),
+            );
+        }
+    }
+    let mut out = Vec::new();
+    let mut tiers = [0usize; 2];
+    for v in 0..acc.len() {
+        let own = acc[v].correction();
+        if let Some(bar) = tier1[v] {
+            tiers[0] += 1;
+            out.push((v, [0, 1, 2].map(|c| (2.0 * bar[c] + own[c]) / 3.0)));
+        } else if truncated(&acc[v]) {
+            let nb = adjacency.neighbours(v);
+            if let Some(bar) = mean_of(&mut nb.iter().filter_map(|&u| tier1[u as usize])) {
+                tiers[1] += 1;
+                out.push((v, [0, 1, 2].map(|c| (bar[c] + 2.0 * own[c]) / 3.0)));
+            }
+        }
+    }
+    (out, tiers)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Strip of triangles `[i, i+1, i+2]`: vertex `i` is adjacent to `i±1` and `i±2`.
+    fn strip(n: u32) -> Adjacency {
+        let tris: Vec<[u32; 3]> = (0..n - 2).map(|i| [i, i + 1, i + 2]).collect();
+        Adjacency::from_triangles(n as usize, &tris).unwrap()
+    }
+
+    fn acc(last_level: u16, high: f32) -> Accum {
+        Accum {
+            base: [1.0; 3],
+            high: [high; 3],
+            scale: [1.0; 3],
+            last_level,
+            products: 0,
+            inactive: false,
+        }
+    }
+
+    #[test]
+    fn refinement_follows_significant_neighbours() {
+        // Top level 5. After filtering only vertex 0 is at full order and significant.
+        // Full-order corrections of the others, T = 0.1: 1 → 0.5 (significant), 2 → 0.05 (not),
+        // 3 → 0.2 (significant), 4, 5 → 0.01, the rest 0.3 (significant, but unreachable).
+        // Round 1 tests N(0) = {1, 2}; round 2 tests N(1) \ tested = {3};
+        // round 3 tests N(3) \ tested = {4, 5}; then no significant point is left to expand.
+        let adj = strip(12);
+        let full_high = [
+            1.0, 0.5, 0.05, 0.2, 0.01, 0.01, 0.3, 0.3, 0.3, 0.3, 0.3, 0.3,
+        ];
+        let mut a: Vec<Accum> = (0..12)
+            .map(|v| if v == 0 { acc(5, 1.0) } else { acc(3, 0.0) })
+            .collect();
+        let (rounds, tested) = refine_roi(&adj, &mut a, 5, 0.1, |v, _| acc(5, full_high[v]));
+        assert_eq!((rounds, tested), (3, 5));
+        let full: Vec<usize> = (0..12).filter(|&v| a[v].last_level == 5).collect();
+        assert_eq!(full, vec![0, 1, 2, 3, 4, 5]);
+        let sig: Vec<usize> = (0..12)
+            .filter(|&v| a[v].last_level == 5 && a[v].significance() >= 0.1)
+            .collect();
+        assert_eq!(sig, vec![0, 1, 3]);
+    }
+
+    #[test]
+    fn smoothing_extrapolates_over_two_tiers() {
+        // Full order: 0 (D = 1), 1 (D = 3). Truncated, own D = 0 except vertex 4 (D = 0.6).
+        // Tier 1 = {2 (sources 0, 1: D̄ = 2), 3 (source 1: D̄ = 3)}.
+        // Tier 2 = {4 (tier-1 neighbours 2, 3: D̄ = 2.5), 5 (tier-1 neighbour 3: D̄ = 3)}.
+        // D' = ⅔ D̄ + ⅓ D on tier 1, ⅓ D̄ + ⅔ D on tier 2.
+        let adj = strip(9);
+        let mut a: Vec<Accum> = (0..9).map(|_| acc(3, 0.0)).collect();
+        a[0] = acc(5, 1.0);
+        a[1] = acc(5, 3.0);
+        a[4] = acc(4, 0.6);
+        let (out, tiers) = smooth_boundary(&adj, &a, 5);
+        assert_eq!(tiers, [2, 2]);
+        let expect = [(2, 4.0 / 3.0), (3, 2.0), (4, 2.5 / 3.0 + 0.4), (5, 1.0)];
+        assert_eq!(out.len(), expect.len());
+        for ((v, d), (ev, ed)) in out.iter().zip(expect) {
+            assert_eq!(*v, ev);
+            for c in d {
+                assert!((c - ed).abs() < 1e-6, "vertex {v}: {c} vs {ed}");
+            }
+        }
+    }
+}

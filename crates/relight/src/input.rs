@@ -1,0 +1,251 @@
+//! Inputs as plain in-memory arrays, laid out the way a bake stores them.
+
+use crate::error::RelightError;
+use prt_sh::Rotation;
+
+/// Per-vertex (or per-pixel) transfer of one object: order `n`, `channels` (1 or 3), data
+/// `[point][channel][coeff]` in f32, length `points · channels · n²`.
+///
+/// For diffuse shading this is the transfer vector `T_i = ∫ V(ω) max(0, n·ω) y_i(ω) dω` of a
+/// shadowed bake, or the interreflected transfer (whose bounces already include the albedo/π of
+/// the *other* surfaces). In both cases it **excludes the receiving point's own albedo/π**,
+/// which [`DiffuseParams`] applies once. For specular shading it is the visibility
+/// `V_i = ∫ vis(ω) y_i(ω) dω` (1 channel, no cosine).
+#[derive(Clone, Copy, Debug)]
+pub struct TransferView<'a> {
+    /// SH order (number of bands).
+    pub order: usize,
+    /// Channels per point: 1 (used for all three colours) or 3.
+    pub channels: usize,
+    /// `[point][channel][coeff]`.
+    pub data: &'a [f32],
+}
+
+impl<'a> TransferView<'a> {
+    /// A checked view (see [`TransferView::validate`]).
+    pub fn new(order: usize, channels: usize, data: &'a [f32]) -> Result<Self, RelightError> {
+        let view = Self {
+            order,
+            channels,
+            data,
+        };
+        view.validate()?;
+        Ok(view)
+    }
+
+    /// Checks the order (≥ 1), the channel count (1 or 3) and that the data is a whole number
+    /// of points. Values are not scanned (a bake reader validates them once).
+    pub fn validate(&self) -> Result<(), RelightError> {
+        prt_sh::check_order(self.order, prt_sh::MAX_ORDER)?;
+        if self.channels != 1 && self.channels != 3 {
+            return Err(RelightError::Channels {
+                what: "transfer",
+                channels: self.channels,
+                allowed: "1 or 3",
+            });
+        }
+        let per_point = self.floats_per_point();
+        if (self.data.len() / per_point) * per_point != self.data.len() {
+            return Err(RelightError::TransferLength {
+                order: self.order,
+                channels: self.channels,
+                per_point,
+                len: self.data.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// `channels · order²`.
+    #[must_use]
+    pub fn floats_per_point(&self) -> usize {
+        self.channels * self.order * self.order
+    }
+
+    /// Number of points (vertices or pixels).
+    #[must_use]
+    pub fn point_count(&self) -> usize {
+        self.data.len() / self.floats_per_point().max(1)
+    }
+
+    /// The `channels · order²` floats of point `p` (panics if `p` is out of range).
+    #[must_use]
+    pub fn point(&self, p: usize) -> &'a [f32] {
+        let k = self.floats_per_point();
+        &self.data[p * k..(p + 1) * k]
+    }
+}
+
+/// Lighting: RGB SH coefficients of the distant environment (already rotated), f32, stored per
+/// channel (`rgb[c][i]`, `order²` each) so that dot products with a transfer vectorise.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lighting {
+    /// SH order (number of bands).
+    pub order: usize,
+    /// `rgb[channel][coeff]`.
+    pub rgb: [Vec<f32>; 3],
+}
+
+impl Lighting {
+    /// Lighting from RGB coefficients `[coeff][channel]` (as `prt_sh::project_env` returns them),
+    /// rotated by `rotation` if given (the rotation's order must be at least the coefficients'
+    /// order; its first bands are used). The rotation is applied in f64, then rounded to f32.
+    pub fn from_rgb_coefficients(
+        coeffs: &[[f64; 3]],
+        rotation: Option<&Rotation>,
+    ) -> Result<Self, RelightError> {
+        let order = order_of_len(coeffs.len())?;
+        if coeffs.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(RelightError::NonFinite("lighting coefficients"));
+        }
+        let rotated;
+        let coeffs = match rotation {
+            None => coeffs,
+            Some(rot) => {
+                if rot.order() < order {
+                    return Err(RelightError::OrderMismatch {
+                        what: "lighting rotation",
+                        expected: order,
+                        got: rot.order(),
+                    });
+                }
+                rotated = rotate_rgb(rot, coeffs, order);
+                &rotated[..]
+            }
+        };
+        let channel = |c: usize| coeffs.iter().map(|v| v[c] as f32).collect::<Vec<f32>>();
+        Ok(Self {
+            order,
+            rgb: [channel(0), channel(1), channel(2)],
+        })
+    }
+
+    /// Checks the order and that every channel holds `order²` finite values.
+    pub fn validate(&self) -> Result<(), RelightError> {
+        prt_sh::check_order(self.order, prt_sh::MAX_ORDER)?;
+        for ch in &self.rgb {
+            if ch.len() != self.order * self.order {
+                return Err(RelightError::Sh(prt_sh::ShError::BufferLength {
+                    order: self.order,
+                    expected: self.order * self.order,
+                    got: ch.len(),
+                }));
+            }
+            if ch.iter().any(|v| !v.is_finite()) {
+                return Err(RelightError::NonFinite("lighting coefficients"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The first `order` bands (errors if this lighting has fewer).
+    pub fn truncated(&self, order: usize) -> Result<Self, RelightError> {
+        self.validate()?;
+        if order == 0 || order > self.order {
+            return Err(RelightError::OrderMismatch {
+                what: "lighting",
+                expected: order,
+                got: self.order,
+            });
+        }
+        let n2 = order * order;
+        Ok(Self {
+            order,
+            rgb: [
+                self.rgb[0][..n2].to_vec(),
+                self.rgb[1][..n2].to_vec(),
+                self.rgb[2][..n2].to_vec(),
+            ],
+        })
+    }
+}
+
+/// `n` with `n² = len`, n ≥ 1.
+pub(crate) fn order_of_len(len: usize) -> Result<usize, RelightError> {
+    let n = (len as f64).sqrt().round() as usize;
+    if n == 0 || n * n != len {
+        return Err(RelightError::NotSquare(len));
+    }
+    Ok(n)
+}
+
+/// Applies the first `order` band matrices of `rot` to RGB coefficients.
+fn rotate_rgb(rot: &Rotation, coeffs: &[[f64; 3]], order: usize) -> Vec<[f64; 3]> {
+    let mut out = vec![[0.0; 3]; coeffs.len()];
+    for l in 0..order {
+        let band = rot.band(l);
+        let w = 2 * l + 1;
+        let start = l * l;
+        for row in 0..w {
+            let mut acc = [0.0f64; 3];
+            for (a, c) in band[row * w..(row + 1) * w]
+                .iter()
+                .zip(&coeffs[start..start + w])
+            {
+                for ch in 0..3 {
+                    acc[ch] += a * c[ch];
+                }
+            }
+            out[start + row] = acc;
+        }
+    }
+    out
+}
+
+/// The diffuse material of the receiving points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiffuseParams {
+    /// `albedo / π` per channel, applied once to `L · T` (the transfer excludes it).
+    pub albedo_over_pi: [f32; 3],
+}
+
+impl DiffuseParams {
+    /// From the albedo of `CONVENTIONS.md` (`f = albedo/π`).
+    #[must_use]
+    pub fn from_albedo(albedo: [f32; 3]) -> Self {
+        Self {
+            albedo_over_pi: albedo.map(|a| a / std::f32::consts::PI),
+        }
+    }
+}
+
+/// The specular part of the `phong` material of `CONVENTIONS.md`:
+/// `specular · (e+2)/(2π) · max(0, r·ω_i)^e`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhongParams {
+    /// Specular reflectance per channel.
+    pub specular: [f32; 3],
+    /// Phong exponent `e ≥ 0`.
+    pub exponent: f32,
+}
+
+/// Where the shaded points are.
+#[derive(Clone, Copy, Debug)]
+pub struct Surface<'a> {
+    /// World-space positions (used with [`Viewer::Eye`]).
+    pub positions: &'a [[f32; 3]],
+    /// Unit shading normals.
+    pub normals: &'a [[f32; 3]],
+}
+
+/// Where the viewer is.
+#[derive(Clone, Copy, Debug)]
+pub enum Viewer<'a> {
+    /// A pinhole at this world position: `ω_o = normalize(eye − position)`.
+    Eye([f32; 3]),
+    /// One unit direction `ω_o` toward the viewer per point.
+    Directions(&'a [[f32; 3]]),
+}
+
+/// Everything specular shading needs besides the lighting.
+#[derive(Clone, Copy, Debug)]
+pub struct SpecularInput<'a> {
+    /// Visibility transfer `V_i = ∫ vis(ω) y_i(ω) dω`, 1 channel.
+    pub visibility: TransferView<'a>,
+    /// Positions and normals.
+    pub surface: Surface<'a>,
+    /// The viewer.
+    pub viewer: Viewer<'a>,
+    /// The material's specular lobe.
+    pub phong: PhongParams,
+}

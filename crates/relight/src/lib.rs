@@ -1,0 +1,84 @@
+//! Relighting of precomputed radiance transfer (PRT) under a distant environment given by SH
+//! coefficients: full order and locally adaptive, diffuse and Phong specular, on plain
+//! in-memory arrays laid out as a bake stores them.
+//!
+//! # What is implemented, and after whom
+//! - **Diffuse PRT** (Sloan, Kautz & Snyder 2002, "Precomputed radiance transfer for real-time
+//!   rendering in dynamic, low-frequency lighting environments"): outgoing radiance
+//!   `albedo/π ⊙ (L_c · T_c)` with the shadowed transfer `T_i = ∫ V(ω) max(0, n·ω) y_i(ω) dω`
+//!   (or an interreflected one). The transfer **excludes the receiving point's own albedo/π**,
+//!   applied once by [`DiffuseParams`]. With `T` the clamped cosine about `n` this is the
+//!   irradiance formula of Ramamoorthi & Hanrahan 2001.
+//! - **Specular PRT** (Lee & Kim 2014, "Locally Adaptive Products for Genuine Spherical
+//!   Harmonic Lighting", WSCG 2014 / KAIST thesis, eq. 4.3–4.4, after Sloan et al. 2002):
+//!   the incident radiance `R = L ⊛ V` is the SH product (triple-product / Gaunt tensor of Ng,
+//!   Ramamoorthi & Hanrahan 2004, "Triple product wavelet integrals for all-frequency
+//!   relighting") of the lighting and the per-point visibility, convolved with the zonal Phong
+//!   lobe and evaluated at the reflection direction `r = 2(n·ω_o)n − ω_o`.
+//! - **Locally adaptive relighting** (Lee & Kim 2014, chapter 5): bands `0..3` for every
+//!   point, then band by band only while the accumulated difference from the base stays above
+//!   a threshold (Algorithms 1–3, with the incremental product of Algorithm 3), ROI refinement
+//!   by breadth-first search over the mesh ([`Adjacency`], 5.2.1) and boundary smoothing over
+//!   two tiers (5.2.2). See [`Relighter::adaptive`].
+//!
+//! # The specular approximation, precisely
+//! `CONVENTIONS.md`'s Phong term gives the outgoing radiance
+//! `L_s(ω_o) = ∫ L(ω) vis(ω) · specular · (e+2)/(2π) max(0, r·ω)^e · max(0, n·ω) dω`.
+//! The PRT approximation (Sloan et al. 2002; Lee & Kim eq. 4.4) moves the cosine out of the
+//! integral, evaluated at the lobe centre where `n·r = n·ω_o`:
+//! `L_s ≈ specular · (e+2)/(e+1) · max(0, n·ω_o) · ∫ L vis · p(r·ω) dω`, with the *normalised*
+//! lobe `p(t) = (e+1)/(2π) max(0, t)^e` (unit integral), whose band multipliers `A_l`
+//! (`prt_sh::zonal::phong_lobe_bands`) turn the integral into `Σ_lm A_l R_lm y_lm(r)`
+//! (Funk–Hecke). So the factor `(e+2)/(e+1) · max(0, n·r)` is the whole difference between the
+//! two lobes. It is exact for the integrand with the cosine frozen; against the true integrand
+//! it overestimates a uniform environment seen along the normal by exactly `(e+2)/(e+1)`
+//! (true 1, approximation `(e+2)/(e+1)`), and errs more at grazing views, where the lobe is
+//! clipped by the horizon (measured in `tests/specular.rs` and the README). Points facing away
+//! (`n·ω_o ≤ 0`) are 0, as the BRDF is. Bands beyond the order are dropped from `L ⊛ V` and
+//! from the lobe.
+//!
+//! # Layout and determinism
+//! Inner loops are f32 dot products over contiguous slices with 8 independent lanes (they
+//! auto-vectorise), parallel over chunks of 256 points with rayon; every point's sums are formed
+//! in a fixed order, so results do not depend on the thread count, and the adaptive path with
+//! threshold 0 equals the full-order path bit for bit (both go through the same band-by-band
+//! kernels).
+//!
+//! ```
+//! use prt_relight::{DiffuseParams, Lighting, Relighter, TransferView};
+//! // Uniform environment of radiance 1 (L_0 = √(4π)); unoccluded transfer of a +Z normal,
+//! // T_i = A_l y_i(n): the clamped cosine's band multipliers times the basis at the normal.
+//! let order = 3;
+//! let mut env = vec![[0.0f64; 3]; order * order];
+//! env[0] = [(4.0 * std::f64::consts::PI).sqrt(); 3];
+//! let lighting = Lighting::from_rgb_coefficients(&env, None).unwrap();
+//! let a = prt_sh::zonal::clamped_cosine_bands(order).unwrap();
+//! let y = prt_sh::Basis::new(order).unwrap().eval(glam::DVec3::Z);
+//! let transfer: Vec<f32> = (0..order * order)
+//!     .map(|i| (a[prt_sh::degree_and_order(i).0] * y[i]) as f32)
+//!     .collect();
+//! let relighter = Relighter::new(order).unwrap();
+//! let frame = relighter.frame_lighting(&lighting, false).unwrap();
+//! let view = TransferView::new(order, 1, &transfer).unwrap();
+//! let rgb = relighter.diffuse(&view, &frame, &DiffuseParams::from_albedo([0.5; 3])).unwrap();
+//! // Irradiance π, radiance albedo/π · π = albedo.
+//! assert!((rgb[0][0] - 0.5).abs() < 1e-6);
+//! ```
+
+mod adaptive;
+mod adjacency;
+mod error;
+mod input;
+mod kernel;
+mod relighter;
+
+pub use adaptive::{
+    AdaptiveFrame, AdaptiveInput, AdaptiveParams, FrameStats, TermStats, Threshold,
+};
+pub use adjacency::Adjacency;
+pub use error::RelightError;
+pub use input::{
+    DiffuseParams, Lighting, PhongParams, SpecularInput, Surface, TransferView, Viewer,
+};
+pub use kernel::BASE_ORDER;
+pub use relighter::{FrameLighting, Relighter};

@@ -1,0 +1,330 @@
+//! The relighter of one SH order, per-frame lighting, and full-order diffuse and specular shading.
+
+use crate::error::RelightError;
+use crate::input::{DiffuseParams, Lighting, PhongParams, SpecularInput, TransferView, Viewer};
+use crate::kernel::{DiffuseKernel, SpecularKernel, CHUNK};
+use glam::Vec3;
+use prt_sh::{zonal, Basis, GauntTensor, MAX_GAUNT_ORDER};
+use rayon::prelude::*;
+
+/// Relighting at one SH order: holds the basis, the Gaunt tensor (for specular) and the packing
+/// of the light product matrices. Build once, shade many frames.
+#[derive(Clone, Debug)]
+pub struct Relighter {
+    order: usize,
+    basis: Basis,
+    gaunt: Option<GauntTensor>,
+    /// Row `i` of the packed block-lower product matrix is `row_offsets[i]..row_offsets[i+1]`,
+    /// holding columns `j < (l_i + 1)²`.
+    row_offsets: Vec<usize>,
+}
+
+/// The lighting of one frame, prepared for a [`Relighter`]: the f32 coefficients truncated to
+/// the relighter's order and (for specular) the three light product matrices `L̂ = M(L)`.
+#[derive(Clone, Debug)]
+pub struct FrameLighting {
+    /// The lighting, truncated to the relighter's order.
+    pub lighting: Lighting,
+    /// Packed block-lower rows of `L̂_c` per channel (f32), if prepared for specular.
+    products: Option<[Vec<f32>; 3]>,
+}
+
+impl FrameLighting {
+    /// Whether the specular product matrices were built.
+    #[must_use]
+    pub fn has_specular(&self) -> bool {
+        self.products.is_some()
+    }
+}
+
+/// Per-point specular geometry: `w_i = A_l y_i(r)` is formed from `reflection`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SpecularPoint {
+    pub reflection: Vec3,
+    /// `specular_c · (e+2)/(e+1) · cos θ_o`, zero when the point faces away.
+    pub scale: [f32; 3],
+    pub active: bool,
+}
+
+impl Relighter {
+    /// A relighter of `order` bands. Specular shading needs `order ≤ MAX_GAUNT_ORDER` (32);
+    /// beyond it only diffuse shading is available.
+    pub fn new(order: usize) -> Result<Self, RelightError> {
+        let basis = Basis::new(order)?;
+        let gaunt = if order <= MAX_GAUNT_ORDER {
+            Some(GauntTensor::new(order)?)
+        } else {
+            None
+        };
+        let n2 = order * order;
+        let mut row_offsets = Vec::with_capacity(n2 + 1);
+        row_offsets.push(0);
+        for l in 0..order {
+            for _ in 0..2 * l + 1 {
+                let last = *row_offsets.last().unwrap_or(&0);
+                row_offsets.push(last + (l + 1) * (l + 1));
+            }
+        }
+        Ok(Self {
+            order,
+            basis,
+            gaunt,
+            row_offsets,
+        })
+    }
+
+    /// Order (number of bands).
+    #[must_use]
+    pub fn order(&self) -> usize {
+        self.order
+    }
+
+    /// Prepares one frame's lighting (of order ≥ this relighter's; extra bands are dropped).
+    /// With `specular`, also builds the light product matrices (`O(order⁵)`, once per frame).
+    pub fn frame_lighting(
+        &self,
+        lighting: &Lighting,
+        specular: bool,
+    ) -> Result<FrameLighting, RelightError> {
+        let lighting = lighting.truncated(self.order)?;
+        let products = if specular {
+            let gaunt = self.gaunt.as_ref().ok_or(RelightError::OrderMismatch {
+                what: "specular relighter (Gaunt tensor limit)",
+                expected: MAX_GAUNT_ORDER,
+                got: self.order,
+            })?;
+            let n2 = self.order * self.order;
+            let mut out: [Vec<f32>; 3] = Default::default();
+            for (c, packed) in out.iter_mut().enumerate() {
+                let l64: Vec<f64> = lighting.rgb[c].iter().map(|v| f64::from(*v)).collect();
+                let dense = gaunt.product_matrix(&l64)?;
+                packed.reserve(self.row_offsets[n2]);
+                for i in 0..n2 {
+                    let len = self.row_offsets[i + 1] - self.row_offsets[i];
+                    packed.extend(dense[i * n2..i * n2 + len].iter().map(|v| *v as f32));
+                }
+            }
+            Some(out)
+        } else {
+            None
+        };
+        Ok(FrameLighting { lighting, products })
+    }
+
+    pub(crate) fn check_transfer(
+        &self,
+        transfer: &TransferView<'_>,
+        what: &'static str,
+    ) -> Result<(), RelightError> {
+        transfer.validate()?;
+        if transfer.order != self.order {
+            return Err(RelightError::OrderMismatch {
+                what,
+                expected: self.order,
+                got: transfer.order,
+            });
+        }
+        Ok(())
+    }
+
+    pub(crate) fn check_frame(&self, frame: &FrameLighting) -> Result<(), RelightError> {
+        frame.lighting.validate()?;
+        if frame.lighting.order != self.order {
+            return Err(RelightError::OrderMismatch {
+                what: "frame lighting",
+                expected: self.order,
+                got: frame.lighting.order,
+            });
+        }
+        Ok(())
+    }
+
+    pub(crate) fn diffuse_kernel<'a>(&self, frame: &'a FrameLighting) -> DiffuseKernel<'a> {
+        let rgb = &frame.lighting.rgb;
+        DiffuseKernel {
+            light: [&rgb[0], &rgb[1], &rgb[2]],
+            order: self.order,
+        }
+    }
+
+    pub(crate) fn specular_kernel<'a>(
+        &'a self,
+        frame: &'a FrameLighting,
+    ) -> Result<SpecularKernel<'a>, RelightError> {
+        let p = frame
+            .products
+            .as_ref()
+            .ok_or(RelightError::MissingProducts)?;
+        Ok(SpecularKernel {
+            products: [&p[0], &p[1], &p[2]],
+            row_offsets: &self.row_offsets,
+            order: self.order,
+        })
+    }
+
+    /// Full-order diffuse radiance per point: `albedo/π ⊙ (L_c · T_c)` for each channel `c`
+    /// (a 1-channel transfer serves all three). Parallel over chunks of points; the result does
+    /// not depend on the thread count.
+    pub fn diffuse(
+        &self,
+        transfer: &TransferView<'_>,
+        frame: &FrameLighting,
+        params: &DiffuseParams,
+    ) -> Result<Vec<[f32; 3]>, RelightError> {
+        self.check_transfer(transfer, "diffuse transfer")?;
+        self.check_frame(frame)?;
+        check_finite3(params.albedo_over_pi, "albedo/π")?;
+        let kernel = self.diffuse_kernel(frame);
+        let top = self.order - 1;
+        let mut out = vec![[0.0f32; 3]; transfer.point_count()];
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(ci, chunk)| {
+                for (k, o) in chunk.iter_mut().enumerate() {
+                    let t = transfer.point(ci * CHUNK + k);
+                    let mut acc = kernel.base(t, transfer.channels, params.albedo_over_pi);
+                    kernel.extend(&mut acc, t, transfer.channels, top, None);
+                    *o = acc.radiance();
+                }
+            });
+        Ok(out)
+    }
+
+    /// Checks a specular input against this relighter and returns its point count.
+    pub(crate) fn check_specular(&self, input: &SpecularInput<'_>) -> Result<usize, RelightError> {
+        self.check_transfer(&input.visibility, "specular visibility")?;
+        if input.visibility.channels != 1 {
+            return Err(RelightError::Channels {
+                what: "specular visibility",
+                channels: input.visibility.channels,
+                allowed: "1",
+            });
+        }
+        let n = input.visibility.point_count();
+        let check_len = |what: &'static str, got: usize| {
+            if got == n {
+                Ok(())
+            } else {
+                Err(RelightError::PointCount {
+                    what,
+                    expected: n,
+                    got,
+                })
+            }
+        };
+        check_len("normals", input.surface.normals.len())?;
+        match input.viewer {
+            Viewer::Eye(eye) => {
+                check_len("positions", input.surface.positions.len())?;
+                check_finite3(eye, "eye position")?;
+            }
+            Viewer::Directions(d) => check_len("view directions", d.len())?,
+        }
+        let p = input.phong;
+        check_finite3(p.specular, "specular reflectance")?;
+        if p.exponent.is_nan() || p.exponent < 0.0 || p.exponent.is_infinite() {
+            return Err(RelightError::InvalidParameter(format!(
+                "Phong exponent {} must be finite and ≥ 0",
+                p.exponent
+            )));
+        }
+        Ok(n)
+    }
+
+    /// Band multipliers of the normalised Phong lobe `(e+1)/(2π) cos^e`, f32.
+    pub(crate) fn lobe(&self, phong: &PhongParams) -> Result<Vec<f32>, RelightError> {
+        Ok(
+            zonal::phong_lobe_bands(f64::from(phong.exponent), self.order)?
+                .into_iter()
+                .map(|a| a as f32)
+                .collect(),
+        )
+    }
+
+    /// Fills `w_i = A_l y_i(r)`.
+    #[inline]
+    pub(crate) fn weights(&self, lobe: &[f32], reflection: Vec3, w: &mut [f32]) {
+        self.basis.eval_f32_unchecked(reflection, w);
+        for (l, a) in lobe.iter().enumerate() {
+            for v in &mut w[l * l..(l + 1) * (l + 1)] {
+                *v *= a;
+            }
+        }
+    }
+
+    /// Full-order Phong specular radiance per point (see the crate docs for the approximation):
+    /// `specular ⊙ (e+2)/(e+1) · max(0, n·ω_o) · Σ_lm A_l (L ⊛ V)_lm y_lm(r)` per channel.
+    pub fn specular(
+        &self,
+        input: &SpecularInput<'_>,
+        frame: &FrameLighting,
+    ) -> Result<Vec<[f32; 3]>, RelightError> {
+        let n = self.check_specular(input)?;
+        self.check_frame(frame)?;
+        let kernel = self.specular_kernel(frame)?;
+        let lobe = self.lobe(&input.phong)?;
+        let n2 = self.order * self.order;
+        let top = self.order - 1;
+        let mut out = vec![[0.0f32; 3]; n];
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(ci, chunk)| {
+                let mut w = vec![0.0f32; n2];
+                for (k, o) in chunk.iter_mut().enumerate() {
+                    let p = ci * CHUNK + k;
+                    let g = specular_point(input, p);
+                    if !g.active {
+                        continue;
+                    }
+                    self.weights(&lobe, g.reflection, &mut w);
+                    let v = input.visibility.point(p);
+                    let mut acc = kernel.base(v, &w, g.scale);
+                    kernel.extend(&mut acc, v, &w, top, None);
+                    *o = acc.radiance();
+                }
+            });
+        Ok(out)
+    }
+
+    /// Full-order products of a point: diffuse and specular (3 channels).
+    pub(crate) fn full_products(&self) -> (u64, u64) {
+        (
+            DiffuseKernel::products_through(self.order - 1),
+            SpecularKernel::products_through(self.order - 1),
+        )
+    }
+}
+
+/// View direction, reflection and scale of point `p`: `ω_o` toward the viewer, `r = 2(n·ω_o)n − ω_o`,
+/// scale `specular · (e+2)/(e+1) · n·ω_o`; inactive (zero) if `n·ω_o ≤ 0` or degenerate.
+pub(crate) fn specular_point(input: &SpecularInput<'_>, p: usize) -> SpecularPoint {
+    let n = Vec3::from_array(input.surface.normals[p]).normalize_or_zero();
+    let wo = match input.viewer {
+        Viewer::Eye(eye) => (Vec3::from_array(eye) - Vec3::from_array(input.surface.positions[p]))
+            .normalize_or_zero(),
+        Viewer::Directions(d) => Vec3::from_array(d[p]).normalize_or_zero(),
+    };
+    let cos_o = n.dot(wo);
+    if cos_o.is_nan() || cos_o <= 0.0 {
+        return SpecularPoint {
+            reflection: n,
+            scale: [0.0; 3],
+            active: false,
+        };
+    }
+    let e = input.phong.exponent;
+    let k = (e + 2.0) / (e + 1.0) * cos_o;
+    SpecularPoint {
+        reflection: (2.0 * cos_o * n - wo).normalize_or_zero(),
+        scale: input.phong.specular.map(|s| s * k),
+        active: true,
+    }
+}
+
+pub(crate) fn check_finite3(v: [f32; 3], what: &'static str) -> Result<(), RelightError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(RelightError::NonFinite(what))
+    }
+}
