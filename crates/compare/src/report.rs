@@ -86,10 +86,17 @@ fn fmt_db(v: f64) -> String {
 }
 
 fn fmt_val(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v:.6e}")
-    } else {
+    // Seven significant digits; plain decimals for ordinary magnitudes.
+    let a = v.abs();
+    if v == 0.0 {
+        "0".into()
+    } else if !v.is_finite() {
         format!("{v}")
+    } else if (1e-3..1e5).contains(&a) {
+        let decimals = (6 - a.log10().floor() as i32).max(0) as usize;
+        format!("{v:.decimals$}")
+    } else {
+        format!("{v:.6e}")
     }
 }
 
