@@ -2,9 +2,7 @@
 //!
 //! Each subcommand lives in its own module with a clap `Args` struct and a `run` function.
 
-mod bake_cmd;
 mod compare_cmd;
-mod render_cmd;
 mod sh_cmd;
 
 use clap::{Parser, Subcommand};
@@ -20,8 +18,6 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Path-trace a reference image of a scene (EXR, optional PNG view).
-    Render(render_cmd::RenderArgs),
     /// Spherical-harmonic tools: project environment maps, evaluate the basis.
     #[command(subcommand)]
     Sh(sh_cmd::ShCommand),
@@ -32,11 +28,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render(args) => render_cmd::run(&args),
         Command::Sh(cmd) => sh_cmd::run(cmd),
-        Command::Bake(args) => bake_cmd::run_bake(&args),
-        Command::Inspect(args) => bake_cmd::run_inspect(&args),
-        Command::Merge(args) => bake_cmd::run_merge(&args),
         Command::Compare(args) => compare_cmd::run(args),
     };
     match result {
