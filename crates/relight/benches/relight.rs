@@ -6,6 +6,9 @@
 //! Before measuring, prints per order the adaptive statistics and the PSNR (8-bit sRGB, peak
 //! 255) of the adaptive frame against the full-order one, as in Lee & Kim 2014, Table 6.2.
 
+// criterion_group! generates an undocumented public function.
+#![allow(missing_docs)]
+
 #[path = "../tests/common/mod.rs"]
 mod common;
 
