@@ -153,11 +153,13 @@ pub fn write_exr(path: &Path, out: &RenderOutput) -> Result<(), TracerError> {
         channels.extend(split(&a.variance, "variance.", ["R", "G", "B"]));
         channels.push(channel("depth.Z", a.depth.clone()));
     }
-    let mut attributes = LayerAttributes::default();
-    attributes.other = metadata(out)
-        .into_iter()
-        .map(|(k, v)| (Text::from(k.as_str()), v))
-        .collect::<HashMap<_, _>>();
+    let attributes = LayerAttributes {
+        other: metadata(out)
+            .into_iter()
+            .map(|(k, v)| (Text::from(k.as_str()), v))
+            .collect::<HashMap<_, _>>(),
+        ..LayerAttributes::default()
+    };
     let layer = Layer::new(
         (out.width as usize, out.height as usize),
         attributes,
