@@ -38,7 +38,7 @@ fn test01_exr_round_trip_with_aovs_and_metadata() {
             .channel_data
             .list
             .iter()
-            .find(|c| c.name == name)
+            .find(|c| c.name.to_string() == name)
             .unwrap_or_else(|| panic!("{name}"));
         ch.sample_data.values_as_f32().collect()
     };
