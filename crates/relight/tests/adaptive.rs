@@ -261,3 +261,25 @@ fn test04_bad_inputs_are_errors() {
         Err(RelightError::InvalidParameter(_))
     ));
 }
+
+#[test]
+fn test05_adaptive_result_does_not_depend_on_the_thread_count() {
+    let s = scene(8, 3);
+    let p = AdaptiveParams::thesis();
+    let a = s.relighter.adaptive(&s.input(), &s.frame, &p).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let b = pool.install(|| s.relighter.adaptive(&s.input(), &s.frame, &p).unwrap());
+    assert_eq!(a.diffuse, b.diffuse);
+    assert_eq!(a.specular, b.specular);
+    let (mut sa, mut sb) = (a.stats, b.stats);
+    for st in [&mut sa, &mut sb] {
+        st.seconds = 0.0;
+        for t in [&mut st.diffuse, &mut st.specular].into_iter().flatten() {
+            t.seconds = 0.0;
+        }
+    }
+    assert_eq!(sa, sb);
+}

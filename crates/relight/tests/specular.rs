@@ -353,3 +353,56 @@ fn test05_facing_away_is_black_and_bad_inputs_are_errors() {
         Err(RelightError::Channels { .. })
     ));
 }
+
+#[test]
+fn test06_measured_error_with_hemispherical_visibility() {
+    // CONVENTIONS' "unoccluded" bake: vis = 1 above the horizon, so V is the projection of the
+    // hemisphere indicator about n (order 14). Now L ⊛ V is truncated at order 14 (ringing at
+    // the horizon) and so is the lobe, on top of the frozen cosine. A measurement (printed for
+    // the README); the assertion is only a sanity bound (error within 10 % of the value plus
+    // the specular reflection of the mean environment radiance), and the horizon changes nothing when ω_o = n and the lobe is wide (e = 8:
+    // ringing of the hemisphere's odd bands cancels at the pole to 1e-3).
+    let order = 14;
+    let mut c = open_case(order);
+    let n = DVec3::Y;
+    let hemi = prt_sh::zonal::rotate_zonal(&common::cap_zonal(order, 0.0), n).unwrap();
+    c.vis = hemi.iter().map(|v| *v as f32).collect();
+    let open = open_case(order);
+    println!("e, theta_o_deg, prt_hemisphere_vis, prt_vis_1, exact (green), rel_err_hemisphere (r, g, b)");
+    for e in [8.0f64, 32.0, 128.0] {
+        for theta_deg in [0.0f64, 30.0, 60.0, 80.0] {
+            let t = theta_deg.to_radians();
+            let wo = DVec3::new(t.sin(), t.cos(), 0.0);
+            let phong = PhongParams {
+                specular: KS,
+                exponent: e as f32,
+            };
+            let got = shade_one(&c, n, wo, phong);
+            let free = shade_one(&open, n, wo, phong);
+            let exact = exact_phong(&c, n, wo, e, 300);
+            for ch in 0..3 {
+                // Scale: the value plus the specular reflection of the environment's mean
+                // radiance L_0/√(4π), so that dark reflections are judged absolutely.
+                let scale = exact[ch] + f64::from(KS[ch]) * c.env[0][ch] / (4.0 * PI).sqrt();
+                let err = (f64::from(got[ch]) - exact[ch]).abs();
+                assert!(
+                    err <= 0.1 * scale,
+                    "e {e} θ {theta_deg} ch {ch}: {} vs {}",
+                    got[ch],
+                    exact[ch]
+                );
+                if e == 8.0 && theta_deg == 0.0 {
+                    assert!((got[ch] - free[ch]).abs() <= 1e-3 * free[ch]);
+                }
+            }
+            println!(
+                "{e}, {theta_deg}, {:.5}, {:.5}, {:.5}, {:?}",
+                got[1],
+                free[1],
+                exact[1],
+                [0, 1, 2]
+                    .map(|ch| ((f64::from(got[ch]) - exact[ch]) / exact[ch] * 1e4).round() / 1e4)
+            );
+        }
+    }
+}
