@@ -361,9 +361,7 @@ impl<'s> Renderer<'s> {
                             sum += l.as_dvec3();
                         }
                     }
-                    if i % 256 == 0 {
-                        bar.inc(256);
-                    }
+                    bar.inc(1);
                     (sum / f64::from(spp)).as_vec3()
                 })
                 .collect()

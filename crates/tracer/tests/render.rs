@@ -207,6 +207,7 @@ fn test03_rmse_falls_as_inverse_sqrt_spp() {
         .map(|(x, y)| (x - mx) * (y - my))
         .sum::<f64>()
         / xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
+    eprintln!("RMSE slope {slope:.4} (ln RMSE {ys:?})");
     assert!((slope + 0.5).abs() < 0.06, "slope {slope}, ln RMSE {ys:?}");
 }
 
