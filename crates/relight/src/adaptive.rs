@@ -271,7 +271,10 @@ impl Relighter {
                 !a.inactive && a.last_level as usize == top && a.significance() >= threshold
             };
             st.initial_roi_fraction = acc.iter().filter(|a| significant(a)).count() as f64 / denom;
-            if params.refine {
+            let any_truncated = acc
+                .iter()
+                .any(|a| !a.inactive && (a.last_level as usize) < top);
+            if params.refine && any_truncated {
                 let (rounds, tested) =
                     refine_roi(input.adjacency, &mut acc, top, threshold, |v, a| {
                         let mut w = vec![0.0f32; n2];
@@ -288,7 +291,7 @@ impl Relighter {
                 / denom;
             st.filtered_out_fraction = 1.0 - st.full_order_fraction;
             let mut out: Vec<[f32; 3]> = acc.iter().map(Accum::radiance).collect();
-            if params.smooth {
+            if params.smooth && any_truncated {
                 let (corrections, tiers) = smooth_boundary(input.adjacency, &acc, top);
                 for (v, c) in corrections {
                     let a = &acc[v];
@@ -404,33 +407,45 @@ pub(crate) fn smooth_boundary(
         }
         (n > 0).then(|| s.map(|x| x / n as f32))
     };
-    // Tier 1.
-    let mut tier1: Vec<Option<[f32; 3]>> = vec![None; acc.len()];
-    for v in 0..acc.len() {
-        if truncated(&acc[v]) {
+    // Tier 1, then tier 2 (both pure per-point maps, in parallel; the order of the output
+    // and of every mean is fixed, so the result does not depend on the thread count).
+    let tier1: Vec<Option<[f32; 3]>> = (0..acc.len())
+        .into_par_iter()
+        .map(|v| {
+            if !truncated(&acc[v]) {
+                return None;
+            }
             let nb = adjacency.neighbours(v);
-            tier1[v] = mean_of(
+            mean_of(
                 &mut nb
                     .iter()
                     .map(|&u| &acc[u as usize])
                     .filter(|a| source(a))
                     .map(Accum::correction),
-            );
-        }
-    }
+            )
+        })
+        .collect();
+    let new: Vec<Option<(u8, [f32; 3])>> = (0..acc.len())
+        .into_par_iter()
+        .map(|v| {
+            let own = acc[v].correction();
+            if let Some(bar) = tier1[v] {
+                Some((0, [0, 1, 2].map(|c| (2.0 * bar[c] + own[c]) / 3.0)))
+            } else if truncated(&acc[v]) {
+                let nb = adjacency.neighbours(v);
+                mean_of(&mut nb.iter().filter_map(|&u| tier1[u as usize]))
+                    .map(|bar| (1, [0, 1, 2].map(|c| (bar[c] + 2.0 * own[c]) / 3.0)))
+            } else {
+                None
+            }
+        })
+        .collect();
     let mut out = Vec::new();
     let mut tiers = [0usize; 2];
-    for v in 0..acc.len() {
-        let own = acc[v].correction();
-        if let Some(bar) = tier1[v] {
-            tiers[0] += 1;
-            out.push((v, [0, 1, 2].map(|c| (2.0 * bar[c] + own[c]) / 3.0)));
-        } else if truncated(&acc[v]) {
-            let nb = adjacency.neighbours(v);
-            if let Some(bar) = mean_of(&mut nb.iter().filter_map(|&u| tier1[u as usize])) {
-                tiers[1] += 1;
-                out.push((v, [0, 1, 2].map(|c| (bar[c] + 2.0 * own[c]) / 3.0)));
-            }
+    for (v, x) in new.into_iter().enumerate() {
+        if let Some((tier, d)) = x {
+            tiers[tier as usize] += 1;
+            out.push((v, d));
         }
     }
     (out, tiers)
