@@ -2,7 +2,9 @@
 //!
 //! Each subcommand lives in its own module with a clap `Args` struct and a `run` function.
 
+mod bake_cmd;
 mod compare_cmd;
+mod render_cmd;
 mod sh_cmd;
 
 use clap::{Parser, Subcommand};
@@ -18,9 +20,17 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Path-trace a reference image of a scene (EXR, optional PNG view).
+    Render(render_cmd::RenderArgs),
     /// Spherical-harmonic tools: project environment maps, evaluate the basis.
     #[command(subcommand)]
     Sh(sh_cmd::ShCommand),
+    /// Bake precomputed radiance transfer of a scene into a .prtb file.
+    Bake(bake_cmd::BakeArgs),
+    /// Print the header and per-object summary of a bake file.
+    Inspect(bake_cmd::InspectArgs),
+    /// Merge the shard files of a sharded bake into one file.
+    Merge(bake_cmd::MergeArgs),
     /// Compare an image with a reference: PSNR (LDR, HDR), RMSE, relative L2, noise.
     Compare(compare_cmd::CompareArgs),
 }
@@ -28,7 +38,11 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Render(args) => render_cmd::run(&args),
         Command::Sh(cmd) => sh_cmd::run(cmd),
+        Command::Bake(args) => bake_cmd::run_bake(&args),
+        Command::Inspect(args) => bake_cmd::run_inspect(&args),
+        Command::Merge(args) => bake_cmd::run_merge(&args),
         Command::Compare(args) => compare_cmd::run(args),
     };
     match result {

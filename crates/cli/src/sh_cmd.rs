@@ -87,20 +87,37 @@ fn project(args: &ProjectArgs) -> Result<()> {
     let img = &loaded.image;
     let mapping = match args.mapping {
         MappingArg::Latlong => EnvMapping::LatLong,
-        MappingArg::Angular => EnvMapping::Angular { subsamples: args.angular_subsamples },
+        MappingArg::Angular => EnvMapping::Angular {
+            subsamples: args.angular_subsamples,
+        },
     };
-    let image = ImageRef { width: img.width, height: img.height, texels: &img.texels };
+    let image = ImageRef {
+        width: img.width,
+        height: img.height,
+        texels: &img.texels,
+    };
     let coeffs = prt_sh::project_env(image, mapping, args.order, args.rotate_y)
         .with_context(|| format!("projecting {}", args.map.display()))?;
     if args.json {
         let obj = serde_json::json!({ "order": args.order, "coefficients": coeffs });
         println!("{}", serde_json::to_string(&obj)?);
     } else {
-        println!("# SH projection of {} to order {} ({} coefficients)", args.map.display(), args.order, coeffs.len());
-        println!("{:>5} {:>4} {:>5} {:>16} {:>16} {:>16}", "index", "l", "m", "red", "green", "blue");
+        println!(
+            "# SH projection of {} to order {} ({} coefficients)",
+            args.map.display(),
+            args.order,
+            coeffs.len()
+        );
+        println!(
+            "{:>5} {:>4} {:>5} {:>16} {:>16} {:>16}",
+            "index", "l", "m", "red", "green", "blue"
+        );
         for (i, c) in coeffs.iter().enumerate() {
             let (l, m) = prt_sh::degree_and_order(i);
-            println!("{i:>5} {l:>4} {m:>5} {:>16.9e} {:>16.9e} {:>16.9e}", c[0], c[1], c[2]);
+            println!(
+                "{i:>5} {l:>4} {m:>5} {:>16.9e} {:>16.9e} {:>16.9e}",
+                c[0], c[1], c[2]
+            );
         }
     }
     Ok(())
@@ -113,7 +130,9 @@ fn parse_dir(text: &str) -> Result<DVec3> {
     }
     let mut v = [0.0; 3];
     for (slot, p) in v.iter_mut().zip(&parts) {
-        *slot = p.parse::<f64>().with_context(|| format!("--dir component {p:?} is not a number"))?;
+        *slot = p
+            .parse::<f64>()
+            .with_context(|| format!("--dir component {p:?} is not a number"))?;
         if !slot.is_finite() {
             bail!("--dir component {p:?} is not finite");
         }

@@ -11,7 +11,14 @@ fn bench_eval(c: &mut Criterion) {
     let mut g = c.benchmark_group("eval");
     let mut rng = Pcg64::seed_from_u64(0);
     let dirs: Vec<DVec3> = (0..256)
-        .map(|_| DVec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)).normalize())
+        .map(|_| {
+            DVec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            )
+            .normalize()
+        })
         .collect();
     for order in [3usize, 10, 30] {
         let basis = Basis::new(order).unwrap();
@@ -43,7 +50,9 @@ fn bench_rotation(c: &mut Criterion) {
     for order in [3usize, 10, 30] {
         let coeffs: Vec<f64> = (0..order * order).map(|i| (i as f64).sin()).collect();
         let mut out = vec![0.0; order * order];
-        g.bench_with_input(BenchmarkId::new("build", order), &order, |b, &o| b.iter(|| Rotation::new(o, black_box(r)).unwrap()));
+        g.bench_with_input(BenchmarkId::new("build", order), &order, |b, &o| {
+            b.iter(|| Rotation::new(o, black_box(r)).unwrap())
+        });
         let rot = Rotation::new(order, r).unwrap();
         g.bench_with_input(BenchmarkId::new("apply", order), &order, |b, _| {
             b.iter(|| rot.apply_into(black_box(&coeffs), &mut out).unwrap())
@@ -56,8 +65,14 @@ fn bench_projection(c: &mut Criterion) {
     let mut g = c.benchmark_group("project_latlong_1024x512");
     g.sample_size(10);
     let mut rng = Pcg64::seed_from_u64(1);
-    let texels: Vec<[f32; 3]> = (0..1024 * 512).map(|_| [rng.random(), rng.random(), rng.random()]).collect();
-    let img = ImageRef { width: 1024, height: 512, texels: &texels };
+    let texels: Vec<[f32; 3]> = (0..1024 * 512)
+        .map(|_| [rng.random(), rng.random(), rng.random()])
+        .collect();
+    let img = ImageRef {
+        width: 1024,
+        height: 512,
+        texels: &texels,
+    };
     for order in [3usize, 10] {
         g.bench_with_input(BenchmarkId::from_parameter(order), &order, |b, &o| {
             b.iter(|| project_env(black_box(img), EnvMapping::LatLong, o, 0.0).unwrap())
@@ -74,11 +89,20 @@ fn bench_triple(c: &mut Criterion) {
         let bb: Vec<f64> = (0..order * order).map(|i| (i as f64 * 1.3).cos()).collect();
         let mut out = vec![0.0; order * order];
         g.bench_with_input(BenchmarkId::from_parameter(order), &order, |b, _| {
-            b.iter(|| t.product_into(black_box(&a), black_box(&bb), &mut out).unwrap())
+            b.iter(|| {
+                t.product_into(black_box(&a), black_box(&bb), &mut out)
+                    .unwrap()
+            })
         });
     }
     g.finish();
 }
 
-criterion_group!(benches, bench_eval, bench_rotation, bench_projection, bench_triple);
+criterion_group!(
+    benches,
+    bench_eval,
+    bench_rotation,
+    bench_projection,
+    bench_triple
+);
 criterion_main!(benches);

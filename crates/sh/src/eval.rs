@@ -24,7 +24,10 @@ impl Basis {
     /// Prepares evaluation for `order` bands (1 ≤ order ≤ [`MAX_ORDER`]).
     pub fn new(order: usize) -> Result<Self, ShError> {
         check_order(order, MAX_ORDER)?;
-        Ok(Self { order, table: LegendreTable::new(order) })
+        Ok(Self {
+            order,
+            table: LegendreTable::new(order),
+        })
     }
 
     /// The order (band count).

@@ -103,7 +103,10 @@ impl GauntTensor {
                         }
                         let mut theta = 0.0;
                         for q in 0..nodes {
-                            theta += gw[q] * polar_at(l1, m1, q) * polar_at(l2, m2, q) * polar_at(l3, m3, q);
+                            theta += gw[q]
+                                * polar_at(l1, m1, q)
+                                * polar_at(l2, m2, q)
+                                * polar_at(l3, m3, q);
                         }
                         let g = theta * phi;
                         if g.abs() > 1e-14 {
@@ -124,7 +127,12 @@ impl GauntTensor {
             }
             starts.push(pairs.len());
         }
-        Ok(Self { order, starts, pairs, values })
+        Ok(Self {
+            order,
+            starts,
+            pairs,
+            values,
+        })
     }
 
     /// Order of the tensor.
@@ -148,7 +156,11 @@ impl GauntTensor {
         }
         // G is fully symmetric: look it up with k as the largest-stored output is not required,
         // any of the three can be the output.
-        let (a, b) = if i <= j { (i as u32, j as u32) } else { (j as u32, i as u32) };
+        let (a, b) = if i <= j {
+            (i as u32, j as u32)
+        } else {
+            (j as u32, i as u32)
+        };
         let range = self.starts[k]..self.starts[k + 1];
         self.pairs[range.clone()]
             .iter()
@@ -159,8 +171,14 @@ impl GauntTensor {
     /// Iterates over `(i, j, k, G)` with `i ≤ j`.
     pub fn entries(&self) -> impl Iterator<Item = (usize, usize, usize, f64)> + '_ {
         (0..self.starts.len() - 1).flat_map(move |k| {
-            (self.starts[k]..self.starts[k + 1])
-                .map(move |e| (self.pairs[e][0] as usize, self.pairs[e][1] as usize, k, self.values[e]))
+            (self.starts[k]..self.starts[k + 1]).map(move |e| {
+                (
+                    self.pairs[e][0] as usize,
+                    self.pairs[e][1] as usize,
+                    k,
+                    self.values[e],
+                )
+            })
         })
     }
 
@@ -174,7 +192,11 @@ impl GauntTensor {
             for e in self.starts[k]..self.starts[k + 1] {
                 let [i, j] = self.pairs[e];
                 let (i, j) = (i as usize, j as usize);
-                let prod = if i == j { a[i] * b[i] } else { a[i] * b[j] + a[j] * b[i] };
+                let prod = if i == j {
+                    a[i] * b[i]
+                } else {
+                    a[i] * b[j] + a[j] * b[i]
+                };
                 acc += self.values[e] * prod;
             }
             *ck = acc;

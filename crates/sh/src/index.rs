@@ -101,7 +101,11 @@ pub fn check_order(order: usize, max: usize) -> Result<(), ShError> {
 pub fn check_len(order: usize, got: usize) -> Result<(), ShError> {
     let expected = coefficient_count(order);
     if got != expected {
-        Err(ShError::BufferLength { order, expected, got })
+        Err(ShError::BufferLength {
+            order,
+            expected,
+            got,
+        })
     } else {
         Ok(())
     }

@@ -16,7 +16,11 @@ pub const RH_C: [f64; 5] = [0.429043, 0.511664, 0.743125, 0.886227, 0.247708];
 /// digits in the paper; [`irradiance`] at order 3 is the exact counterpart.
 pub fn irradiance_rh9(radiance: &[[f64; 3]], n: DVec3) -> Result<[f64; 3], ShError> {
     if radiance.len() < 9 {
-        return Err(ShError::BufferLength { order: 3, expected: 9, got: radiance.len() });
+        return Err(ShError::BufferLength {
+            order: 3,
+            expected: 9,
+            got: radiance.len(),
+        });
     }
     let n = n.normalize();
     let (x, y, z) = (n.x, n.y, n.z);
@@ -39,7 +43,10 @@ pub fn irradiance_rh9(radiance: &[[f64; 3]], n: DVec3) -> Result<[f64; 3], ShErr
 }
 
 /// SH coefficients of the irradiance function: radiance convolved with the clamped cosine.
-pub fn irradiance_coefficients(radiance: &[[f64; 3]], order: usize) -> Result<Vec<[f64; 3]>, ShError> {
+pub fn irradiance_coefficients(
+    radiance: &[[f64; 3]],
+    order: usize,
+) -> Result<Vec<[f64; 3]>, ShError> {
     check_len(order, radiance.len())?;
     convolve_bands_rgb(radiance, &clamped_cosine_bands(order)?)
 }

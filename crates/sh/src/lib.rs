@@ -46,7 +46,7 @@ pub use gaunt::{azimuthal_triple, GauntTensor, MAX_GAUNT_ORDER};
 pub use index::{check_order, coefficient_count, degree_and_order, index, ShError, MAX_ORDER};
 pub use legendre::LegendreTable;
 pub use project::{
-    latlong_frame, nodes_for_trig_degree, project_env, project_fn, reconstruct_latlong, reconstruct_rgb,
-    EnvMapping, ImageRef, RgbCoefficients,
+    latlong_frame, nodes_for_trig_degree, project_env, project_fn, reconstruct_latlong,
+    reconstruct_rgb, EnvMapping, ImageRef, RgbCoefficients,
 };
 pub use rotate::Rotation;

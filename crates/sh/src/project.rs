@@ -71,7 +71,11 @@ impl ImageRef<'_> {
 /// to world space, before the environment's own rotation about +Y.
 #[must_use]
 pub fn latlong_frame() -> DMat3 {
-    DMat3::from_cols(DVec3::new(0.0, 0.0, -1.0), DVec3::new(-1.0, 0.0, 0.0), DVec3::Y)
+    DMat3::from_cols(
+        DVec3::new(0.0, 0.0, -1.0),
+        DVec3::new(-1.0, 0.0, 0.0),
+        DVec3::Y,
+    )
 }
 
 /// Projects an environment image to `order` bands, with the environment rotated by
@@ -93,7 +97,9 @@ pub fn project_env(
         }
         EnvMapping::Angular { subsamples } => {
             if subsamples == 0 {
-                return Err(ShError::InvalidParameter("angular subsamples must be ≥ 1".into()));
+                return Err(ShError::InvalidParameter(
+                    "angular subsamples must be ≥ 1".into(),
+                ));
             }
             let c = project_angular_frame(image, order, subsamples);
             if rotation_y_deg == 0.0 {
@@ -268,7 +274,11 @@ fn project_angular_frame(image: ImageRef<'_>, order: usize, k: usize) -> RgbCoef
 /// Projects a scalar function given by a closure with a product rule exact for spherical
 /// polynomials up to `degree` (pick `degree ≥ 2·(order−1)` plus the function's own degree;
 /// for non-polynomial functions this is a high-order quadrature, not exact).
-pub fn project_fn(order: usize, degree: usize, f: impl Fn(DVec3) -> f64) -> Result<Vec<f64>, ShError> {
+pub fn project_fn(
+    order: usize,
+    degree: usize,
+    f: impl Fn(DVec3) -> f64,
+) -> Result<Vec<f64>, ShError> {
     check_order(order, MAX_ORDER)?;
     let q = SphereQuadrature::exact_for_degree(degree.max(2 * (order - 1)));
     let basis = Basis::new(order)?;
@@ -307,7 +317,11 @@ pub fn reconstruct_latlong(
             (0..width)
                 .map(|col| {
                     let phi = 2.0 * PI * (col as f64 + 0.5) / width as f64;
-                    let map_dir = DVec3::new(phi.sin() * theta.sin(), theta.cos(), -phi.cos() * theta.sin());
+                    let map_dir = DVec3::new(
+                        phi.sin() * theta.sin(),
+                        theta.cos(),
+                        -phi.cos() * theta.sin(),
+                    );
                     basis.eval_unchecked(rot * map_dir, &mut y);
                     let mut v = [0.0f64; 3];
                     for i in 0..n2 {

@@ -43,7 +43,7 @@ impl Rotation {
             .iter()
             .fold(0.0f64, |a, v| a.max(v.abs()))
             .max((r.determinant() - 1.0).abs());
-        if !(err <= 1e-6) {
+        if err.is_nan() || err > 1e-6 {
             return Err(ShError::NotARotation { error: err });
         }
         let mut bands: Vec<Vec<f64>> = Vec::with_capacity(order);
@@ -61,8 +61,14 @@ impl Rotation {
         }
         for l in 2..order {
             let next = {
-                let r1 = BandView { l: 1, data: &bands[1] };
-                let prev = BandView { l: l as i64 - 1, data: &bands[l - 1] };
+                let r1 = BandView {
+                    l: 1,
+                    data: &bands[1],
+                };
+                let prev = BandView {
+                    l: l as i64 - 1,
+                    data: &bands[l - 1],
+                };
                 band_from_recurrence(l as i64, &r1, &prev)
             };
             bands.push(next);
@@ -125,7 +131,11 @@ impl Rotation {
     /// Rotates RGB coefficients (length must be `order²`; panics otherwise, an internal misuse).
     #[must_use]
     pub fn apply_rgb(&self, coeffs: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        assert_eq!(coeffs.len(), coefficient_count(self.order), "RGB coefficient count");
+        assert_eq!(
+            coeffs.len(),
+            coefficient_count(self.order),
+            "RGB coefficient count"
+        );
         let mut out = vec![[0.0; 3]; coeffs.len()];
         for (l, band) in self.bands.iter().enumerate() {
             let w = 2 * l + 1;
@@ -170,10 +180,16 @@ fn band_from_recurrence(l: i64, r1: &BandView<'_>, prev: &BandView<'_>) -> Vec<f
     for m in -l..=l {
         for n in -l..=l {
             let d = if m == 0 { 1.0 } else { 0.0 };
-            let denom = if n.abs() == l { (2 * l * (2 * l - 1)) as f64 } else { ((l + n) * (l - n)) as f64 };
+            let denom = if n.abs() == l {
+                (2 * l * (2 * l - 1)) as f64
+            } else {
+                ((l + n) * (l - n)) as f64
+            };
             let am = m.abs();
             let u = (((l + m) * (l - m)) as f64 / denom).sqrt();
-            let v = 0.5 * ((1.0 + d) * ((l + am - 1) * (l + am)) as f64 / denom).sqrt() * (1.0 - 2.0 * d);
+            let v = 0.5
+                * ((1.0 + d) * ((l + am - 1) * (l + am)) as f64 / denom).sqrt()
+                * (1.0 - 2.0 * d);
             let wc = -0.5 * (((l - am - 1) * (l - am)) as f64 / denom).sqrt() * (1.0 - d);
             let mut value = 0.0;
             if u != 0.0 {

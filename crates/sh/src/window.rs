@@ -18,8 +18,10 @@ pub enum WindowKind {
 
 /// Per-band weights `w_l`, `l = 0..order`, of a window of width `h > 0` (in degrees `l`).
 pub fn window(kind: WindowKind, order: usize, width: f64) -> Result<Vec<f64>, ShError> {
-    if !(width > 0.0) {
-        return Err(ShError::InvalidParameter(format!("window width {width} must be > 0")));
+    if width.is_nan() || width <= 0.0 {
+        return Err(ShError::InvalidParameter(format!(
+            "window width {width} must be > 0"
+        )));
     }
     Ok((0..order)
         .map(|l| {
@@ -68,10 +70,16 @@ pub struct DeringResult {
 /// on a dense check grid (a product rule exact to degree `4·order`, i.e. several points per
 /// lobe of the highest band), by bisection on the width. Requires a non-negative mean
 /// (`c_0 ≥ 0` in every channel), otherwise no window can help and an error is returned.
-pub fn dering(coeffs: &[[f64; 3]], order: usize, kind: WindowKind) -> Result<DeringResult, ShError> {
+pub fn dering(
+    coeffs: &[[f64; 3]],
+    order: usize,
+    kind: WindowKind,
+) -> Result<DeringResult, ShError> {
     check_len(order, coeffs.len())?;
     if coeffs[0].iter().any(|&c| c < 0.0) {
-        return Err(ShError::InvalidParameter("the mean (c_0) is negative: no window makes it non-negative".into()));
+        return Err(ShError::InvalidParameter(
+            "the mean (c_0) is negative: no window makes it non-negative".into(),
+        ));
     }
     let grid = SphereQuadrature::exact_for_degree(4 * order);
     let basis = Basis::new(order)?;
@@ -90,7 +98,13 @@ pub fn dering(coeffs: &[[f64; 3]], order: usize, kind: WindowKind) -> Result<Der
         }
         min
     };
-    let norm = |c: &[[f64; 3]]| c.iter().flat_map(|v| v.iter()).map(|x| x * x).sum::<f64>().sqrt();
+    let norm = |c: &[[f64; 3]]| {
+        c.iter()
+            .flat_map(|v| v.iter())
+            .map(|x| x * x)
+            .sum::<f64>()
+            .sqrt()
+    };
     let min_before = min_of(coeffs);
     // Tolerance for "non-negative": rounding of the sums, relative to the mean radiance.
     let tol = -1e-12 * coeffs[0].iter().fold(0.0f64, |a, b| a.max(*b)).max(1e-300);

@@ -29,8 +29,10 @@ pub fn lambda(l: usize) -> f64 {
 /// `l = 0..order`. Errors on a negative or non-finite exponent.
 pub fn phong_lobe_bands(exponent: f64, order: usize) -> Result<Vec<f64>, ShError> {
     check_order(order, MAX_ORDER)?;
-    if !(exponent >= 0.0) || !exponent.is_finite() {
-        return Err(ShError::InvalidParameter(format!("Phong exponent {exponent} must be finite and ≥ 0")));
+    if !exponent.is_finite() || exponent < 0.0 {
+        return Err(ShError::InvalidParameter(format!(
+            "Phong exponent {exponent} must be finite and ≥ 0"
+        )));
     }
     let e = exponent;
     let mut a = vec![0.0; order];
@@ -65,13 +67,21 @@ pub fn clamped_cosine_bands(order: usize) -> Result<Vec<f64>, ShError> {
 /// Converts band multipliers `A_l` into zonal coefficients `g_l = A_l / Λ_l`.
 #[must_use]
 pub fn bands_to_zonal(bands: &[f64]) -> Vec<f64> {
-    bands.iter().enumerate().map(|(l, a)| a / lambda(l)).collect()
+    bands
+        .iter()
+        .enumerate()
+        .map(|(l, a)| a / lambda(l))
+        .collect()
 }
 
 /// Converts zonal coefficients `g_l` into band multipliers `A_l = Λ_l g_l`.
 #[must_use]
 pub fn zonal_to_bands(zonal: &[f64]) -> Vec<f64> {
-    zonal.iter().enumerate().map(|(l, g)| g * lambda(l)).collect()
+    zonal
+        .iter()
+        .enumerate()
+        .map(|(l, g)| g * lambda(l))
+        .collect()
 }
 
 /// Coefficients of the zonal function with zonal coefficients `zonal` (`g_l`, `order` of them)
@@ -159,4 +169,3 @@ pub fn phong_order_for_energy(exponent: f64, max_fraction: f64) -> Option<usize>
         None
     }
 }
-

@@ -11,7 +11,11 @@ use std::f64::consts::PI;
 
 fn random_dir(rng: &mut Pcg64) -> DVec3 {
     loop {
-        let v = DVec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+        let v = DVec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
         let l = v.length();
         if l > 0.1 && l < 1.0 {
             return v / l;
@@ -36,7 +40,11 @@ fn gauss_legendre_integrates_monomials_exactly() {
         let (x, w) = gauss_legendre(n);
         for k in 0..(2 * n) {
             let got: f64 = x.iter().zip(&w).map(|(x, w)| w * x.powi(k as i32)).sum();
-            let exact = if k % 2 == 1 { 0.0 } else { 2.0 / (k as f64 + 1.0) };
+            let exact = if k % 2 == 1 {
+                0.0
+            } else {
+                2.0 / (k as f64 + 1.0)
+            };
             assert!((got - exact).abs() < 1e-14, "n={n} k={k}: {got} vs {exact}");
         }
     }
@@ -65,7 +73,12 @@ fn low_order_closed_forms() {
             0.5 * k2 * (x * x - yy * yy),
         ];
         for i in 0..9 {
-            assert!((y[i] - expect[i]).abs() < 1e-15, "i={i}: {} vs {}", y[i], expect[i]);
+            assert!(
+                (y[i] - expect[i]).abs() < 1e-15,
+                "i={i}: {} vs {}",
+                y[i],
+                expect[i]
+            );
         }
     }
 }
@@ -91,7 +104,11 @@ fn orthonormal_by_exact_quadrature_order_20() {
     for i in 0..n2 {
         for j in 0..n2 {
             let e = if i == j { 1.0 } else { 0.0 };
-            assert!((gram[i * n2 + j] - e).abs() < 1e-12, "gram[{i}][{j}] = {}", gram[i * n2 + j]);
+            assert!(
+                (gram[i * n2 + j] - e).abs() < 1e-12,
+                "gram[{i}][{j}] = {}",
+                gram[i * n2 + j]
+            );
         }
     }
 }
@@ -112,10 +129,15 @@ fn addition_theorem_to_order_64() {
             let (mut p0, mut p1) = (1.0, t);
             for l in 0..order {
                 let p = if l == 0 { 1.0 } else { p1 };
-                let sum: f64 = (-(l as i64)..=(l as i64)).map(|m| ya[index(l, m)] * yb[index(l, m)]).sum();
+                let sum: f64 = (-(l as i64)..=(l as i64))
+                    .map(|m| ya[index(l, m)] * yb[index(l, m)])
+                    .sum();
                 let expect = (2 * l + 1) as f64 / (4.0 * PI) * p;
                 // |sum| ≤ (2l+1)/4π; rounding of 2l+1 products of magnitude ≤ that bound.
-                assert!((sum - expect).abs() < 1e-12 * (2 * l + 1) as f64, "l={l}: {sum} vs {expect}");
+                assert!(
+                    (sum - expect).abs() < 1e-12 * (2 * l + 1) as f64,
+                    "l={l}: {sum} vs {expect}"
+                );
                 if l >= 1 {
                     let lf = l as f64;
                     let p2 = ((2.0 * lf + 1.0) * t * p1 - lf * p0) / (lf + 1.0);
@@ -134,7 +156,12 @@ fn f32_evaluation_within_2e5_of_f64_to_order_30() {
     let mut y32 = vec![0.0f32; 900];
     let mut worst = 0.0f64;
     let mut dirs: Vec<DVec3> = (0..2000).map(|_| random_dir(&mut rng)).collect();
-    dirs.extend([DVec3::Z, -DVec3::Z, DVec3::X, DVec3::new(1e-4, 0.0, -1.0).normalize()]);
+    dirs.extend([
+        DVec3::Z,
+        -DVec3::Z,
+        DVec3::X,
+        DVec3::new(1e-4, 0.0, -1.0).normalize(),
+    ]);
     for d in dirs {
         let d32 = d.as_vec3();
         let y64 = basis.eval(d32.as_dvec3());
@@ -154,18 +181,26 @@ fn rotation_matches_rotated_function_and_composes() {
     for _ in 0..5 {
         let r = random_rotation(&mut rng);
         let rot = Rotation::new(order, r).unwrap();
-        let c: Vec<f64> = (0..order * order).map(|_| rng.random_range(-1.0..1.0)).collect();
+        let c: Vec<f64> = (0..order * order)
+            .map(|_| rng.random_range(-1.0..1.0))
+            .collect();
         let rc = rot.apply(&c).unwrap();
         for _ in 0..20 {
             let d = random_dir(&mut rng);
             let g: f64 = rc.iter().zip(basis.eval(d)).map(|(a, b)| a * b).sum();
-            let f: f64 = c.iter().zip(basis.eval(r.transpose() * d)).map(|(a, b)| a * b).sum();
+            let f: f64 = c
+                .iter()
+                .zip(basis.eval(r.transpose() * d))
+                .map(|(a, b)| a * b)
+                .sum();
             assert!((g - f).abs() < 1e-11, "g(d) = {g} but f(R⁻¹d) = {f}");
         }
         // Composition D(R1 R2) = D(R1) D(R2).
         let r2 = random_rotation(&mut rng);
         let a = Rotation::new(order, r * r2).unwrap().apply(&c).unwrap();
-        let b = rot.apply(&Rotation::new(order, r2).unwrap().apply(&c).unwrap()).unwrap();
+        let b = rot
+            .apply(&Rotation::new(order, r2).unwrap().apply(&c).unwrap())
+            .unwrap();
         for (x, y) in a.iter().zip(&b) {
             assert!((x - y).abs() < 1e-12);
         }
@@ -251,7 +286,11 @@ fn gaunt_entries_match_product_quadrature() {
     for i in 0..n2 {
         for j in 0..n2 {
             for k in 0..n2 {
-                let direct: f64 = ys.iter().zip(&q.weights).map(|(y, w)| w * y[i] * y[j] * y[k]).sum();
+                let direct: f64 = ys
+                    .iter()
+                    .zip(&q.weights)
+                    .map(|(y, w)| w * y[i] * y[j] * y[k])
+                    .sum();
                 max_err = max_err.max((direct - g.get(i, j, k)).abs());
             }
         }
@@ -308,7 +347,11 @@ fn phong_lobe_matches_numerical_integration_and_tends_to_delta() {
         let a = zonal::phong_lobe_bands(e, order).unwrap();
         for l in [0usize, 1, 2, 3, 5, 10, 33, 64] {
             let exact = (e + 1.0) * integrate_xe_pl(e, l);
-            assert!((a[l] - exact).abs() < 1e-11, "e={e} l={l}: {} vs {exact}", a[l]);
+            assert!(
+                (a[l] - exact).abs() < 1e-11,
+                "e={e} l={l}: {} vs {exact}",
+                a[l]
+            );
         }
     }
     // As e → ∞ every band multiplier → 1 (the lobe tends to the delta).
@@ -378,6 +421,9 @@ fn clamped_cosine_values() {
         let mag = (lnf(l - 2) - (l as f64) * 2f64.ln() - lnf(l / 2 - 1) - lnf(l / 2 + 1)).exp();
         let sign = if (l / 2 + 1) % 2 == 0 { 1.0 } else { -1.0 };
         let expect = 2.0 * PI * sign * mag;
-        assert!((a[l] - expect).abs() < 1e-14 + 1e-12 * expect.abs(), "l={l}");
+        assert!(
+            (a[l] - expect).abs() < 1e-14 + 1e-12 * expect.abs(),
+            "l={l}"
+        );
     }
 }

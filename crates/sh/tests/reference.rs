@@ -7,12 +7,18 @@ use prt_sh::{project_env, zonal, Basis, EnvMapping, GauntTensor, ImageRef, Rotat
 use serde_json::Value;
 
 fn load(name: &str) -> Value {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(name);
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name);
     serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap()
 }
 
 fn floats(v: &Value) -> Vec<f64> {
-    v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
 }
 
 #[test]
@@ -48,7 +54,11 @@ fn f32_evaluation_matches_reference_to_2e5_up_to_order_30() {
         // have gradients ≤ ~l·max|y| ≈ 45 at l = 29, so rounding the input alone moves values
         // by ≤ 3e-6; the 2e-5 requirement keeps a margin of ~6 for the output rounding.
         for (i, (g, w)) in out.iter().zip(&want).enumerate() {
-            assert!((*g as f64 - w).abs() <= 2e-5, "{}: index {i}: {g} vs {w}", case["label"]);
+            assert!(
+                (*g as f64 - w).abs() <= 2e-5,
+                "{}: index {i}: {g} vs {w}",
+                case["label"]
+            );
         }
     }
 }
@@ -68,18 +78,34 @@ fn gaunt_coefficients_match_sympy() {
     assert_eq!(count, entries.len(), "number of non-zero i ≤ j ≤ k entries");
     for e in entries {
         let e = e.as_array().unwrap();
-        let (i, j, k) = (e[0].as_u64().unwrap() as usize, e[1].as_u64().unwrap() as usize, e[2].as_u64().unwrap() as usize);
+        let (i, j, k) = (
+            e[0].as_u64().unwrap() as usize,
+            e[1].as_u64().unwrap() as usize,
+            e[2].as_u64().unwrap() as usize,
+        );
         let v = e[3].as_f64().unwrap();
         for (a, b, c) in [(i, j, k), (j, k, i), (k, i, j), (j, i, k)] {
-            assert!((g5.get(a, b, c) - v).abs() < 1e-14, "G[{a},{b},{c}] = {} vs {v}", g5.get(a, b, c));
+            assert!(
+                (g5.get(a, b, c) - v).abs() < 1e-14,
+                "G[{a},{b},{c}] = {} vs {v}",
+                g5.get(a, b, c)
+            );
         }
     }
     let g16 = GauntTensor::new(16).unwrap();
     for e in data["sample_order_16"].as_array().unwrap() {
         let e = e.as_array().unwrap();
-        let (i, j, k) = (e[0].as_u64().unwrap() as usize, e[1].as_u64().unwrap() as usize, e[2].as_u64().unwrap() as usize);
+        let (i, j, k) = (
+            e[0].as_u64().unwrap() as usize,
+            e[1].as_u64().unwrap() as usize,
+            e[2].as_u64().unwrap() as usize,
+        );
         let v = e[3].as_f64().unwrap();
-        assert!((g16.get(i, j, k) - v).abs() < 1e-13, "G[{i},{j},{k}] = {} vs {v}", g16.get(i, j, k));
+        assert!(
+            (g16.get(i, j, k) - v).abs() < 1e-13,
+            "G[{i},{j},{k}] = {} vs {v}",
+            g16.get(i, j, k)
+        );
     }
 }
 
@@ -100,7 +126,11 @@ fn rotation_matrices_match_quadrature_reference() {
                 for (idx, (g, w)) in rot.band(l).iter().zip(&want).enumerate() {
                     // Reference is float64 quadrature (orthogonal to ~2e-14); the recurrence
                     // accumulates ~l·1e-16 per entry.
-                    assert!((g - w).abs() < 1e-11, "{} ({how}) band {l} entry {idx}: {g} vs {w}", r["name"]);
+                    assert!(
+                        (g - w).abs() < 1e-11,
+                        "{} ({how}) band {l} entry {idx}: {g} vs {w}",
+                        r["name"]
+                    );
                 }
             }
         }
@@ -111,11 +141,21 @@ fn rotation_matrices_match_quadrature_reference() {
 fn zonal_lobes_match_mpmath_quadrature() {
     let data = load("zonal.json");
     let cc = zonal::clamped_cosine_bands(65).unwrap();
-    for (l, w) in floats(&data["clamped_cosine"]["band_multipliers"]).iter().enumerate() {
-        assert!((cc[l] - w).abs() < 1e-14, "clamped cosine l={l}: {} vs {w}", cc[l]);
+    for (l, w) in floats(&data["clamped_cosine"]["band_multipliers"])
+        .iter()
+        .enumerate()
+    {
+        assert!(
+            (cc[l] - w).abs() < 1e-14,
+            "clamped cosine l={l}: {} vs {w}",
+            cc[l]
+        );
     }
     let g = zonal::bands_to_zonal(&cc);
-    for (l, w) in floats(&data["clamped_cosine"]["zonal_coefficients"]).iter().enumerate() {
+    for (l, w) in floats(&data["clamped_cosine"]["zonal_coefficients"])
+        .iter()
+        .enumerate()
+    {
         assert!((g[l] - w).abs() < 1e-14);
     }
     for p in data["phong"].as_array().unwrap() {
@@ -123,7 +163,11 @@ fn zonal_lobes_match_mpmath_quadrature() {
         let a = zonal::phong_lobe_bands(e, 65).unwrap();
         for (l, w) in floats(&p["band_multipliers"]).iter().enumerate() {
             // The recurrence multiplies l/2 factors each rounded to 1 ulp: ≤ 32 ulps of 1.
-            assert!((a[l] - w).abs() < 1e-14, "phong e={e} l={l}: {} vs {w}", a[l]);
+            assert!(
+                (a[l] - w).abs() < 1e-14,
+                "phong e={e} l={l}: {} vs {w}",
+                a[l]
+            );
         }
     }
 }
@@ -133,18 +177,38 @@ fn exact_latlong_projection_matches_reference() {
     let data = load("projection.json");
     let order = data["order"].as_u64().unwrap() as usize;
     for m in data["maps"].as_array().unwrap() {
-        let (w, h) = (m["width"].as_u64().unwrap() as usize, m["height"].as_u64().unwrap() as usize);
+        let (w, h) = (
+            m["width"].as_u64().unwrap() as usize,
+            m["height"].as_u64().unwrap() as usize,
+        );
         let rot = m["rotation_y_deg"].as_f64().unwrap();
-        let texels: Vec<[f32; 3]> = floats(&m["values"]).iter().map(|v| [*v as f32; 3]).collect();
+        let texels: Vec<[f32; 3]> = floats(&m["values"])
+            .iter()
+            .map(|v| [*v as f32; 3])
+            .collect();
         // Texels are f32 (as images are) while the reference used the f64 values: each texel
         // moves by ≤ 2⁻²⁴ ≈ 6e-8 relative, so coefficients move by ≤ 6e-8·Σ|v|∫|y| — well
         // inside the 1e-6 (relative to the largest coefficient) requirement. The exact
         // agreement to rounding is checked in `projection.rs` against brute force on f32 input.
         let want = floats(&m["coeffs"]);
-        let got = project_env(ImageRef { width: w, height: h, texels: &texels }, EnvMapping::LatLong, order, rot).unwrap();
+        let got = project_env(
+            ImageRef {
+                width: w,
+                height: h,
+                texels: &texels,
+            },
+            EnvMapping::LatLong,
+            order,
+            rot,
+        )
+        .unwrap();
         let scale = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
         for (i, (g, r)) in got.iter().zip(&want).enumerate() {
-            assert!((g[0] - r).abs() <= 1e-6 * scale, "{w}×{h} rot {rot}: coefficient {i}: {} vs {r}", g[0]);
+            assert!(
+                (g[0] - r).abs() <= 1e-6 * scale,
+                "{w}×{h} rot {rot}: coefficient {i}: {} vs {r}",
+                g[0]
+            );
         }
     }
 }

@@ -1,0 +1,671 @@
+//! Monte Carlo precomputed radiance transfer (Sloan, Kautz & Snyder, "Precomputed Radiance
+//! Transfer for Real-Time Rendering in Dynamic, Low-Frequency Lighting Environments",
+//! SIGGRAPH 2002), baked with the same ray tracer as the reference images.
+//!
+//! For every vertex of every object (or, in pixel mode, the primary hit of every pixel of the
+//! scene camera) the baker estimates, to an order chosen per object:
+//! - **shadowed diffuse transfer** `T_i = ∫ V(ω) max(0, n·ω) y_i(ω) dω` with cosine-distributed
+//!   rays from the R2 low-discrepancy sequence, Cranley–Patterson shifted per point;
+//! - **visibility** `V_i = ∫ V(ω) y_i(ω) dω` for materials with a glossy lobe (relit as
+//!   `(L ⊛ V)` convolved with the lobe, Lee & Kim 2014 eq. 4.3);
+//! - **interreflected diffuse transfer** with `B` bounces: each bounce gathers the previous
+//!   bounce's transfer at the hit points, interpolated by barycentrics, times the hit
+//!   surface's albedo/π (see [`transfer`]);
+//! - optionally the analytic **unshadowed** transfer (the clamped cosine rotated to `n`);
+//! - the environment's exact SH projection and the BRDF projections of the materials used
+//!   ([`brdf`]: zonal clamped-cosine and Phong lobes; per-view-elevation tables for
+//!   Blinn–Phong, Ward and Cook–Torrance, after Kautz, Sloan & Snyder 2002).
+//!
+//! Conventions: the diffuse transfer **excludes the receiving point's own albedo/π**; the
+//! outgoing diffuse radiance is `(albedo/π) Σ_i L_i T_i`. Every random number comes from a
+//! stream keyed by (seed, purpose, object, point), so bakes are bit-identical for any thread
+//! count and for sharded-then-merged bakes. Only what the scene needs is baked, and every
+//! such decision is written to the bake's metadata ([`plan`]).
+
+pub mod brdf;
+mod error;
+pub mod plan;
+pub mod points;
+pub mod sequence;
+mod settings;
+pub mod transfer;
+
+pub use error::BakeError;
+pub use settings::{BakeSettings, PointKind};
+
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use prt_bakefile::{
+    Bake, BakeMeta, Decision, EnvCoefficients, EnvPrecision, ObjectBake, SampleKind, ShardInfo,
+    ToolInfo, TransferBlock, TransferKind,
+};
+use prt_scene::{Mapping, Material, Scene};
+use prt_sh::{Basis, EnvMapping, ImageRef};
+use prt_tracer::Accel;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::io::IsTerminal;
+use transfer::{direct, gather, DirectOptions, DirectResult, GatherScene, MeshTransfer};
+
+/// What a bake measured, for the log and `--json` output.
+#[derive(Clone, Debug, Serialize)]
+pub struct BakeReport {
+    /// One entry per object.
+    pub objects: Vec<ObjectReport>,
+    /// Rays traced in all.
+    pub rays_traced: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+    /// Every decision the baker made, with its reason.
+    pub decisions: Vec<Decision>,
+}
+
+/// Per-object figures.
+#[derive(Clone, Debug, Serialize)]
+pub struct ObjectReport {
+    /// Object name.
+    pub name: String,
+    /// Order baked.
+    pub order: usize,
+    /// Points baked (in this shard).
+    pub points: u64,
+    /// Fraction of diffuse rays that hit the scene.
+    pub hit_fraction: f64,
+    /// Fraction of diffuse rays that hit the back of a surface.
+    pub backface_fraction: f64,
+    /// Transfer kinds stored.
+    pub kinds: Vec<String>,
+}
+
+/// A bake and its report.
+#[derive(Clone, Debug)]
+pub struct BakeOutput {
+    /// What goes into the file.
+    pub bake: Bake,
+    /// What the log shows.
+    pub report: BakeReport,
+}
+
+fn diffuse_albedo(m: &Material) -> [f32; 3] {
+    match m {
+        Material::Lambert { albedo }
+        | Material::Phong { albedo, .. }
+        | Material::BlinnPhong { albedo, .. }
+        | Material::Ward { albedo, .. }
+        | Material::CookTorrance { albedo, .. }
+        | Material::Mirror { albedo, .. } => *albedo,
+    }
+}
+
+fn shard_range(count: u64, shard: Option<(u32, u32)>) -> (u64, u64) {
+    match shard {
+        None => (0, count),
+        Some((i, n)) => {
+            let (i, n) = (u64::from(i), u64::from(n));
+            let first = count * i / n;
+            (first, count * (i + 1) / n - first)
+        }
+    }
+}
+
+fn progress(settings: &BakeSettings, len: u64, what: &str) -> ProgressBar {
+    if settings.progress && std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new(len);
+        if let Ok(style) = ProgressStyle::with_template(
+            "{msg:>12} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
+        ) {
+            bar.set_style(style.progress_chars("=> "));
+        }
+        bar.set_message(what.to_owned());
+        bar
+    } else {
+        ProgressBar::hidden()
+    }
+}
+
+/// Estimated peak memory in bytes of a bake (hit records dominate when bounces are asked).
+#[must_use]
+pub fn memory_estimate(scene: &Scene, settings: &BakeSettings, max_order: usize) -> u64 {
+    let vertices: u64 = scene.meshes.iter().map(|m| m.positions.len() as u64).sum();
+    let pixels = if settings.points == PointKind::Pixel {
+        u64::from(scene.camera.width) * u64::from(scene.camera.height)
+    } else {
+        0
+    };
+    let points = vertices + pixels;
+    let n2 = (max_order * max_order) as u64;
+    let hits = if settings.bounces > 0 {
+        points * u64::from(settings.rays) * 16
+    } else {
+        0
+    };
+    // Direct results (f64, shadowed + visibility), bounce chain (f32 RGB per bounce) and the
+    // output blocks (f32 RGB, per object for pixel bakes).
+    let transfer = points * n2 * 8 * 2 + vertices * 3 * n2 * 4 * (u64::from(settings.bounces) + 2);
+    let pixel_blocks = pixels * scene.meshes.len() as u64 * 3 * n2 * 4 * 3;
+    hits + transfer + pixel_blocks
+}
+
+/// Bakes `scene` (whose acceleration structure is `accel`) with `settings`.
+pub fn bake(
+    scene: &Scene,
+    accel: &Accel,
+    settings: &BakeSettings,
+) -> Result<BakeOutput, BakeError> {
+    let start = std::time::Instant::now();
+    settings.validate()?;
+    if accel.triangle_count() == 0 {
+        return Err(BakeError::EmptyScene);
+    }
+    let (plans, mut decisions) = plan::plan(scene, settings);
+    let max_order = plans.iter().map(|p| p.order).max().unwrap_or(1);
+    let estimate = memory_estimate(scene, settings, max_order);
+    if estimate > settings.memory_limit {
+        return Err(BakeError::TooLarge {
+            estimate_mib: estimate >> 20,
+            limit_mib: settings.memory_limit >> 20,
+            what: format!(
+                "{} rays per point with {} bounce(s) at order {max_order} (hit records: 16 bytes per ray that hits)",
+                settings.rays, settings.bounces
+            ),
+        });
+    }
+    let bases: Vec<Basis> = plans
+        .iter()
+        .map(|p| Basis::new(p.order))
+        .collect::<Result<_, _>>()?;
+    let gs = GatherScene {
+        indices: scene.meshes.iter().map(|m| m.indices.as_slice()).collect(),
+        albedo: scene
+            .meshes
+            .iter()
+            .map(|m| diffuse_albedo(&scene.materials[m.material]))
+            .collect(),
+    };
+    let vertex_mode = settings.points == PointKind::Vertex;
+    let bounces = settings.bounces as usize;
+    // Vertex bounces needed: all B in vertex mode; B − 1 feed the pixels in pixel mode.
+    let vertex_bounces = if vertex_mode {
+        bounces
+    } else {
+        bounces.saturating_sub(1)
+    };
+    let need_vertices = vertex_mode || bounces > 0;
+    let mut rays_traced = 0u64;
+
+    // ---- Direct pass at vertices.
+    let vertex_points: Vec<Vec<points::SamplePoint>> = (0..scene.meshes.len())
+        .map(|m| points::vertex_points(scene, accel, m))
+        .collect();
+    let vertex_ranges: Vec<(u64, u64)> = vertex_points
+        .iter()
+        .map(|p| {
+            if vertex_mode && bounces == 0 {
+                shard_range(p.len() as u64, settings.shard)
+            } else {
+                (0, p.len() as u64)
+            }
+        })
+        .collect();
+    let mut vertex_direct: Vec<Vec<DirectResult>> = vec![Vec::new(); plans.len()];
+    if need_vertices {
+        let jobs: Vec<(usize, u64)> = plans
+            .iter()
+            .enumerate()
+            .flat_map(|(o, _)| {
+                let (first, count) = vertex_ranges[o];
+                (first..first + count).map(move |v| (o, v))
+            })
+            .collect();
+        let bar = progress(settings, jobs.len() as u64, "vertices");
+        let results: Vec<DirectResult> = jobs
+            .par_iter()
+            .with_min_len(16)
+            .map(|&(o, v)| {
+                let plan = &plans[o];
+                let opt = DirectOptions {
+                    rays: settings.rays,
+                    record_hits: vertex_bounces > 0,
+                    visibility: vertex_mode && plan.needs_visibility,
+                    seed: settings.seed,
+                    object: plan.mesh as u64,
+                    basis: &bases[o],
+                };
+                let r = direct(accel, &vertex_points[o][v as usize], v, &opt);
+                bar.inc(1);
+                r
+            })
+            .collect();
+        bar.finish_and_clear();
+        let mut it = results.into_iter();
+        for (o, out) in vertex_direct.iter_mut().enumerate() {
+            out.extend(it.by_ref().take(vertex_ranges[o].1 as usize));
+            let vis = u64::from(vertex_mode && plans[o].needs_visibility);
+            rays_traced += vertex_ranges[o].1 * u64::from(settings.rays) * (1 + vis);
+        }
+    }
+
+    // ---- Bounce chain at vertices: chain[b][mesh] = T^b (RGB, f32).
+    let object_hits: Vec<u64> = vertex_direct
+        .iter()
+        .map(|r| r.iter().map(|d| d.hits.len() as u64).sum())
+        .collect();
+    let mut chain: Vec<Vec<MeshTransfer>> = Vec::new();
+    let mut vertex_totals: Vec<Vec<Vec<f64>>> = Vec::new();
+    if need_vertices && (vertex_bounces > 0 || (!vertex_mode && bounces > 0)) {
+        let t0: Vec<MeshTransfer> = plans
+            .iter()
+            .enumerate()
+            .map(|(o, p)| {
+                let n2 = p.order * p.order;
+                let mut data = Vec::with_capacity(vertex_direct[o].len() * 3 * n2);
+                for d in &vertex_direct[o] {
+                    for _ in 0..3 {
+                        data.extend(d.shadowed.iter().map(|v| *v as f32));
+                    }
+                }
+                MeshTransfer {
+                    order: p.order,
+                    data,
+                }
+            })
+            .collect();
+        vertex_totals = vertex_direct
+            .iter()
+            .map(|r| {
+                r.iter()
+                    .map(|d| {
+                        d.shadowed
+                            .iter()
+                            .cycle()
+                            .take(3 * d.shadowed.len())
+                            .copied()
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect();
+        chain.push(t0);
+        for b in 1..=vertex_bounces {
+            let bar = progress(
+                settings,
+                vertex_direct.iter().map(|r| r.len() as u64).sum(),
+                &format!("bounce {b}"),
+            );
+            let next: Vec<MeshTransfer> = plans
+                .iter()
+                .enumerate()
+                .map(|(o, p)| {
+                    let n2 = p.order * p.order;
+                    if object_hits[o] == 0 {
+                        return MeshTransfer {
+                            order: p.order,
+                            data: vec![0.0; vertex_direct[o].len() * 3 * n2],
+                        };
+                    }
+                    let per_point: Vec<Vec<f64>> = vertex_direct[o]
+                        .par_iter()
+                        .with_min_len(64)
+                        .map(|d| {
+                            bar.inc(1);
+                            gather(&d.hits, settings.rays, &chain[b - 1], &gs, p.order)
+                        })
+                        .collect();
+                    for (tot, g) in vertex_totals[o].iter_mut().zip(&per_point) {
+                        tot.iter_mut().zip(g).for_each(|(t, v)| *t += v);
+                    }
+                    MeshTransfer {
+                        order: p.order,
+                        data: per_point.iter().flatten().map(|v| *v as f32).collect(),
+                    }
+                })
+                .collect();
+            bar.finish_and_clear();
+            chain.push(next);
+        }
+    }
+
+    // ---- Assemble objects.
+    let mut objects = Vec::with_capacity(plans.len());
+    let mut reports = Vec::with_capacity(plans.len());
+    let sample_kind;
+    if vertex_mode {
+        sample_kind = SampleKind::Vertex;
+        for (o, plan) in plans.iter().enumerate() {
+            let mesh = &scene.meshes[plan.mesh];
+            let (first, count) = shard_range(mesh.positions.len() as u64, settings.shard);
+            let n2 = plan.order * plan.order;
+            let direct_rows = &vertex_direct[o];
+            // When all points were traced (bounces), crop to the shard.
+            let offset = (first - vertex_ranges[o].0) as usize;
+            let rows = &direct_rows[offset..offset + count as usize];
+            let interreflected = bounces > 0 && object_hits[o] > 0;
+            if bounces > 0 && object_hits[o] == 0 {
+                decisions.push(Decision {
+                    object: Some(plan.name.clone()),
+                    decision: "no bounce gathering".into(),
+                    reason: "none of the object's rays hit the scene: interreflected transfer equals shadowed transfer".into(),
+                });
+            }
+            let channels = if interreflected { 3 } else { 1 };
+            let mut blocks = Vec::new();
+            let mut kinds = Vec::new();
+            if interreflected {
+                let tot = &vertex_totals[o][offset..offset + count as usize];
+                blocks.push(TransferBlock {
+                    kind: TransferKind::InterreflectedDiffuse {
+                        bounces: settings.bounces,
+                    },
+                    data: tot.iter().flatten().map(|v| *v as f32).collect(),
+                });
+            } else {
+                blocks.push(TransferBlock {
+                    kind: TransferKind::ShadowedDiffuse,
+                    data: rows
+                        .iter()
+                        .flat_map(|d| d.shadowed.iter().map(|v| *v as f32))
+                        .collect(),
+                });
+            }
+            if plan.needs_visibility {
+                blocks.push(TransferBlock {
+                    kind: TransferKind::Visibility,
+                    data: rows
+                        .iter()
+                        .flat_map(|d| {
+                            let v = d.visibility.as_ref().expect("visibility traced");
+                            (0..channels).flat_map(move |_| v.iter().map(|x| *x as f32))
+                        })
+                        .collect(),
+                });
+            }
+            if settings.unshadowed {
+                let pts = &vertex_points[o][first as usize..(first + count) as usize];
+                blocks.push(TransferBlock {
+                    kind: TransferKind::UnshadowedDiffuse,
+                    data: pts
+                        .iter()
+                        .flat_map(|p| {
+                            let u = transfer::unshadowed(plan.order, p.normal);
+                            (0..channels).flat_map(move |_| u.clone().into_iter().map(|x| x as f32))
+                        })
+                        .collect(),
+                });
+            }
+            blocks.sort_by_key(|b| b.kind);
+            kinds.extend(blocks.iter().map(|b| b.kind.name().to_owned()));
+            debug_assert!(blocks
+                .iter()
+                .all(|b| b.data.len() == count as usize * channels * n2));
+            let (hits, back): (u64, u64) = rows.iter().fold((0, 0), |(h, b), d| {
+                (h + u64::from(d.hit_count), b + u64::from(d.backface_hits))
+            });
+            let denom = (count * u64::from(settings.rays)).max(1) as f64;
+            reports.push(ObjectReport {
+                name: plan.name.clone(),
+                order: plan.order,
+                points: count,
+                hit_fraction: hits as f64 / denom,
+                backface_fraction: back as f64 / denom,
+                kinds,
+            });
+            objects.push(ObjectBake {
+                name: plan.name.clone(),
+                geometry_hash: geometry_hash(mesh.positions.as_slice(), &mesh.indices),
+                point_count: mesh.positions.len() as u64,
+                point_first: first,
+                points_in_file: count,
+                order: plan.order as u32,
+                channels: channels as u32,
+                blocks,
+            });
+        }
+    } else {
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        sample_kind = SampleKind::Pixel {
+            width: w,
+            height: h,
+        };
+        let pixels = points::pixel_points(scene, accel)?;
+        let (first, count) = shard_range(pixels.len() as u64, settings.shard);
+        let bar = progress(settings, count, "pixels");
+        let results: Vec<Option<(usize, DirectResult, Vec<f64>)>> = (first as usize
+            ..(first + count) as usize)
+            .into_par_iter()
+            .with_min_len(16)
+            .map(|px| {
+                let r = pixels[px].map(|(mesh, p)| {
+                    let plan = &plans[mesh];
+                    let opt = DirectOptions {
+                        rays: settings.rays,
+                        record_hits: bounces > 0,
+                        visibility: plan.needs_visibility,
+                        seed: settings.seed,
+                        object: plan.mesh as u64 | (1 << 32),
+                        basis: &bases[mesh],
+                    };
+                    let d = direct(accel, &p, px as u64, &opt);
+                    let n2 = plan.order * plan.order;
+                    let mut total: Vec<f64> =
+                        d.shadowed.iter().cycle().take(3 * n2).copied().collect();
+                    for b in 1..=bounces {
+                        let g = gather(&d.hits, settings.rays, &chain[b - 1], &gs, plan.order);
+                        total.iter_mut().zip(&g).for_each(|(t, v)| *t += v);
+                    }
+                    (mesh, d, total)
+                });
+                bar.inc(1);
+                r
+            })
+            .collect();
+        bar.finish_and_clear();
+        for (o, plan) in plans.iter().enumerate() {
+            let mesh = &scene.meshes[plan.mesh];
+            let n2 = plan.order * plan.order;
+            let channels = if bounces > 0 { 3 } else { 1 };
+            let mut diffuse = vec![0.0f32; count as usize * channels * n2];
+            let mut vis = plan
+                .needs_visibility
+                .then(|| vec![0.0f32; count as usize * channels * n2]);
+            let mut unsh = settings
+                .unshadowed
+                .then(|| vec![0.0f32; count as usize * channels * n2]);
+            let (mut npts, mut hits, mut back) = (0u64, 0u64, 0u64);
+            for (k, r) in results.iter().enumerate() {
+                let Some((m, d, total)) = r else { continue };
+                if *m != o {
+                    continue;
+                }
+                npts += 1;
+                hits += u64::from(d.hit_count);
+                back += u64::from(d.backface_hits);
+                let base = k * channels * n2;
+                if channels == 3 {
+                    diffuse[base..base + 3 * n2]
+                        .iter_mut()
+                        .zip(total)
+                        .for_each(|(a, b)| *a = *b as f32);
+                } else {
+                    diffuse[base..base + n2]
+                        .iter_mut()
+                        .zip(&d.shadowed)
+                        .for_each(|(a, b)| *a = *b as f32);
+                }
+                let normal = pixels[(first as usize) + k]
+                    .map(|(_, p)| p.normal)
+                    .unwrap_or(Vec3::Y);
+                for c in 0..channels {
+                    if let (Some(v), Some(src)) = (vis.as_mut(), d.visibility.as_ref()) {
+                        v[base + c * n2..base + (c + 1) * n2]
+                            .iter_mut()
+                            .zip(src)
+                            .for_each(|(a, b)| *a = *b as f32);
+                    }
+                    if let Some(u) = unsh.as_mut() {
+                        let t = transfer::unshadowed(plan.order, normal);
+                        u[base + c * n2..base + (c + 1) * n2]
+                            .iter_mut()
+                            .zip(&t)
+                            .for_each(|(a, b)| *a = *b as f32);
+                    }
+                }
+            }
+            rays_traced += npts * u64::from(settings.rays) * (1 + u64::from(plan.needs_visibility));
+            let kind = if bounces > 0 {
+                TransferKind::InterreflectedDiffuse {
+                    bounces: settings.bounces,
+                }
+            } else {
+                TransferKind::ShadowedDiffuse
+            };
+            let mut blocks = vec![TransferBlock {
+                kind,
+                data: diffuse,
+            }];
+            if let Some(v) = vis {
+                blocks.push(TransferBlock {
+                    kind: TransferKind::Visibility,
+                    data: v,
+                });
+            }
+            if let Some(u) = unsh {
+                blocks.push(TransferBlock {
+                    kind: TransferKind::UnshadowedDiffuse,
+                    data: u,
+                });
+            }
+            blocks.sort_by_key(|b| b.kind);
+            let denom = (npts * u64::from(settings.rays)).max(1) as f64;
+            reports.push(ObjectReport {
+                name: plan.name.clone(),
+                order: plan.order,
+                points: npts,
+                hit_fraction: hits as f64 / denom,
+                backface_fraction: back as f64 / denom,
+                kinds: blocks.iter().map(|b| b.kind.name().to_owned()).collect(),
+            });
+            objects.push(ObjectBake {
+                name: plan.name.clone(),
+                geometry_hash: geometry_hash(mesh.positions.as_slice(), &mesh.indices),
+                point_count: u64::from(w) * u64::from(h),
+                point_first: first,
+                points_in_file: count,
+                order: plan.order as u32,
+                channels: channels as u32,
+                blocks,
+            });
+        }
+    }
+
+    // ---- Environment and BRDF projections.
+    let env = &scene.environment;
+    let mapping = match env.mapping {
+        Mapping::LatLong => EnvMapping::LatLong,
+        Mapping::Angular => EnvMapping::Angular { subsamples: 4 },
+    };
+    let img = ImageRef {
+        width: env.image.width,
+        height: env.image.height,
+        texels: &env.image.texels,
+    };
+    let coeffs = prt_sh::project_env(img, mapping, max_order, env.rotation_y_deg)?;
+    let environment = EnvCoefficients {
+        order: max_order as u32,
+        precision: EnvPrecision::F64,
+        values: (0..3)
+            .flat_map(|c| coeffs.iter().map(move |v| v[c]))
+            .collect(),
+    };
+    let mut brdfs = Vec::new();
+    let mut glossy = Vec::new();
+    let mut seen = std::collections::BTreeSet::new();
+    for plan in &plans {
+        let mat_index = scene.meshes[plan.mesh].material;
+        if !seen.insert(mat_index) {
+            continue;
+        }
+        let name = scene
+            .material_names
+            .get(mat_index)
+            .cloned()
+            .unwrap_or_else(|| format!("material{mat_index}"));
+        let material = &scene.materials[mat_index];
+        let order = plans
+            .iter()
+            .filter(|p| scene.meshes[p.mesh].material == mat_index)
+            .map(|p| p.order)
+            .max()
+            .unwrap_or(plan.order);
+        brdfs.extend(brdf::zonal_projection(&name, material, order));
+        if matches!(
+            material,
+            Material::BlinnPhong { .. } | Material::Ward { .. } | Material::CookTorrance { .. }
+        ) {
+            let mut t = brdf::glossy_table(material, order);
+            t.material = name.clone();
+            decisions.push(Decision {
+                object: None,
+                decision: format!("glossy table for {name}"),
+                reason: format!(
+                    "{} has no zonal form; relative projection error at order {order}: {:.3e}",
+                    name,
+                    t.projection_error.last().copied().unwrap_or(0.0)
+                ),
+            });
+            glossy.push(t);
+        }
+    }
+
+    let settings_json = serde_json::json!({
+        "order": settings.order,
+        "max_order": settings.max_order,
+        "error_target": settings.error_target,
+        "rays": settings.rays,
+        "bounces": settings.bounces,
+        "seed": settings.seed,
+        "points": if vertex_mode { "vertex" } else { "pixel" },
+        "unshadowed": settings.unshadowed,
+    });
+    let meta = BakeMeta {
+        sample_kind,
+        rays_per_point: settings.rays,
+        bounces: settings.bounces,
+        seed: settings.seed,
+        tool: ToolInfo {
+            name: "prt".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+        },
+        settings: settings_json,
+        decisions: decisions.clone(),
+        shard: settings
+            .shard
+            .map_or(ShardInfo::default(), |(index, count)| ShardInfo {
+                index,
+                count,
+            }),
+    };
+    let bake = Bake {
+        meta,
+        objects,
+        environment: Some(environment),
+        brdfs,
+        glossy,
+    };
+    bake.validate()?;
+    Ok(BakeOutput {
+        bake,
+        report: BakeReport {
+            objects: reports,
+            rays_traced,
+            seconds: start.elapsed().as_secs_f64(),
+            decisions,
+        },
+    })
+}
+
+/// The geometry hash the bake file stores (FNV-1a of positions and indices, `prt_bakefile`).
+#[must_use]
+pub fn geometry_hash(positions: &[Vec3], indices: &[[u32; 3]]) -> u64 {
+    let p: Vec<[f32; 3]> = positions.iter().map(|v| v.to_array()).collect();
+    prt_bakefile::geometry_hash(&p, indices)
+}

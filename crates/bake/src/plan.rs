@@ -1,0 +1,147 @@
+//! What each object needs: its order and its transfer kinds, decided from its material and
+//! written down with the reason (the "model only what the scene needs" rule).
+
+use crate::brdf::glossy_table;
+use crate::settings::BakeSettings;
+use prt_bakefile::Decision;
+use prt_scene::{Material, Scene};
+use prt_sh::zonal;
+
+/// The baker's plan for one object (mesh).
+#[derive(Clone, Debug)]
+pub struct ObjectPlan {
+    /// Index into `scene.meshes`.
+    pub mesh: usize,
+    /// Unique object name.
+    pub name: String,
+    /// Order (bands) of every block of this object.
+    pub order: usize,
+    /// Whether the material has a glossy lobe that relighting multiplies by visibility.
+    pub needs_visibility: bool,
+}
+
+/// Smallest order whose truncation keeps all but `target` of a zonal lobe's energy.
+fn order_for_zonal(g: &[f64], target: f64) -> Option<usize> {
+    (1..=g.len()).find(|&o| zonal::energy_beyond(g, o) <= target)
+}
+
+/// Order needed by the diffuse (clamped-cosine) lobe.
+#[must_use]
+pub fn lambert_order(target: f64) -> usize {
+    let g = zonal::bands_to_zonal(&zonal::clamped_cosine_bands(64).expect("order 64 is valid"));
+    order_for_zonal(&g, target).unwrap_or(64)
+}
+
+/// Plans every object. Returns the plans and the decisions log.
+pub fn plan(scene: &Scene, settings: &BakeSettings) -> (Vec<ObjectPlan>, Vec<Decision>) {
+    let mut plans = Vec::new();
+    let mut log = Vec::new();
+    let mut names = std::collections::BTreeMap::<String, usize>::new();
+    let diffuse_order = lambert_order(settings.error_target);
+    for (i, mesh) in scene.meshes.iter().enumerate() {
+        let base = if mesh.name.is_empty() {
+            format!("object{i}")
+        } else {
+            mesh.name.clone()
+        };
+        let count = names.entry(base.clone()).or_insert(0);
+        let name = if *count == 0 {
+            base.clone()
+        } else {
+            format!("{base}#{count}")
+        };
+        *count += 1;
+        let material = &scene.materials[mesh.material];
+        let mut say = |decision: String, reason: String| {
+            log.push(Decision {
+                object: Some(name.clone()),
+                decision,
+                reason,
+            });
+        };
+        let (wanted, needs_visibility) = match material {
+            Material::Lambert { .. } => (diffuse_order, false),
+            Material::Phong { exponent, .. } => {
+                let o = zonal::phong_order_for_energy(f64::from(*exponent), settings.error_target);
+                match o {
+                    Some(o) => (o.max(diffuse_order), true),
+                    None => {
+                        say(
+                            "specular lobe truncated".into(),
+                            format!(
+                                "a Phong lobe of exponent {exponent} keeps more than {} of its energy beyond order {}",
+                                settings.error_target,
+                                prt_sh::MAX_ORDER
+                            ),
+                        );
+                        (prt_sh::MAX_ORDER, true)
+                    }
+                }
+            }
+            Material::BlinnPhong { .. } | Material::Ward { .. } | Material::CookTorrance { .. } => {
+                let t = glossy_table(material, settings.max_order.max(diffuse_order));
+                let o = t
+                    .projection_error
+                    .iter()
+                    .position(|e| e * e <= settings.error_target)
+                    .map(|k| k + 1);
+                match o {
+                    Some(o) => (o.max(diffuse_order), true),
+                    None => (settings.max_order + 1, true),
+                }
+            }
+            Material::Mirror { .. } => {
+                say(
+                    "mirror lobe not baked".into(),
+                    "a perfect mirror is a delta lobe: no finite SH order represents it; only its diffuse part (albedo/π) is baked"
+                        .into(),
+                );
+                (diffuse_order, false)
+            }
+        };
+        let order = match settings.order {
+            Some(o) => {
+                say(format!("order {o}"), "fixed by the user".into());
+                o
+            }
+            None if wanted > settings.max_order => {
+                say(
+                    format!("order {}", settings.max_order),
+                    format!(
+                        "the material needs order {wanted} to lose at most {} of its lobe energy; capped at the maximum {}",
+                        settings.error_target, settings.max_order
+                    ),
+                );
+                settings.max_order
+            }
+            None => {
+                say(
+                    format!("order {wanted}"),
+                    format!(
+                        "smallest order losing at most {} of the material lobe's energy",
+                        settings.error_target
+                    ),
+                );
+                wanted
+            }
+        };
+        if needs_visibility {
+            say(
+                "visibility transfer".into(),
+                "the material has a glossy lobe, relit as (L ⊛ V) convolved with the lobe".into(),
+            );
+        } else {
+            say(
+                "no visibility transfer".into(),
+                "the material is diffuse only (glossy relighting not needed)".into(),
+            );
+        }
+        plans.push(ObjectPlan {
+            mesh: i,
+            name,
+            order,
+            needs_visibility,
+        });
+    }
+    (plans, log)
+}

@@ -1,0 +1,118 @@
+//! Bake parameters, with presets, read in one place.
+
+use crate::error::BakeError;
+
+/// Which points a bake samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PointKind {
+    /// Every vertex of every object.
+    Vertex,
+    /// The primary hit of every pixel of the scene's camera.
+    Pixel,
+}
+
+/// Parameters of [`crate::bake`].
+#[derive(Clone, Debug)]
+pub struct BakeSettings {
+    /// Fixed order (bands) for every object; `None` chooses per object from `error_target`.
+    pub order: Option<usize>,
+    /// Largest order the automatic choice may pick.
+    pub max_order: usize,
+    /// Automatic order: the smallest order whose truncation loses at most this fraction of the
+    /// material lobe's energy (squared L2 norm).
+    pub error_target: f64,
+    /// Rays per point (per transfer kind that needs rays).
+    pub rays: u32,
+    /// Interreflection bounces (CONVENTIONS: 0 = direct light with shadows).
+    pub bounces: u32,
+    /// Global seed.
+    pub seed: u64,
+    /// Vertices or pixels.
+    pub points: PointKind,
+    /// Also store the analytic unshadowed diffuse transfer.
+    pub unshadowed: bool,
+    /// Bake only shard `index` of `count` (contiguous point ranges per object).
+    pub shard: Option<(u32, u32)>,
+    /// Memory the bake may use, in bytes (estimated before any work).
+    pub memory_limit: u64,
+    /// Show a progress bar on a terminal.
+    pub progress: bool,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        Self::final_quality()
+    }
+}
+
+impl BakeSettings {
+    /// A quick look: 256 rays, automatic order up to 6, no bounces.
+    #[must_use]
+    pub fn preview() -> Self {
+        Self {
+            rays: 256,
+            max_order: 6,
+            bounces: 0,
+            ..Self::final_quality()
+        }
+    }
+
+    /// The D3DX-like default: 1024 rays, one bounce, automatic order up to 10.
+    #[must_use]
+    pub fn final_quality() -> Self {
+        Self {
+            order: None,
+            max_order: 10,
+            error_target: 1e-3,
+            rays: 1024,
+            bounces: 1,
+            seed: 0,
+            points: PointKind::Vertex,
+            unshadowed: false,
+            shard: None,
+            memory_limit: 8 << 30,
+            progress: false,
+        }
+    }
+
+    /// Checks ranges.
+    pub fn validate(&self) -> Result<(), BakeError> {
+        let bad = |m: String| Err(BakeError::InvalidSettings(m));
+        if let Some(o) = self.order {
+            if o == 0 || o > prt_sh::MAX_ORDER {
+                return bad(format!(
+                    "order {o} must be between 1 and {}",
+                    prt_sh::MAX_ORDER
+                ));
+            }
+        }
+        if self.max_order == 0 || self.max_order > prt_sh::MAX_ORDER {
+            return bad(format!(
+                "max order {} must be between 1 and {}",
+                self.max_order,
+                prt_sh::MAX_ORDER
+            ));
+        }
+        if !(self.error_target > 0.0 && self.error_target < 1.0) {
+            return bad(format!(
+                "error target {} must be in (0, 1)",
+                self.error_target
+            ));
+        }
+        if self.rays == 0 {
+            return bad("rays must be at least 1".into());
+        }
+        if self.bounces > 64 {
+            return bad(format!(
+                "{} bounces is more than the supported 64",
+                self.bounces
+            ));
+        }
+        if let Some((i, n)) = self.shard {
+            if n == 0 || i >= n {
+                return bad(format!("shard {i}/{n}: the index must be below the count"));
+            }
+        }
+        Ok(())
+    }
+}
