@@ -1,0 +1,356 @@
+//! Importance sampling of a distant environment map with exactly the pdf of its
+//! piecewise-constant radiance.
+//!
+//! A texel is chosen from a [`Distribution2D`] (marginal over rows, conditional over columns)
+//! with weight `luminance × solid angle`, then a direction inside it:
+//!
+//! * **Lat-long**: uniform in `φ` and in `cos θ` over the texel's range, which is uniform in
+//!   solid angle, so `pdf(ω) = p_texel / Ω_texel` with the exact
+//!   `Ω_texel = (2π/W)(cos θ₀ − cos θ₁)`. Then `radiance / pdf = Σ_k L_k Ω_k · rgb / lum`:
+//!   constant over the sphere when the colour is the same everywhere (exact proportional
+//!   sampling).
+//! * **Angular probe**: uniform in `(a, b)` over the part of the texel inside the unit disc
+//!   (texels entirely outside have zero weight; rim texels are sampled in their clipped part
+//!   by inverting the exact clipped-area function in `a`, then uniformly in `b`). With
+//!   `r = √(a²+b²)` and `θ = πr`, `dω = sin θ dθ dψ = π sin(πr) dr dψ` and `da db = r dr dψ`, so
+//!   the Jacobian is `dω = π sin(πr)/r · da db` and `pdf(ω) = p_texel / (A_texel · π sin(πr)/r)`,
+//!   `A_texel` the clipped area in `(a, b)`. The texel weight uses its solid angle
+//!   `∫ π sin(πr)/r da db` by Gauss–Legendre quadrature; only proportionality depends on that
+//!   quadrature, the pdf stays exact. The pdf grows without bound towards the rim (−Z), where
+//!   the map squeezes a whole ring of texels into one direction.
+//!
+//! Texels of zero luminance get zero probability. Sampling happens in the map frame and is
+//! rotated by `rotation_y_deg` to the world ([`Environment::to_world`]); `pdf` and `radiance`
+//! undo the rotation first.
+
+use crate::{luminance, Distribution2D};
+use glam::{DVec3, Vec3};
+use prt_scene::envmap::{angular_direction, latlong_direction};
+use prt_scene::{Environment, Mapping};
+use std::f64::consts::{PI, TAU};
+
+/// A direction drawn by [`EnvSampler::sample`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnvSample {
+    /// World direction towards the environment (unit).
+    pub dir: Vec3,
+    /// Radiance arriving from `dir` (RGB), the same as [`EnvSampler::radiance`].
+    pub radiance: Vec3,
+    /// Solid-angle pdf, the same as [`EnvSampler::pdf`] at `dir`.
+    pub pdf: f32,
+}
+
+/// Importance sampler of a distant environment (see the module docs for the exact pdf).
+#[derive(Clone, Debug)]
+pub struct EnvSampler {
+    env: Environment,
+    dist: Option<Distribution2D>,
+    /// Lat-long: solid angle of each row's texels. Angular: clipped `(a, b)` area of each texel.
+    measure: Vec<f64>,
+    total_power: f64,
+}
+
+/// Solid angle of a lat-long texel of row `row` in a `w × h` map.
+fn latlong_row_solid_angle(row: usize, w: usize, h: usize) -> f64 {
+    let t0 = PI * row as f64 / h as f64;
+    let t1 = PI * (row + 1) as f64 / h as f64;
+    // cos t0 − cos t1 = 2 sin((t0+t1)/2) sin((t1−t0)/2), accurate near the poles.
+    TAU / w as f64 * 2.0 * (0.5 * (t0 + t1)).sin() * (0.5 * (t1 - t0)).sin()
+}
+
+/// `(a0, a1, b0, b1)` of angular texel `(col, row)`: `a` rightwards, `b` upwards.
+fn angular_rect(col: usize, row: usize, w: usize, h: usize) -> (f64, f64, f64, f64) {
+    let a0 = 2.0 * col as f64 / w as f64 - 1.0;
+    let a1 = 2.0 * (col + 1) as f64 / w as f64 - 1.0;
+    let b0 = 1.0 - 2.0 * (row + 1) as f64 / h as f64;
+    let b1 = 1.0 - 2.0 * row as f64 / h as f64;
+    (a0, a1, b0, b1)
+}
+
+/// `∫ sqrt(1 − t²) dt`.
+fn half_disc_antiderivative(t: f64) -> f64 {
+    let t = t.clamp(-1.0, 1.0);
+    0.5 * (t * (1.0 - t * t).max(0.0).sqrt() + t.asin())
+}
+
+/// `[max(b0, −s), min(b1, s)]` at `a = t`, `s = sqrt(1 − t²)`: the texel column inside the disc.
+fn clipped_b_range(t: f64, b0: f64, b1: f64) -> (f64, f64) {
+    let s = (1.0 - t * t).max(0.0).sqrt();
+    (b0.max(-s), b1.min(s))
+}
+
+/// Area of `{(a, b) : a0 ≤ a ≤ x, b0 ≤ b ≤ b1, a² + b² ≤ 1}` in closed form, split where the
+/// clipping changes (`a = ±sqrt(1 − b0²)`, `±sqrt(1 − b1²)`).
+fn clipped_area(a0: f64, x: f64, b0: f64, b1: f64) -> f64 {
+    let mut pts = [a0, x, 0.0, 0.0, 0.0, 0.0];
+    let mut n = 2;
+    for b in [b0, b1] {
+        if b.abs() < 1.0 {
+            let t = (1.0 - b * b).sqrt();
+            for p in [t, -t] {
+                if p > a0 && p < x {
+                    pts[n] = p;
+                    n += 1;
+                }
+            }
+        }
+    }
+    let pts = &mut pts[..n];
+    pts.sort_by(f64::total_cmp);
+    let mut area = 0.0;
+    for w in pts.windows(2) {
+        let (p, q) = (w[0], w[1]);
+        if q <= p {
+            continue;
+        }
+        let m = 0.5 * (p + q);
+        let s = (1.0 - m * m).max(0.0).sqrt();
+        let (lo, hi) = clipped_b_range(m, b0, b1);
+        if hi <= lo {
+            continue;
+        }
+        let ds = half_disc_antiderivative(q) - half_disc_antiderivative(p);
+        let upper = if s <= b1 { ds } else { b1 * (q - p) };
+        let lower = if -s >= b0 { -ds } else { b0 * (q - p) };
+        area += upper - lower;
+    }
+    area.max(0.0)
+}
+
+/// `dω / (da db) = π sin(πr)/r` of the angular mapping.
+fn angular_jacobian(r: f64) -> f64 {
+    if r < 1e-8 {
+        PI * PI
+    } else {
+        PI * (PI * r).sin() / r
+    }
+}
+
+/// Solid angle of an angular texel's part inside the disc (4×4 Gauss–Legendre, clipped in `b`).
+fn angular_texel_solid_angle(a0: f64, a1: f64, b0: f64, b1: f64) -> f64 {
+    const X: [f64; 4] = [
+        -0.861_136_311_594_052_6,
+        -0.339_981_043_584_856_3,
+        0.339_981_043_584_856_3,
+        0.861_136_311_594_052_6,
+    ];
+    const W: [f64; 4] = [
+        0.347_854_845_137_453_9,
+        0.652_145_154_862_546_1,
+        0.652_145_154_862_546_1,
+        0.347_854_845_137_453_9,
+    ];
+    let mut total = 0.0;
+    for (xa, wa) in X.iter().zip(W) {
+        let a = 0.5 * (a0 + a1) + 0.5 * (a1 - a0) * xa;
+        let (lo, hi) = clipped_b_range(a, b0, b1);
+        if hi <= lo {
+            continue;
+        }
+        let mut inner = 0.0;
+        for (xb, wb) in X.iter().zip(W) {
+            let b = 0.5 * (lo + hi) + 0.5 * (hi - lo) * xb;
+            inner += wb * angular_jacobian((a * a + b * b).sqrt().min(1.0));
+        }
+        total += wa * 0.5 * (a1 - a0) * inner * 0.5 * (hi - lo);
+    }
+    total
+}
+
+impl EnvSampler {
+    /// Builds the sampling distribution of `env` (clones the environment).
+    #[must_use]
+    pub fn new(env: &Environment) -> Self {
+        let img = &env.image;
+        let (w, h) = (img.width, img.height);
+        let mut weights = vec![0.0f64; w * h];
+        let mut measure;
+        let mut total_power = 0.0;
+        match env.mapping {
+            Mapping::LatLong => {
+                measure = (0..h)
+                    .map(|r| latlong_row_solid_angle(r, w, h))
+                    .collect::<Vec<_>>();
+                for r in 0..h {
+                    for c in 0..w {
+                        let lum = f64::from(luminance(Vec3::from_array(img.texel(c, r)))).max(0.0);
+                        weights[r * w + c] = lum * measure[r];
+                        total_power += lum * measure[r];
+                    }
+                }
+            }
+            Mapping::Angular => {
+                measure = vec![0.0; w * h];
+                for r in 0..h {
+                    for c in 0..w {
+                        let (a0, a1, b0, b1) = angular_rect(c, r, w, h);
+                        let area = clipped_area(a0, a1, b0, b1);
+                        measure[r * w + c] = area;
+                        if area <= 0.0 {
+                            continue;
+                        }
+                        let lum = f64::from(luminance(Vec3::from_array(img.texel(c, r)))).max(0.0);
+                        let omega = angular_texel_solid_angle(a0, a1, b0, b1);
+                        weights[r * w + c] = lum * omega;
+                        total_power += lum * omega;
+                    }
+                }
+            }
+        }
+        let dist = if w * h > 0 && weights.iter().any(|&x| x > 0.0) {
+            Some(Distribution2D::new(&weights, w, h))
+        } else {
+            None
+        };
+        Self {
+            env: env.clone(),
+            dist,
+            measure,
+            total_power,
+        }
+    }
+
+    /// The environment this samples.
+    #[must_use]
+    pub fn environment(&self) -> &Environment {
+        &self.env
+    }
+
+    /// Probability of choosing texel `(col, row)`.
+    #[must_use]
+    pub fn texel_probability(&self, col: usize, row: usize) -> f64 {
+        self.dist.as_ref().map_or(0.0, |d| d.pmf(col, row))
+    }
+
+    /// Draws a direction; `None` for an all-black map (or a sample that rounds into a texel of
+    /// zero probability).
+    #[must_use]
+    pub fn sample(&self, u: [f32; 2]) -> Option<EnvSample> {
+        let dist = self.dist.as_ref()?;
+        let ((c, r), _p, rem) = dist.sample_discrete([f64::from(u[0]), f64::from(u[1])])?;
+        let (w, h) = (self.env.image.width, self.env.image.height);
+        let map_dir = match self.env.mapping {
+            Mapping::LatLong => {
+                let phi = TAU * (c as f64 + rem[0]) / w as f64;
+                let (t0, t1) = (PI * r as f64 / h as f64, PI * (r + 1) as f64 / h as f64);
+                let cos_t = t0.cos() + rem[1] * (t1.cos() - t0.cos());
+                latlong_direction(phi, cos_t.clamp(-1.0, 1.0).acos())
+            }
+            Mapping::Angular => {
+                let (a0, a1, b0, b1) = angular_rect(c, r, w, h);
+                let area = self.measure[r * w + c];
+                let full = (a1 - a0) * (b1 - b0);
+                let (a, b) = if area >= full * (1.0 - 1e-12) {
+                    (a0 + rem[0] * (a1 - a0), b0 + rem[1] * (b1 - b0))
+                } else {
+                    // Invert the clipped area in `a` by bisection, then uniform in `b`.
+                    let target = rem[0] * area;
+                    let (mut lo, mut hi) = (a0, a1);
+                    for _ in 0..64 {
+                        let mid = 0.5 * (lo + hi);
+                        if clipped_area(a0, mid, b0, b1) < target {
+                            lo = mid;
+                        } else {
+                            hi = mid;
+                        }
+                    }
+                    let a = 0.5 * (lo + hi);
+                    let (blo, bhi) = clipped_b_range(a, b0, b1);
+                    (a, blo + rem[1] * (bhi - blo).max(0.0))
+                };
+                angular_direction(a, b).unwrap_or(DVec3::NEG_Z)
+            }
+        };
+        let dir = self.env.to_world(map_dir).as_vec3().normalize();
+        let pdf = self.pdf(dir);
+        if !(pdf.is_finite() && pdf > 0.0) {
+            return None;
+        }
+        Some(EnvSample {
+            dir,
+            radiance: self.radiance(dir),
+            pdf,
+        })
+    }
+
+    /// Solid-angle pdf of [`Self::sample`] at world direction `dir` (unit).
+    #[must_use]
+    pub fn pdf(&self, dir: Vec3) -> f32 {
+        let Some(dist) = self.dist.as_ref() else {
+            return 0.0;
+        };
+        let m = self.env.to_map_frame(dir.as_dvec3());
+        let img = &self.env.image;
+        match self.env.mapping {
+            Mapping::LatLong => {
+                let (c, r) = img.latlong_texel(m);
+                (dist.pmf(c, r) / self.measure[r]) as f32
+            }
+            Mapping::Angular => {
+                let (c, r) = img.angular_texel(m);
+                let area = self.measure[r * img.width + c];
+                let p = dist.pmf(c, r);
+                if area <= 0.0 || p <= 0.0 {
+                    return 0.0;
+                }
+                // r = θ/π and sin(πr) = sin θ from atan2 of the exact components: unlike
+                // acos(z), this stays accurate next to −Z, where the pdf is steepest.
+                let len = m.length();
+                let hxy = (m.x * m.x + m.y * m.y).sqrt();
+                let theta = hxy.atan2(m.z);
+                let jac = if theta < 1e-8 {
+                    PI * PI
+                } else {
+                    PI * (hxy / len) / (theta / PI)
+                };
+                if jac.is_nan() || jac <= 0.0 {
+                    return 0.0;
+                }
+                (p / (area * jac)) as f32
+            }
+        }
+    }
+
+    /// Radiance arriving from world direction `dir` (the piecewise-constant texel value).
+    #[must_use]
+    pub fn radiance(&self, dir: Vec3) -> Vec3 {
+        Vec3::from_array(self.env.radiance(dir))
+    }
+
+    /// `∫ luminance dω` over the sphere (exact for lat-long, by quadrature for angular probes).
+    #[must_use]
+    pub fn total_power(&self) -> f64 {
+        self.total_power
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clipped_area_matches_disc_and_quadrants() {
+        // Whole square [-1,1]² clipped to the disc is π; a quadrant is π/4.
+        assert!((clipped_area(-1.0, 1.0, -1.0, 1.0) - PI).abs() < 1e-12);
+        assert!((clipped_area(0.0, 1.0, 0.0, 1.0) - PI / 4.0).abs() < 1e-12);
+        assert!((clipped_area(-1.0, 0.0, -1.0, 0.0) - PI / 4.0).abs() < 1e-12);
+        // Interior rectangle unchanged.
+        assert!((clipped_area(-0.1, 0.2, -0.3, 0.1) - 0.3 * 0.4).abs() < 1e-12);
+        // Outside.
+        assert_eq!(clipped_area(0.9, 1.0, 0.9, 1.0), 0.0);
+        // Sum over a grid of texels equals π.
+        let n = 37;
+        let mut sum = 0.0;
+        let mut omega = 0.0;
+        for r in 0..n {
+            for c in 0..n {
+                let (a0, a1, b0, b1) = angular_rect(c, r, n, n);
+                sum += clipped_area(a0, a1, b0, b1);
+                omega += angular_texel_solid_angle(a0, a1, b0, b1);
+            }
+        }
+        assert!((sum - PI).abs() < 1e-10, "{sum}");
+        // Solid angle of the whole probe is 4π (quadrature; rim texels are approximate).
+        assert!((omega - 4.0 * PI).abs() < 0.02, "{omega}");
+    }
+}

@@ -1,0 +1,212 @@
+//! Closed-form and consistency checks of the BRDFs: pdf normalisation, sample weights,
+//! reciprocity, directional albedo against closed forms, white-furnace estimates.
+
+mod common;
+use common::*;
+use glam::Vec3;
+use prt_scene::Material;
+use prt_shading::*;
+use rand::{Rng, SeedableRng};
+
+fn all_materials() -> Vec<Material> {
+    let mut v = vec![
+        Material::Lambert {
+            albedo: [0.8, 0.5, 0.2],
+        },
+        Material::Mirror {
+            albedo: grey(0.4),
+            specular: grey(0.5),
+        },
+    ];
+    for e in [1.0, 20.0, 500.0] {
+        v.push(phong(0.3, 0.6, e));
+    }
+    for e in [1.0, 50.0, 2000.0] {
+        v.push(blinn(0.3, 0.6, e));
+    }
+    for a in [0.05, 0.3] {
+        v.push(ward(0.3, 0.6, a));
+    }
+    for m in [0.05, 0.3, 0.8] {
+        v.push(cook(0.3, 0.6, m));
+    }
+    v
+}
+
+fn random_dir_above(rng: &mut impl Rng) -> Vec3 {
+    loop {
+        let d = sample_uniform_hemisphere([rng.random(), rng.random()]);
+        if d.z > 1e-3 {
+            return d;
+        }
+    }
+}
+
+#[test]
+fn test01_pdf_integrates_to_at_most_one() {
+    for mat in all_materials() {
+        for t in [0.0f32, 30.0, 60.0, 85.0] {
+            let wo = dir_at(t);
+            let total = hemisphere_integral(|wi| f64::from(pdf(&mat, Vec3::Z, wo, wi)), 1e-8);
+            assert!(total <= 1.0 + 1e-4, "{mat:?} θo={t}: ∫pdf = {total}");
+            // Mass can only be lost by the specular lobe below the horizon.
+            let ps = f64::from(specular_selection_probability(&mat, Vec3::Z, wo));
+            assert!(
+                total >= 1.0 - ps - 1e-4,
+                "{mat:?} θo={t}: ∫pdf = {total}, p_spec = {ps}"
+            );
+            let exact_one = matches!(mat, Material::Lambert { .. })
+                || (matches!(mat, Material::Phong { .. }) && t == 0.0);
+            if exact_one {
+                assert!((total - 1.0).abs() < 1e-4, "{mat:?} θo={t}: ∫pdf = {total}");
+            }
+            if matches!(mat, Material::Mirror { .. }) {
+                assert!(
+                    (total - (1.0 - ps)).abs() < 1e-4,
+                    "mirror: diffuse part must integrate to 1 − P_delta"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn test02_sample_weight_is_eval_cos_over_pdf() {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let n = Vec3::new(0.2, 0.9, -0.3).normalize();
+    let frame = Frame::from_normal(n);
+    for mat in all_materials() {
+        let mut count = 0;
+        for _ in 0..20_000 {
+            let wo = frame.to_world(random_dir_above(&mut rng));
+            let Some(s) = sample(&mat, n, wo, [rng.random(), rng.random(), rng.random()]) else {
+                continue;
+            };
+            assert!((s.wi.length() - 1.0).abs() < 1e-4);
+            assert!(s.wi.dot(n) > 0.0);
+            if s.is_delta {
+                let r = 2.0 * wo.dot(n) * n - wo;
+                assert!((s.wi - r).length() < 1e-4);
+                continue;
+            }
+            count += 1;
+            let p = pdf(&mat, n, wo, s.wi);
+            assert!(
+                (p - s.pdf).abs() <= 1e-3 * s.pdf,
+                "{mat:?}: pdf {p} vs sample {}",
+                s.pdf
+            );
+            let expect = eval(&mat, n, wo, s.wi) * s.wi.dot(n) / s.pdf;
+            assert!(
+                (expect - s.weight).abs().max_element() <= 1e-3 * expect.max_element().max(1e-3),
+                "{mat:?}: {expect} vs {}",
+                s.weight
+            );
+        }
+        assert!(count > 1000, "{mat:?}: too few non-delta samples");
+    }
+}
+
+#[test]
+fn test03_reciprocity() {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(12);
+    let n = Vec3::new(-0.4, 0.1, 0.9).normalize();
+    let frame = Frame::from_normal(n);
+    for mat in all_materials() {
+        for _ in 0..20_000 {
+            let (a, b) = (
+                frame.to_world(random_dir_above(&mut rng)),
+                frame.to_world(random_dir_above(&mut rng)),
+            );
+            let (f1, f2) = (eval(&mat, n, a, b), eval(&mat, n, b, a));
+            assert!(
+                (f1 - f2).abs().max_element() <= 2e-3 * f1.max_element().max(1e-6),
+                "{mat:?}: {f1} vs {f2}"
+            );
+        }
+        // Below the surface everything is zero.
+        assert_eq!(eval(&mat, n, -n, n), Vec3::ZERO);
+        assert_eq!(pdf(&mat, n, n, -n), 0.0);
+        assert!(sample(&mat, n, -n, [0.5, 0.5, 0.5]).is_none());
+    }
+}
+
+/// Closed form of the Blinn–Phong `(e+8)/(8π)` lobe's directional albedo at normal incidence:
+/// with `θ_h = θ_i/2`, `∫ (e+8)/(8π) cos^e(θ_i/2) cos θ_i dω = (e+8)[(2−q)/(e+4) − (1−q)/(e+2)]`,
+/// `q = 2^{−(e+2)/2}`.
+fn blinn_albedo_normal(e: f64) -> f64 {
+    let q = 2f64.powf(-(e + 2.0) / 2.0);
+    (e + 8.0) * ((2.0 - q) / (e + 4.0) - (1.0 - q) / (e + 2.0))
+}
+
+#[test]
+fn test04_directional_albedo_closed_forms() {
+    // Phong at normal incidence: ∫ (e+2)/(2π) cos^e θ cos θ dω = 1 exactly.
+    for e in [0.0, 1.0, 20.0, 500.0] {
+        let a = albedo_quadrature(&phong(0.0, 1.0, e), Vec3::Z);
+        assert!((a - 1.0).abs() < 1e-4, "Phong e={e}: albedo {a}");
+    }
+    for e in [0.0, 1.0, 10.0, 50.0, 2000.0] {
+        let a = albedo_quadrature(&blinn(0.0, 1.0, e), Vec3::Z);
+        let c = blinn_albedo_normal(f64::from(e));
+        assert!(
+            (a - c).abs() < 1e-4,
+            "Blinn e={e}: albedo {a} vs closed form {c}"
+        );
+    }
+    // The closed form exceeds 1 for 0 < e (maximum ≈ 1.075 near e = 10), tends to 1 as e → ∞.
+    assert!((blinn_albedo_normal(0.0) - 1.0).abs() < 1e-12);
+    assert!(blinn_albedo_normal(10.0) > 1.07 && (blinn_albedo_normal(1e6) - 1.0).abs() < 1e-4);
+    // Lambert: albedo.
+    let a = albedo_quadrature(&Material::Lambert { albedo: grey(0.7) }, dir_at(40.0));
+    assert!((a - 0.7).abs() < 1e-5);
+}
+
+#[test]
+fn test05_energy_and_white_furnace() {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(13);
+    println!("directional albedo (albedo 0, specular 1), quadrature | sampled mean ± 1σ");
+    let mats = [
+        ("phong e=1", phong(0.0, 1.0, 1.0)),
+        ("phong e=20", phong(0.0, 1.0, 20.0)),
+        ("phong e=500", phong(0.0, 1.0, 500.0)),
+        ("blinn e=1", blinn(0.0, 1.0, 1.0)),
+        ("blinn e=50", blinn(0.0, 1.0, 50.0)),
+        ("blinn e=2000", blinn(0.0, 1.0, 2000.0)),
+        ("ward a=0.05", ward(0.0, 1.0, 0.05)),
+        ("ward a=0.3", ward(0.0, 1.0, 0.3)),
+        ("ct m=0.05", cook(0.0, 1.0, 0.05)),
+        ("ct m=0.3", cook(0.0, 1.0, 0.3)),
+        ("ct m=0.8", cook(0.0, 1.0, 0.8)),
+        ("mix phong", phong(0.3, 0.6, 20.0)),
+        ("mix ct", cook(0.5, 0.5, 0.3)),
+    ];
+    for (name, mat) in &mats {
+        for t in [0.0f32, 30.0, 60.0, 85.0] {
+            let wo = dir_at(t);
+            let q = albedo_quadrature(mat, wo);
+            let n = 200_000;
+            let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+            for _ in 0..n {
+                let w = sample(mat, Vec3::Z, wo, [rng.random(), rng.random(), rng.random()])
+                    .map_or(0.0, |s| f64::from(s.weight.y));
+                sum += w;
+                sum2 += w * w;
+            }
+            let mean = sum / n as f64;
+            let sigma = ((sum2 / n as f64 - mean * mean).max(0.0) / n as f64).sqrt();
+            println!("{name:>13} θo={t:>2}: {q:.5} | {mean:.5} ± {sigma:.5}");
+            // 5σ (plus quadrature slack) for each of 52 estimates: false alarms are negligible.
+            assert!(
+                (mean - q).abs() < 5.0 * sigma + 1e-4,
+                "{name} θo={t}: furnace {mean} ± {sigma} vs quadrature {q}"
+            );
+            // Blinn–Phong's (e+8)/(8π) is only approximately normalised: its albedo at normal
+            // incidence exceeds 1 by up to ~7% (closed form in test04). Ward stays below 1 here.
+            let is_bounded = !matches!(mat, Material::BlinnPhong { .. });
+            if is_bounded {
+                assert!(q <= 1.0 + 1e-4, "{name} θo={t}: albedo {q} > 1");
+            }
+        }
+    }
+}
