@@ -1,0 +1,140 @@
+//! `prt render`: a path-traced reference image of a scene file.
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use prt_tracer::{output, MisHeuristic, Mode, RenderSettings, Renderer};
+use std::path::PathBuf;
+
+/// MIS heuristic names on the command line.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum MisArg {
+    /// Veach's power heuristic (exponent 2).
+    Power,
+    /// Veach's balance heuristic.
+    Balance,
+}
+
+/// Options of `prt render`.
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Samples per pixel (default: the scene's `[render] spp`).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Indirect bounces: 0 = direct light with shadows, -1 = unlimited (Russian roulette)
+    /// (default: the scene's `[render] bounces`).
+    #[arg(long, allow_hyphen_values = true)]
+    pub bounces: Option<i32>,
+    /// Global seed (default: the scene's `[render] seed`).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores). The image does not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Output EXR (linear RGB f32 with metadata) [default: <scene name>.exr].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Also write an 8-bit sRGB PNG view here.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Exposure of the PNG view in EV.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub exposure: f32,
+    /// Ignore visibility: every direction above the surface sees the environment.
+    #[arg(long, conflicts_with = "ao")]
+    pub unshadowed: bool,
+    /// Render ambient occlusion instead of radiance.
+    #[arg(long)]
+    pub ao: bool,
+    /// With --ao: occluders further than this do not count.
+    #[arg(long, requires = "ao")]
+    pub ao_distance: Option<f32>,
+    /// Add AOV channels to the EXR (normal, albedo, depth, variance).
+    #[arg(long)]
+    pub aovs: bool,
+    /// MIS heuristic between environment and BRDF sampling.
+    #[arg(long, value_enum, default_value_t = MisArg::Power)]
+    pub mis: MisArg,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Runs `prt render`.
+///
+/// # Errors
+/// Unreadable or invalid scene, invalid settings, unwritable outputs.
+pub fn run(args: &RenderArgs) -> Result<()> {
+    let loaded = prt_scene::load_scene(&args.scene)
+        .with_context(|| format!("cannot load scene {}", args.scene.display()))?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    let scene = loaded.scene;
+    let mut settings = RenderSettings::from_scene(&scene.render);
+    if let Some(spp) = args.spp {
+        settings.spp = spp;
+    }
+    if let Some(b) = args.bounces {
+        settings.bounces = b;
+    }
+    if let Some(s) = args.seed {
+        settings.seed = s;
+    }
+    settings.threads = args.threads;
+    settings.aovs = args.aovs;
+    settings.progress = !args.quiet;
+    settings.mis = match args.mis {
+        MisArg::Power => MisHeuristic::Power,
+        MisArg::Balance => MisHeuristic::Balance,
+    };
+    settings.mode = if args.ao {
+        Mode::AmbientOcclusion {
+            max_distance: args.ao_distance,
+        }
+    } else if args.unshadowed {
+        Mode::Unshadowed
+    } else {
+        Mode::Path
+    };
+    if !args.exposure.is_finite() {
+        bail!("--exposure must be a finite number of stops");
+    }
+    let out_path = match &args.out {
+        Some(p) => p.clone(),
+        None => {
+            let stem = args
+                .scene
+                .file_stem()
+                .map_or("render".into(), |s| s.to_string_lossy().into_owned());
+            PathBuf::from(format!("{stem}.exr"))
+        }
+    };
+
+    let renderer = Renderer::new(&scene, settings).context("cannot prepare the scene")?;
+    let image = renderer.render().context("render failed")?;
+    output::write_exr(&out_path, &image)?;
+    if let Some(png) = &args.png {
+        output::write_png(png, &image, args.exposure)?;
+    }
+    let samples = f64::from(image.width) * f64::from(image.height) * f64::from(image.settings.spp);
+    eprintln!(
+        "rendered {}×{} at {} spp, bounces {}, seed {} in {:.2} s ({:.0} samples/s) → {}",
+        image.width,
+        image.height,
+        image.settings.spp,
+        image.settings.bounces,
+        image.settings.seed,
+        image.seconds,
+        samples / image.seconds.max(1e-9),
+        out_path.display()
+    );
+    if image.invalid_samples > 0 {
+        eprintln!(
+            "warning: {} samples were NaN or infinite and counted as 0",
+            image.invalid_samples
+        );
+    }
+    Ok(())
+}
