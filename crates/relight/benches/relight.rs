@@ -195,6 +195,19 @@ fn benches(c: &mut Criterion) {
     }
     g.finish();
 
+    // The per-frame light product matrices L̂_c = M(L_c) (included in every frame above).
+    let mut g = c.benchmark_group("frame_lighting");
+    g.sample_size(10);
+    g.warm_up_time(std::time::Duration::from_millis(300));
+    g.measurement_time(std::time::Duration::from_secs(1));
+    for order in [6usize, 10, 14] {
+        let l = level(&b, order);
+        g.bench_with_input(BenchmarkId::from_parameter(order), &l, |bench, l| {
+            bench.iter(|| black_box(l.relighter.frame_lighting(&l.lighting, true).unwrap()))
+        });
+    }
+    g.finish();
+
     let mut g = c.benchmark_group("memory_bound");
     g.sample_size(20);
     g.warm_up_time(std::time::Duration::from_millis(500));

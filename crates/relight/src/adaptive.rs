@@ -121,6 +121,9 @@ pub struct AdaptiveFrame {
     pub diffuse: Vec<[f32; 3]>,
     /// Specular radiance per point.
     pub specular: Vec<[f32; 3]>,
+    /// Per point, whether it ended in the region of interest (significant at full order after
+    /// refinement): `[diffuse, specular]`, empty for an absent term (Figure 6.3(d) of the thesis).
+    pub roi: [Vec<bool>; 2],
     /// Frame statistics.
     pub stats: FrameStats,
 }
@@ -244,6 +247,7 @@ impl Relighter {
         };
 
         let mut radiance: [Vec<[f32; 3]>; 2] = [Vec::new(), Vec::new()];
+        let mut roi: [Vec<bool>; 2] = [Vec::new(), Vec::new()];
         let mut stats: [Option<TermStats>; 2] = [None, None];
         let (full_d, full_s) = self.full_products();
         for (k, eval) in terms.iter().enumerate() {
@@ -283,7 +287,8 @@ impl Relighter {
                 st.refinement_rounds = rounds;
                 st.refined_points = tested;
             }
-            st.roi_fraction = acc.iter().filter(|a| significant(a)).count() as f64 / denom;
+            roi[k] = acc.iter().map(significant).collect();
+            st.roi_fraction = roi[k].iter().filter(|r| **r).count() as f64 / denom;
             st.full_order_fraction = acc
                 .iter()
                 .filter(|a| !a.inactive && a.last_level as usize == top)
@@ -311,6 +316,7 @@ impl Relighter {
         Ok(AdaptiveFrame {
             diffuse,
             specular,
+            roi,
             stats: FrameStats {
                 order: self.order(),
                 points,
