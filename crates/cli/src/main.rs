@@ -4,6 +4,7 @@
 
 mod bake_cmd;
 mod compare_cmd;
+mod relight_cmd;
 mod render_cmd;
 mod sh_cmd;
 
@@ -31,6 +32,8 @@ enum Command {
     Inspect(bake_cmd::InspectArgs),
     /// Merge the shard files of a sharded bake into one file.
     Merge(bake_cmd::MergeArgs),
+    /// Relight a bake under the (rotated) environment: full-order or locally adaptive SH.
+    Relight(relight_cmd::RelightArgs),
     /// Compare an image with a reference: PSNR (LDR, HDR), RMSE, relative L2, noise.
     Compare(compare_cmd::CompareArgs),
 }
@@ -43,6 +46,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => bake_cmd::run_bake(&args),
         Command::Inspect(args) => bake_cmd::run_inspect(&args),
         Command::Merge(args) => bake_cmd::run_merge(&args),
+        Command::Relight(args) => relight_cmd::run(&args),
         Command::Compare(args) => compare_cmd::run(args),
     };
     match result {

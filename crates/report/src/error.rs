@@ -1,0 +1,46 @@
+//! Errors of the pipeline crate.
+
+use std::path::PathBuf;
+use thiserror::Error;
+
+/// Everything that can stop a relight or a report.
+#[derive(Debug, Error)]
+pub enum ReportError {
+    /// A bake that does not belong to the scene, or lacks what is asked of it.
+    #[error("{path}: {reason}")]
+    BakeMismatch {
+        /// The bake file (or `<memory>`).
+        path: PathBuf,
+        /// What does not match.
+        reason: String,
+    },
+    /// Bad options.
+    #[error("invalid options: {0}")]
+    Invalid(String),
+    /// Writing an output failed.
+    #[error("{path}: cannot write: {reason}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// From the relighter.
+    #[error(transparent)]
+    Relight(#[from] prt_relight::RelightError),
+    /// From the tracer.
+    #[error(transparent)]
+    Tracer(#[from] prt_tracer::TracerError),
+    /// From the SH core.
+    #[error(transparent)]
+    Sh(#[from] prt_sh::ShError),
+    /// From the baker.
+    #[error(transparent)]
+    Bake(#[from] prt_bake::BakeError),
+    /// From the bake file format.
+    #[error(transparent)]
+    BakeFile(#[from] prt_bakefile::BakeFileError),
+    /// From the comparison crate.
+    #[error(transparent)]
+    Compare(#[from] prt_compare::CompareError),
+}

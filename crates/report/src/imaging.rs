@@ -1,0 +1,162 @@
+//! Image formation for comparisons: the scene camera's rays hit the meshes and take the
+//! barycentric interpolation of per-vertex radiance (Gouraud), or, for per-pixel bakes, the
+//! pixel's own value; background pixels show the environment as the path tracer does
+//! (piecewise-constant lookup). Each pixel averages a fixed `k×k` grid of sub-pixel rays — the
+//! path tracer's box filter, without noise.
+
+use crate::error::ReportError;
+use crate::relit::Relit;
+use glam::{DMat3, Vec3};
+use prt_scene::Scene;
+use prt_tracer::{Accel, PinholeCamera};
+use rayon::prelude::*;
+
+/// Sub-pixel rays per side of the box filter.
+pub const SUBPIXELS: u32 = 3;
+
+/// An RGB image, row-major from the top row.
+#[derive(Clone, Debug)]
+pub struct RgbImage {
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// Linear radiance.
+    pub pixels: Vec<[f32; 3]>,
+}
+
+/// Environment radiance seen along `dir` with an extra rotation about +Y (degrees).
+fn background(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
+    let d = if rotate_y_deg == 0.0 {
+        dir
+    } else {
+        (DMat3::from_rotation_y(-rotate_y_deg.to_radians()) * dir.as_dvec3()).as_vec3()
+    };
+    scene.environment.radiance(d)
+}
+
+/// Positions and camera-facing normals of the primary hits of every pixel centre that lands on
+/// object `o` (other pixels get a placeholder facing away from the camera).
+pub fn pixel_surface(
+    scene: &Scene,
+    accel: &Accel,
+    o: usize,
+) -> Result<Vec<([f32; 3], [f32; 3])>, ReportError> {
+    let pts = prt_bake::points::pixel_points(scene, accel)?;
+    let eye = scene.camera.eye.as_vec3();
+    Ok(pts
+        .into_iter()
+        .map(|p| match p {
+            Some((m, sp)) if m == o => (sp.position.to_array(), sp.normal.to_array()),
+            _ => ((eye + Vec3::Y).to_array(), Vec3::Y.to_array()),
+        })
+        .collect())
+}
+
+/// Forms the image of relit radiance (per-vertex: Gouraud; per-pixel: the pixel's value).
+pub fn form_image(
+    scene: &Scene,
+    accel: &Accel,
+    relit: &Relit,
+    per_pixel: bool,
+    rotate_y_deg: f64,
+) -> Result<RgbImage, ReportError> {
+    let cam = PinholeCamera::new(&scene.camera)?;
+    let (w, h) = (cam.width(), cam.height());
+    let eye = cam.eye();
+    let k = SUBPIXELS;
+    let pixels: Vec<[f32; 3]> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            if per_pixel {
+                let dir = cam.direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                return match accel.closest_hit(eye, dir, f32::INFINITY) {
+                    Some(hit) => relit.radiance[hit.mesh as usize][i as usize],
+                    None => background(scene, dir, rotate_y_deg),
+                };
+            }
+            let mut sum = [0.0f32; 3];
+            for sy in 0..k {
+                for sx in 0..k {
+                    let fx = f64::from(x) + (f64::from(sx) + 0.5) / f64::from(k);
+                    let fy = f64::from(y) + (f64::from(sy) + 0.5) / f64::from(k);
+                    let dir = cam.direction(fx, fy);
+                    let v = match accel.closest_hit(eye, dir, f32::INFINITY) {
+                        Some(hit) => {
+                            let mesh = &scene.meshes[hit.mesh as usize];
+                            let tri = mesh.indices[hit.tri as usize];
+                            let r = &relit.radiance[hit.mesh as usize];
+                            let wts = [1.0 - hit.u - hit.v, hit.u, hit.v];
+                            let mut c = [0.0f32; 3];
+                            for (vi, wt) in tri.iter().zip(wts) {
+                                let rv = r[*vi as usize];
+                                for ch in 0..3 {
+                                    c[ch] += wt * rv[ch];
+                                }
+                            }
+                            c
+                        }
+                        None => background(scene, dir, rotate_y_deg),
+                    };
+                    for ch in 0..3 {
+                        sum[ch] += v[ch];
+                    }
+                }
+            }
+            let n = (k * k) as f32;
+            [sum[0] / n, sum[1] / n, sum[2] / n]
+        })
+        .collect();
+    Ok(RgbImage {
+        width: w,
+        height: h,
+        pixels,
+    })
+}
+
+/// The object mask: pixels whose centre ray hits a mesh.
+pub fn object_mask(scene: &Scene, accel: &Accel) -> Result<Vec<bool>, ReportError> {
+    let cam = PinholeCamera::new(&scene.camera)?;
+    let (w, h) = (cam.width(), cam.height());
+    let eye = cam.eye();
+    Ok((0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let dir = cam.direction(f64::from(i % w) + 0.5, f64::from(i / w) + 0.5);
+            accel.closest_hit(eye, dir, f32::INFINITY).is_some()
+        })
+        .collect())
+}
+
+/// The region-of-interest picture (Lee & Kim 2014, Figure 6.3(d)): ROI vertices red, others
+/// light grey, interpolated over the triangles; background black.
+pub fn roi_image(scene: &Scene, accel: &Accel, relit: &Relit) -> Result<RgbImage, ReportError> {
+    let colours = Relit {
+        radiance: relit
+            .roi
+            .iter()
+            .map(|r| {
+                r.iter()
+                    .map(|&inside| {
+                        if inside {
+                            [1.0, 0.05, 0.05]
+                        } else {
+                            [0.75, 0.75, 0.75]
+                        }
+                    })
+                    .collect()
+            })
+            .collect(),
+        roi: relit.roi.clone(),
+        stats: relit.stats.clone(),
+    };
+    let mut img = form_image(scene, accel, &colours, false, 0.0)?;
+    let mask = object_mask(scene, accel)?;
+    for (p, m) in img.pixels.iter_mut().zip(mask) {
+        if !m {
+            *p = [0.0; 3];
+        }
+    }
+    Ok(img)
+}

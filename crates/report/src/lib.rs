@@ -1,0 +1,18 @@
+//! The `prt` pipeline end to end, on top of the stage crates: relighting a scene from its bake
+//! into an image comparable with the path tracer's ([`relit`], [`imaging`]), and the
+//! speed-against-error report that answers "how much accuracy does the faster method give away,
+//! and how much time does it save?" ([`report`]).
+//!
+//! The relighting follows Sloan, Kautz & Snyder 2002 (diffuse PRT) and Lee & Kim 2014 (specular
+//! PRT through SH products and locally adaptive SH), as implemented by `prt-relight`; image
+//! formation interpolates per-vertex radiance over the triangles hit by the scene camera's rays
+//! (Gouraud), which is the approximation per-pixel bakes avoid.
+
+mod error;
+pub mod imaging;
+pub mod io;
+pub mod relit;
+
+pub use error::ReportError;
+pub use imaging::{form_image, object_mask, roi_image, RgbImage};
+pub use relit::{check_bake, relight, RelightOptions, RelightStats, Relit};

@@ -1,0 +1,395 @@
+//! Relighting a scene from its bake: per-object full-order or adaptive shading (prt-relight),
+//! with the environment rotated about +Y by one SH rotation per frame.
+
+use crate::error::ReportError;
+use glam::{DMat3, Vec3};
+use prt_bakefile::{Bake, SampleKind, TransferKind};
+use prt_relight::{
+    AdaptiveInput, AdaptiveParams, Adjacency, DiffuseParams, FrameStats, Lighting, PhongParams,
+    Relighter, SpecularInput, Surface, TransferView, Viewer,
+};
+use prt_scene::{Material, Scene};
+use prt_sh::Rotation;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How to relight.
+#[derive(Clone, Debug)]
+pub struct RelightOptions {
+    /// Order to relight at (`None`: each object's baked order); capped at the baked order.
+    pub order: Option<usize>,
+    /// Adaptive relighting parameters; `None` for full order.
+    pub adaptive: Option<AdaptiveParams>,
+    /// Environment rotation about +Y, degrees (same sense as the scene's `rotation_y`).
+    pub rotate_y_deg: f64,
+    /// Frames timed for the median shading time.
+    pub timing_frames: usize,
+}
+
+impl Default for RelightOptions {
+    fn default() -> Self {
+        Self {
+            order: None,
+            adaptive: None,
+            rotate_y_deg: 0.0,
+            timing_frames: 5,
+        }
+    }
+}
+
+/// Radiance of every point of every object, and what it cost.
+#[derive(Clone, Debug)]
+pub struct Relit {
+    /// Per object: radiance per point (diffuse + specular).
+    pub radiance: Vec<Vec<[f32; 3]>>,
+    /// Per object: whether each point is in the (diffuse or specular) ROI, for adaptive runs.
+    pub roi: Vec<Vec<bool>>,
+    /// Figures of the run.
+    pub stats: RelightStats,
+}
+
+/// Figures of one relighting run.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RelightStats {
+    /// Order used (the largest over objects).
+    pub order: usize,
+    /// Whether the adaptive path was used.
+    pub adaptive: bool,
+    /// Absolute threshold (adaptive only).
+    pub threshold: Option<f32>,
+    /// Median shading time of one frame over all objects, milliseconds.
+    pub shade_ms: f64,
+    /// Points shaded.
+    pub points: usize,
+    /// Fraction of points in the diffuse ROI (adaptive), weighted over objects.
+    pub roi_fraction_diffuse: Option<f64>,
+    /// Fraction of active points in the specular ROI (adaptive), weighted over objects.
+    pub roi_fraction_specular: Option<f64>,
+    /// Per-level fractions of the diffuse filtering pass (adaptive), weighted over objects.
+    pub level_fraction_diffuse: Vec<f64>,
+    /// Per-level fractions of the specular filtering pass (adaptive), weighted over objects.
+    pub level_fraction_specular: Vec<f64>,
+    /// Notes (e.g. specular lobes that could not be relit).
+    pub notes: Vec<String>,
+}
+
+/// Checks that `bake` was made for `scene`'s meshes (count, names, geometry hashes).
+pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), ReportError> {
+    let bad = |reason: String| ReportError::BakeMismatch {
+        path: path.to_path_buf(),
+        reason,
+    };
+    if bake.objects.len() != scene.meshes.len() {
+        return Err(bad(format!(
+            "the bake holds {} objects but the scene has {} meshes",
+            bake.objects.len(),
+            scene.meshes.len()
+        )));
+    }
+    if bake.meta.shard.count != 1 {
+        return Err(bad(format!(
+            "this is shard {} of {}: merge the shards with `prt merge` first",
+            bake.meta.shard.index, bake.meta.shard.count
+        )));
+    }
+    for (o, (obj, mesh)) in bake.objects.iter().zip(&scene.meshes).enumerate() {
+        let h = prt_bake::geometry_hash(&mesh.positions, &mesh.indices);
+        if h != obj.geometry_hash {
+            return Err(bad(format!(
+                "object {o} ({}) was baked for different geometry (hash {:#018x}, the scene's mesh {:#018x}): re-bake",
+                obj.name, obj.geometry_hash, h
+            )));
+        }
+    }
+    if bake.environment.is_none() {
+        return Err(bad("the bake carries no environment coefficients".into()));
+    }
+    Ok(())
+}
+
+/// The bake's environment as RGB coefficients `[coeff][channel]`.
+fn environment(bake: &Bake) -> (usize, Vec<[f64; 3]>) {
+    let env = bake.environment.as_ref().expect("checked");
+    let order = env.order as usize;
+    let n2 = order * order;
+    let c = (0..n2)
+        .map(|i| [env.values[i], env.values[n2 + i], env.values[2 * n2 + i]])
+        .collect();
+    (order, c)
+}
+
+/// Repacks `[point][channel][coeff]` data from order `from` to order `to ≤ from`, keeping
+/// `channels_out` channels (the first ones).
+fn truncate(
+    data: &[f32],
+    from: usize,
+    to: usize,
+    channels: usize,
+    channels_out: usize,
+) -> Vec<f32> {
+    if from == to && channels == channels_out {
+        return data.to_vec();
+    }
+    let (f2, t2) = (from * from, to * to);
+    let points = data.len() / (channels * f2);
+    let mut out = Vec::with_capacity(points * channels_out * t2);
+    for p in 0..points {
+        for c in 0..channels_out {
+            let s = (p * channels + c) * f2;
+            out.extend_from_slice(&data[s..s + t2]);
+        }
+    }
+    out
+}
+
+/// Relights every object of `scene` from `bake` (already checked with [`check_bake`]).
+pub fn relight(
+    scene: &Scene,
+    accel: &prt_tracer::Accel,
+    bake: &Bake,
+    opt: &RelightOptions,
+) -> Result<Relit, ReportError> {
+    let (env_order, env) = environment(bake);
+    let rot = if opt.rotate_y_deg == 0.0 {
+        None
+    } else {
+        Some(Rotation::new(
+            env_order,
+            DMat3::from_rotation_y(opt.rotate_y_deg.to_radians()),
+        )?)
+    };
+    let lighting = Lighting::from_rgb_coefficients(&env, rot.as_ref())?;
+    let eye = scene.camera.eye.as_vec3().to_array();
+    let per_pixel = matches!(bake.meta.sample_kind, SampleKind::Pixel { .. });
+    let mut stats = RelightStats {
+        adaptive: opt.adaptive.is_some(),
+        ..RelightStats::default()
+    };
+    let mut radiance = Vec::new();
+    let mut roi = Vec::new();
+    let mut times = vec![0.0f64; opt.timing_frames.max(1)];
+    let (mut roi_d, mut roi_s, mut n_d, mut n_s) = (0.0, 0.0, 0.0, 0.0);
+    for (o, obj) in bake.objects.iter().enumerate() {
+        let mesh = &scene.meshes[o];
+        let material = &scene.materials[mesh.material];
+        let baked = obj.order as usize;
+        let order = opt.order.unwrap_or(baked).min(baked).min(env_order);
+        stats.order = stats.order.max(order);
+        let relighter = Relighter::new(order)?;
+        let diffuse_block = obj
+            .blocks
+            .iter()
+            .find(|b| matches!(b.kind, TransferKind::InterreflectedDiffuse { .. }))
+            .or_else(|| {
+                obj.blocks
+                    .iter()
+                    .find(|b| b.kind == TransferKind::ShadowedDiffuse)
+            })
+            .ok_or_else(|| ReportError::BakeMismatch {
+                path: PathBuf::from("<bake>"),
+                reason: format!("object {} has no diffuse transfer", obj.name),
+            })?;
+        let channels = obj.channels as usize;
+        let diffuse_data = truncate(&diffuse_block.data, baked, order, channels, channels);
+        let diffuse_view = TransferView::new(order, channels, &diffuse_data)?;
+        let albedo = material_albedo(material);
+        let dparams = DiffuseParams::from_albedo(albedo);
+        let phong = match material {
+            Material::Phong {
+                specular, exponent, ..
+            } => Some(PhongParams {
+                specular: *specular,
+                exponent: *exponent,
+            }),
+            Material::Lambert { .. } => None,
+            other => {
+                stats.notes.push(format!(
+                    "{}: the specular lobe of a {} material is not relit (diffuse part only)",
+                    obj.name,
+                    material_type(other)
+                ));
+                None
+            }
+        };
+        let vis_block = obj
+            .blocks
+            .iter()
+            .find(|b| b.kind == TransferKind::Visibility);
+        let vis_data = match (phong, vis_block) {
+            (Some(_), Some(b)) => Some(truncate(&b.data, baked, order, channels, 1)),
+            (Some(_), None) => {
+                stats.notes.push(format!(
+                    "{}: no visibility transfer in the bake; specular not relit",
+                    obj.name
+                ));
+                None
+            }
+            _ => None,
+        };
+        // Surface points: vertices, or pixel hits for per-pixel bakes.
+        let (positions, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = if per_pixel {
+            let pts = crate::imaging::pixel_surface(scene, accel, o)?;
+            pts.into_iter().unzip()
+        } else {
+            (
+                mesh.positions.iter().map(|p| p.to_array()).collect(),
+                mesh.normals
+                    .iter()
+                    .map(|n| n.normalize_or(Vec3::Y).to_array())
+                    .collect(),
+            )
+        };
+        let specular_input = match (phong, &vis_data) {
+            (Some(p), Some(v)) => Some(SpecularInput {
+                visibility: TransferView::new(order, 1, v)?,
+                surface: Surface {
+                    positions: &positions,
+                    normals: &normals,
+                },
+                viewer: Viewer::Eye(eye),
+                phong: p,
+            }),
+            _ => None,
+        };
+        let points = diffuse_view.point_count();
+        stats.points += points;
+        let result: Vec<[f32; 3]>;
+        let mut in_roi = vec![false; points];
+        match (&opt.adaptive, per_pixel) {
+            (Some(params), false) => {
+                let adjacency = Adjacency::from_triangles(points, &mesh.indices)?;
+                let input = AdaptiveInput {
+                    diffuse: Some((diffuse_view, dparams)),
+                    specular: specular_input,
+                    adjacency: &adjacency,
+                };
+                let mut last = None;
+                for t in times.iter_mut() {
+                    let frame = relighter.frame_lighting(&lighting, specular_input.is_some())?;
+                    let start = Instant::now();
+                    let f = relighter.adaptive(&input, &frame, params)?;
+                    *t += start.elapsed().as_secs_f64();
+                    last = Some(f);
+                }
+                let f = last.expect("at least one frame");
+                accumulate_stats(
+                    &mut stats, &f.stats, &mut roi_d, &mut roi_s, &mut n_d, &mut n_s,
+                );
+                for (i, r) in in_roi.iter_mut().enumerate() {
+                    *r = f.roi[0].get(i).copied().unwrap_or(false)
+                        || f.roi[1].get(i).copied().unwrap_or(false);
+                }
+                result = sum_terms(&f.diffuse, &f.specular, points);
+            }
+            (Some(_), true) => return Err(ReportError::Invalid(
+                "adaptive relighting walks the mesh's vertex adjacency: it needs a per-vertex bake"
+                    .into(),
+            )),
+            (None, _) => {
+                let mut last = (Vec::new(), Vec::new());
+                for t in times.iter_mut() {
+                    let frame = relighter.frame_lighting(&lighting, specular_input.is_some())?;
+                    let start = Instant::now();
+                    let d = relighter.diffuse(&diffuse_view, &frame, &dparams)?;
+                    let s = match &specular_input {
+                        Some(si) => relighter.specular(si, &frame)?,
+                        None => Vec::new(),
+                    };
+                    *t += start.elapsed().as_secs_f64();
+                    last = (d, s);
+                }
+                result = sum_terms(&last.0, &last.1, points);
+            }
+        }
+        radiance.push(result);
+        roi.push(in_roi);
+    }
+    times.sort_by(f64::total_cmp);
+    stats.shade_ms = 1e3 * times[times.len() / 2];
+    if stats.adaptive {
+        stats.roi_fraction_diffuse = (n_d > 0.0).then(|| roi_d / n_d);
+        stats.roi_fraction_specular = (n_s > 0.0).then(|| roi_s / n_s);
+        let total_d = n_d.max(1.0);
+        let total_s = n_s.max(1.0);
+        stats
+            .level_fraction_diffuse
+            .iter_mut()
+            .for_each(|v| *v /= total_d);
+        stats
+            .level_fraction_specular
+            .iter_mut()
+            .for_each(|v| *v /= total_s);
+    }
+    Ok(Relit {
+        radiance,
+        roi,
+        stats,
+    })
+}
+
+fn accumulate_stats(
+    stats: &mut RelightStats,
+    f: &FrameStats,
+    roi_d: &mut f64,
+    roi_s: &mut f64,
+    n_d: &mut f64,
+    n_s: &mut f64,
+) {
+    stats.threshold = Some(f.threshold);
+    if let Some(d) = &f.diffuse {
+        let n = d.active_points as f64;
+        *roi_d += d.roi_fraction * n;
+        *n_d += n;
+        add_levels(&mut stats.level_fraction_diffuse, &d.level_fraction, n);
+    }
+    if let Some(s) = &f.specular {
+        let n = s.active_points as f64;
+        *roi_s += s.roi_fraction * n;
+        *n_s += n;
+        add_levels(&mut stats.level_fraction_specular, &s.level_fraction, n);
+    }
+}
+
+fn add_levels(acc: &mut Vec<f64>, levels: &[f64], weight: f64) {
+    if acc.len() < levels.len() {
+        acc.resize(levels.len(), 0.0);
+    }
+    for (a, l) in acc.iter_mut().zip(levels) {
+        *a += l * weight;
+    }
+}
+
+fn sum_terms(d: &[[f32; 3]], s: &[[f32; 3]], n: usize) -> Vec<[f32; 3]> {
+    (0..n)
+        .map(|i| {
+            let a = d.get(i).copied().unwrap_or([0.0; 3]);
+            let b = s.get(i).copied().unwrap_or([0.0; 3]);
+            [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+        })
+        .collect()
+}
+
+/// The diffuse albedo of a material (every material has one).
+#[must_use]
+pub fn material_albedo(m: &Material) -> [f32; 3] {
+    match m {
+        Material::Lambert { albedo }
+        | Material::Phong { albedo, .. }
+        | Material::BlinnPhong { albedo, .. }
+        | Material::Ward { albedo, .. }
+        | Material::CookTorrance { albedo, .. }
+        | Material::Mirror { albedo, .. } => *albedo,
+    }
+}
+
+fn material_type(m: &Material) -> &'static str {
+    match m {
+        Material::Lambert { .. } => "lambert",
+        Material::Phong { .. } => "phong",
+        Material::BlinnPhong { .. } => "blinn_phong",
+        Material::Ward { .. } => "ward",
+        Material::CookTorrance { .. } => "cook_torrance",
+        Material::Mirror { .. } => "mirror",
+    }
+}
