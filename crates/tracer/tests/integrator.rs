@@ -8,7 +8,7 @@
 
 use glam::Vec3;
 use prt_scene::{Environment, Material, Scene};
-use prt_tracer::{test_util, Mode, RenderSettings, Renderer, SurfacePoint};
+use prt_tracer::{test_util, MisHeuristic, Mode, RenderSettings, Renderer, SurfacePoint};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use std::f64::consts::PI;
@@ -153,8 +153,20 @@ fn test01_direct_light_matches_texel_quadrature_every_brdf() {
     let env = small_map();
     let sphere = test_util::uv_sphere(Vec3::ZERO, 1.0, 8, 16, true);
     let scene = scene_with(env.clone(), vec![sphere]);
-    for mode in [Mode::Path, Mode::Unshadowed] {
-        let r = Renderer::new(&scene, settings(mode, 0)).unwrap();
+    let runs = [
+        (Mode::Path, MisHeuristic::Power),
+        (Mode::Path, MisHeuristic::Balance),
+        (Mode::Unshadowed, MisHeuristic::Power),
+    ];
+    for (mode, mis) in runs {
+        let r = Renderer::new(
+            &scene,
+            RenderSettings {
+                mis,
+                ..settings(mode, 0)
+            },
+        )
+        .unwrap();
         for mat in materials() {
             for p in sphere_points(&mat) {
                 let want = quadrature(&env, &mat, p.normal, p.view_dir, 48);
@@ -163,7 +175,7 @@ fn test01_direct_light_matches_texel_quadrature_every_brdf() {
                     let tol = Z * f64::from(se[c]) + 2e-3 * f64::from(want[c]) + 1e-6;
                     assert!(
                         f64::from((got[c] - want[c]).abs()) <= tol,
-                        "{mode:?} {mat:?} at {:?}: got {got} want {want} (se {se})",
+                        "{mode:?} {mis:?} {mat:?} at {:?}: got {got} want {want} (se {se})",
                         p.position
                     );
                 }
@@ -354,4 +366,45 @@ fn test05_bounces_increase_monotonically_to_furnace() {
         "{means:?}"
     );
     assert!(means[0] < 0.9 && (means[3] - 1.0).abs() < 0.01, "{means:?}");
+}
+
+/// Vertex AO without speckles: at every vertex of a smooth convex sphere (radial normals, which
+/// lie in each vertex's normal cone, so nothing is above the tangent plane) every AO ray must
+/// escape: AO is exactly 1. Checked with the sphere scaled by 1e-3 and translated to 1e4, the
+/// way a bake calls `radiance_at_points`.
+#[test]
+fn test06_vertex_ambient_occlusion_has_no_speckles() {
+    for (center, radius) in [
+        (Vec3::ZERO, 1e-3f32),
+        (Vec3::new(1e4, 1e4, -1e4), 1.0),
+        (Vec3::ZERO, 1.0),
+    ] {
+        let sphere = test_util::uv_sphere(center, radius, 24, 48, true);
+        let points: Vec<SurfacePoint> = sphere
+            .positions
+            .iter()
+            .zip(&sphere.normals)
+            .step_by(3)
+            .map(|(&p, &n)| SurfacePoint {
+                position: p,
+                normal: n,
+                view_dir: n,
+                material: Material::Lambert { albedo: [1.0; 3] },
+            })
+            .collect();
+        let scene = scene_with(test_util::constant_environment([1.0; 3]), vec![sphere]);
+        let r = Renderer::new(
+            &scene,
+            settings(Mode::AmbientOcclusion { max_distance: None }, 0),
+        )
+        .unwrap();
+        let ao = r.radiance_at_points(&points, 64).unwrap();
+        let speckles = ao.iter().filter(|a| a.x != 1.0).count();
+        assert_eq!(
+            speckles,
+            0,
+            "{speckles} of {} vertices self-occluded at {center} × {radius}",
+            ao.len()
+        );
+    }
 }
