@@ -6,6 +6,7 @@ mod bake_cmd;
 mod compare_cmd;
 mod relight_cmd;
 mod render_cmd;
+mod report_cmd;
 mod sh_cmd;
 
 use clap::{Parser, Subcommand};
@@ -34,6 +35,8 @@ enum Command {
     Merge(bake_cmd::MergeArgs),
     /// Relight a bake under the (rotated) environment: full-order or locally adaptive SH.
     Relight(relight_cmd::RelightArgs),
+    /// Speed-against-error report: reference, bake, full and adaptive relighting per order.
+    Report(report_cmd::ReportArgs),
     /// Compare an image with a reference: PSNR (LDR, HDR), RMSE, relative L2, noise.
     Compare(compare_cmd::CompareArgs),
 }
@@ -47,6 +50,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => bake_cmd::run_inspect(&args),
         Command::Merge(args) => bake_cmd::run_merge(&args),
         Command::Relight(args) => relight_cmd::run(&args),
+        Command::Report(args) => report_cmd::run(&args),
         Command::Compare(args) => compare_cmd::run(args),
     };
     match result {

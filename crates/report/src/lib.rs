@@ -11,8 +11,11 @@
 mod error;
 pub mod imaging;
 pub mod io;
+pub mod plots;
 pub mod relit;
+pub mod report;
 
 pub use error::ReportError;
 pub use imaging::{form_image, object_mask, roi_image, RgbImage};
 pub use relit::{check_bake, relight, RelightOptions, RelightStats, Relit};
+pub use report::{run_report, ReportData, ReportSettings};
