@@ -48,7 +48,11 @@ fn every_crate_is_a_prt_package_with_docs() {
         let lib = dir.join("src/lib.rs");
         if lib.exists() {
             let text = std::fs::read_to_string(&lib).unwrap();
-            assert!(text.starts_with("//!"), "{} must open with //! docs", lib.display());
+            assert!(
+                text.starts_with("//!"),
+                "{} must open with //! docs",
+                lib.display()
+            );
         }
     }
 }
