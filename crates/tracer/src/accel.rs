@@ -147,7 +147,7 @@ pub fn offset_origin(p: Vec3, n: Vec3, offset: f32, dir: Vec3) -> Vec3 {
 }
 
 /// Spawn offset for a point of a surface given only its position (no triangle at hand, e.g.
-/// a vertex given to [`crate::radiance_at_points`]): `SPAWN_RELATIVE_OFFSET · 2 |p|∞`, with
+/// a vertex given to [`crate::Renderer::radiance_at_points`]): `SPAWN_RELATIVE_OFFSET · 2 |p|∞`, with
 /// the largest absolute coordinate of the scene as a floor when `p` is near the origin.
 #[must_use]
 pub fn point_offset(p: Vec3, scene_max_abs: f32) -> f32 {
@@ -394,8 +394,10 @@ impl Accel {
     fn hit_record(&self, slot: usize, origin: Vec3, dir: Vec3, t: f32) -> Hit {
         let (mesh, tri) = self.refs[slot];
         let m = &self.meshes[mesh as usize];
-        let idx = m.indices[tri as usize];
-        let [v0, v1, v2] = idx.map(|i| m.positions[i as usize]);
+        // World vertices from the traversal copy (just touched, so in cache): scaling back by
+        // a power of two is exact.
+        let st = &self.tris[slot];
+        let [v0, v1, v2] = [st.v0, st.v1, st.v2].map(|v| Vec3::from(v) * self.inv_scale);
         // Bug B: barycentrics by Möller–Trumbore in f64 (u weights v1, v weights v2).
         let (a0, a1, a2) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
         let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
@@ -422,6 +424,7 @@ impl Accel {
         let shading_normal = if m.normals.is_empty() {
             ng
         } else {
+            let idx = m.indices[tri as usize];
             let [n0, n1, n2] = idx.map(|i| m.normals[i as usize].as_dvec3());
             let n = (n0 * w + n1 * u + n2 * v).as_vec3();
             let n = n.normalize_or_zero();

@@ -2,7 +2,8 @@
 //!
 //! - [`Accel`]: closest-hit and occlusion queries over every triangle of a scene, on an obvhs
 //!   CWBVH, with the three obvhs 0.4.0 defects of `FACTS.md` worked around and pinned by tests
-//!   (direction `-0.0`, barycentric scale, fixed node `tmin`; see the `accel` module docs).
+//!   (direction `-0.0`, barycentric scale, fixed node `tmin`) and a fourth found here
+//!   (non-conservative quantisation of child bounds); see [`AccelOptions`] and `src/accel.rs`.
 //! - Robust secondary rays in the style of pbrt-v4 and Mitsuba 3: origins move off the surface
 //!   along the geometric normal, to the side of the new direction, by a bound proportional to
 //!   the magnitude of the coordinates ([`SPAWN_RELATIVE_OFFSET`], derived from f32 rounding);
