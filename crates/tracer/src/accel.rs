@@ -5,17 +5,21 @@
 //!   through `d + 0.0`, which turns `-0.0` into `+0.0` and changes nothing else.
 //! - **Bug B** (`Triangle::compute_barycentric` is scaled by twice the area): barycentrics are
 //!   computed here, in f64, with the Möller–Trumbore formulas.
-//! - **Bug C** (the node test clamps `tmin` to a fixed `1e-4`, so hits closer than that may be
-//!   culled): the BVH is built and traversed in a space scaled by a power of two, chosen so the
-//!   largest absolute vertex coordinate `M` lands in `[32, 64)`. Scaling by a power of two is
-//!   exact in floating point, so every intersection is bit-for-bit the world-space one times the
-//!   scale, and a scene of any size behaves like one of size ~50: the threshold becomes
-//!   `1e-4 / scale ≤ 3.2e-6 · M` in world units, comparable to the spawn offset of
-//!   [`spawn_offset`] (`3.8e-6 · M` at the largest coordinates). Remaining limit (documented,
-//!   tested): a hit closer than `3.2e-6 · M` can be lost when the ray leaves the hit triangle's
-//!   leaf box before that distance, i.e. only for triangles smaller than that. The range is not
-//!   larger because obvhs' own `validate` compares bounds with an absolute `1e-5`, which must
-//!   stay above half an ulp of the coordinates.
+//! - **Bug C** (the node test uses `max(slab tmin, 1e-4)` against `min(slab tmax, ray.tmax)`,
+//!   so a node whose box the ray leaves before `t = 1e-4` is culled whatever it contains, and a
+//!   ray with `tmax < 1e-4` finds nothing at all): the BVH is built and traversed in a space
+//!   scaled by a power of two, chosen so the largest absolute vertex coordinate `M` lands in
+//!   `[32, 64)`. Scaling by a power of two is exact in floating point, so every intersection is
+//!   bit-for-bit the world-space one times the scale. In that space (1) the box padding of
+//!   bug D is `2^-17 · 32 ≥ 2.4e-4`, so a ray that hits a triangle at `t ≥ 0` still has to
+//!   cross the padding before it leaves the triangle's leaf box or any ancestor: every box on
+//!   the way to a hit is left after `t = 2.4e-4 > 1e-4` and is never culled; (2) obvhs gets a
+//!   `tmax` of at least `2.5e-4` and hits beyond the caller's `tmax` are rejected in the
+//!   intersection callback. Remaining limit: once a closest-hit query has found a hit closer
+//!   than `1e-4` traversal units (`≤ 3.2e-6 · M` in world units), nodes not yet visited are
+//!   culled, so a second, even closer hit within that distance can be missed. The range
+//!   `[32, 64)` is not larger because obvhs' own `validate` compares bounds with an absolute
+//!   `1e-5`, which must stay above half an ulp of the coordinates.
 //! - **Bug D** (found here): the CWBVH child bounds are quantised as
 //!   `ceil((child.max − node.min) / 2^e)` in f32, whose subtraction can round *down*, so a child
 //!   box can end up to half an ulp inside its primitive (a crack ~1e-8 of the node size). Every
@@ -55,6 +59,10 @@ pub const SHADOW_RAY_SHORTEN: f32 = 1.0e-4;
 /// Padding of primitive boxes relative to the largest scaled coordinate: `2^-17`, i.e. 4 ulps
 /// of a coordinate of twice that magnitude (the largest `child.max − node.min` difference).
 const PAD_RELATIVE: f32 = 1.0 / 131_072.0;
+
+/// Smallest `tmax` handed to obvhs, in traversal units (bug C: its node test culls everything
+/// when `tmax < 1e-4`).
+const MIN_TRAVERSAL_TMAX: f32 = 2.5e-4;
 
 /// Options of [`Accel::build_with`].
 #[derive(Clone, Copy, Debug)]
@@ -329,7 +337,10 @@ impl Accel {
         self.scale
     }
 
-    fn ray(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Ray {
+    /// The traversal ray and the true `tmax` in traversal units. The ray's own `tmax` is at
+    /// least [`MIN_TRAVERSAL_TMAX`] (bug C: obvhs culls every node when `tmax < 1e-4`); hits
+    /// beyond the true `tmax` are filtered in the intersection callback.
+    fn ray(&self, origin: Vec3, dir: Vec3, tmax: f32) -> (Ray, f32) {
         // Bug A: `+ 0.0` maps -0.0 to +0.0 (IEEE round-to-nearest), leaving all else unchanged.
         let d = Vec3A::from(dir) + Vec3A::ZERO;
         let tmax = if tmax.is_finite() {
@@ -337,7 +348,13 @@ impl Accel {
         } else {
             f32::INFINITY
         };
-        Ray::new(Vec3A::from(origin * self.scale), d, 0.0, tmax)
+        let ray = Ray::new(
+            Vec3A::from(origin * self.scale),
+            d,
+            0.0,
+            tmax.max(MIN_TRAVERSAL_TMAX),
+        );
+        (ray, tmax)
     }
 
     /// The closest intersection with `t ∈ [0, tmax]` along the unit direction `dir`.
@@ -347,10 +364,18 @@ impl Accel {
         if !(origin.is_finite() && dir.is_finite()) || tmax.is_nan() {
             return None;
         }
-        let ray = self.ray(origin, dir, tmax);
+        let (ray, tmax) = self.ray(origin, dir, tmax);
         let mut hit = RayHit::none();
         let tris = &self.tris;
-        if !bvh.ray_traverse(ray, &mut hit, |r, slot| tris[slot].intersect(r)) {
+        let found = bvh.ray_traverse(ray, &mut hit, |r, slot| {
+            let t = tris[slot].intersect(r);
+            if t <= tmax {
+                t
+            } else {
+                f32::INFINITY
+            }
+        });
+        if !found || hit.t > tmax {
             return None;
         }
         let slot = hit.primitive_id as usize;
@@ -366,9 +391,16 @@ impl Accel {
         if !(origin.is_finite() && dir.is_finite()) || tmax.is_nan() {
             return false;
         }
-        let ray = self.ray(origin, dir, tmax);
+        let (ray, tmax) = self.ray(origin, dir, tmax);
         let tris = &self.tris;
-        !bvh.ray_traverse_miss(ray, |r, slot| tris[slot].intersect(r))
+        !bvh.ray_traverse_miss(ray, |r, slot| {
+            let t = tris[slot].intersect(r);
+            if t <= tmax {
+                t
+            } else {
+                f32::INFINITY
+            }
+        })
     }
 
     /// Whether the segment from `from` to `to` is blocked, stopping `SHADOW_RAY_SHORTEN` short

@@ -356,3 +356,40 @@ fn test08_bug_d_box_quantisation() {
     assert!(!matches!(unpadded, Ok(Ok(()))), "bug D fixed upstream?");
     accel(std::slice::from_ref(&sphere)).validate().unwrap();
 }
+
+/// Bug C, the general case: in a unit-size scene (a 2×2 quad), a 1e-8 triangle hit from 2e-8
+/// away is found: rescaling plus box padding keep every box on the way to a hit open past the
+/// fixed 1e-4 node tmin (argument in `src/accel.rs`).
+#[test]
+fn test09_bug_c_tiny_feature_in_unit_scene() {
+    let big = test_util::quad(
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(2.0, 0.0, 0.0),
+        Vec3::new(0.0, 2.0, 0.0),
+    );
+    let s = 1e-8f32;
+    let tiny = Mesh {
+        name: "tiny".into(),
+        positions: vec![
+            Vec3::new(0.0, 0.0, s),
+            Vec3::new(s, 0.0, s),
+            Vec3::new(0.0, s, s),
+        ],
+        normals: vec![],
+        indices: vec![[0, 1, 2]],
+        material: 0,
+    };
+    let a = accel(&[big, tiny]);
+    let o = Vec3::new(0.2 * s, 0.2 * s, 3.0 * s);
+    let h = a
+        .closest_hit(o, Vec3::NEG_Z, f32::INFINITY)
+        .expect("tiny triangle");
+    assert_eq!(h.mesh, 1);
+    assert!((h.t - 2.0 * s).abs() < 1e-12);
+    assert!(a.occluded(o, Vec3::NEG_Z, 2.5 * s));
+    // Hitting the big quad from 1e-8 above works too.
+    let h = a
+        .closest_hit(Vec3::new(0.5, 0.5, s), Vec3::NEG_Z, f32::INFINITY)
+        .expect("quad");
+    assert_eq!(h.mesh, 0);
+}
