@@ -35,13 +35,16 @@ fn background(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
     scene.environment.radiance(d)
 }
 
+/// A surface point as `(position, unit normal)`.
+pub type PointAndNormal = ([f32; 3], [f32; 3]);
+
 /// Positions and camera-facing normals of the primary hits of every pixel centre that lands on
 /// object `o` (other pixels get a placeholder facing away from the camera).
 pub fn pixel_surface(
     scene: &Scene,
     accel: &Accel,
     o: usize,
-) -> Result<Vec<([f32; 3], [f32; 3])>, ReportError> {
+) -> Result<Vec<PointAndNormal>, ReportError> {
     let pts = prt_bake::points::pixel_points(scene, accel)?;
     let eye = scene.camera.eye.as_vec3();
     Ok(pts

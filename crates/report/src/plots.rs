@@ -38,21 +38,43 @@ pub struct Series {
     pub colour: RGBColor,
 }
 
-/// A line chart with markers: title, axis labels (with units), optional log-x, legend.
+/// Layout options of [`line_chart`].
+#[derive(Clone, Debug, Default)]
+pub struct ChartOptions {
+    /// Logarithmic x axis.
+    pub log_x: bool,
+    /// Integer x ticks (orders).
+    pub integer_x: bool,
+    /// Horizontal dashed reference lines `(y, label)`, drawn grey and named in the legend.
+    pub hlines: Vec<(f64, String)>,
+    /// Legend in the upper left instead of the lower right.
+    pub legend_upper_left: bool,
+}
+
+/// A line chart with markers: title, axis labels (with units), legend.
 pub fn line_chart(
     path: &Path,
     title: &str,
     x_label: &str,
     y_label: &str,
-    log_x: bool,
+    opt: &ChartOptions,
     series: &[Series],
 ) -> Result<(), ReportError> {
+    let log_x = opt.log_x;
     font();
-    let pts: Vec<(f64, f64)> = series
+    let mut pts: Vec<(f64, f64)> = series
         .iter()
         .flat_map(|s| s.points.iter().copied())
         .filter(|p| p.0.is_finite() && p.1.is_finite())
         .collect();
+    if let Some(&(x, _)) = pts.first() {
+        pts.extend(
+            opt.hlines
+                .iter()
+                .filter(|h| h.0.is_finite())
+                .map(|h| (x, h.0)),
+        );
+    }
     if pts.is_empty() {
         return Err(ReportError::Invalid(format!(
             "{}: nothing to plot",
@@ -76,6 +98,10 @@ pub fn line_chart(
     let pad = ((y1 - y0) * 0.08).max(0.5);
     y0 -= pad;
     y1 += pad;
+    if opt.legend_upper_left {
+        // Headroom for the legend above the data.
+        y1 += (y1 - y0) * 0.4;
+    }
     let tmp = path.with_extension("tmp.png");
     {
         let root = BitMapBackend::new(&tmp, (900, 560)).into_drawing_area();
@@ -89,14 +115,68 @@ pub fn line_chart(
         macro_rules! draw {
             ($chart:expr) => {{
                 let mut chart = $chart;
+                let x_fmt = |x: &f64| {
+                    if opt.integer_x {
+                        if (x - x.round()).abs() < 1e-6 {
+                            format!("{x:.0}")
+                        } else {
+                            String::new()
+                        }
+                    } else if x.abs() >= 10.0 {
+                        format!("{x:.0}")
+                    } else {
+                        format!("{x}")
+                    }
+                };
+                let x_ticks = if opt.integer_x {
+                    ((x1 - x0).round() as usize + 1).clamp(2, 40)
+                } else {
+                    10
+                };
                 chart
                     .configure_mesh()
                     .x_desc(x_label)
                     .y_desc(y_label)
+                    .x_labels(x_ticks)
+                    .x_label_formatter(&x_fmt)
+                    .y_label_formatter(&|y: &f64| format!("{y:.0}"))
                     .label_style(("sans-serif", 15))
                     .axis_desc_style(("sans-serif", 17))
                     .draw()
                     .map_err(|e| err(path, e))?;
+                for (y, label) in &opt.hlines {
+                    if !y.is_finite() {
+                        continue;
+                    }
+                    let grey = RGBColor(110, 110, 110);
+                    let (a, b) = (x0, x1);
+                    let n = 60;
+                    let dashes: Vec<Vec<(f64, f64)>> = (0..n)
+                        .step_by(2)
+                        .map(|k| {
+                            let f = |k: usize| {
+                                if log_x {
+                                    a * (b / a).powf(k as f64 / n as f64)
+                                } else {
+                                    a + (b - a) * k as f64 / n as f64
+                                }
+                            };
+                            vec![(f(k), *y), (f(k + 1), *y)]
+                        })
+                        .collect();
+                    let mut first = true;
+                    for d in dashes {
+                        let anno = chart
+                            .draw_series(LineSeries::new(d, grey.stroke_width(2)))
+                            .map_err(|e| err(path, e))?;
+                        if first {
+                            anno.label(label.clone()).legend(move |(x, y)| {
+                                PathElement::new(vec![(x, y), (x + 20, y)], grey.stroke_width(2))
+                            });
+                            first = false;
+                        }
+                    }
+                }
                 for s in series {
                     let colour = s.colour;
                     let data: Vec<(f64, f64)> = s
@@ -121,7 +201,11 @@ pub fn line_chart(
                     .background_style(WHITE.mix(0.85))
                     .border_style(BLACK)
                     .label_font(("sans-serif", 16))
-                    .position(SeriesLabelPosition::LowerRight)
+                    .position(if opt.legend_upper_left {
+                        SeriesLabelPosition::UpperLeft
+                    } else {
+                        SeriesLabelPosition::LowerRight
+                    })
                     .draw()
                     .map_err(|e| err(path, e))?;
             }};
@@ -152,8 +236,22 @@ pub struct Tile {
     pub pixels: Vec<[u8; 3]>,
 }
 
-/// Draws tiles in a grid of `columns`, each scaled to `tile_width` pixels wide (nearest), with
-/// captions.
+impl Tile {
+    /// An empty cell.
+    #[must_use]
+    pub fn blank() -> Self {
+        Self {
+            caption: String::new(),
+            width: 0,
+            height: 0,
+            pixels: Vec::new(),
+        }
+    }
+}
+
+/// Draws tiles in a grid of `columns`, each scaled to `tile_width` pixels wide (nearest) at its
+/// own aspect ratio (so error pictures keep their colour bar), with captions. A tile of width 0
+/// leaves its cell empty.
 pub fn image_grid(
     path: &Path,
     tiles: &[Tile],
@@ -161,46 +259,58 @@ pub fn image_grid(
     tile_width: u32,
 ) -> Result<(), ReportError> {
     font();
-    if tiles.is_empty() {
+    if tiles.iter().all(|t| t.width == 0) || columns == 0 {
         return Err(ReportError::Invalid("empty image grid".into()));
     }
-    let rows = tiles.len().div_ceil(columns);
-    let aspect = tiles[0].height as f64 / tiles[0].width as f64;
-    let tile_h = (f64::from(tile_width) * aspect).round() as u32;
-    let cell_h = tile_h + 30;
+    let shown_h = |t: &Tile| {
+        if t.width == 0 {
+            0
+        } else {
+            (f64::from(tile_width) * f64::from(t.height) / f64::from(t.width)).round() as u32
+        }
+    };
+    let caption_h = 26;
+    let row_h: Vec<u32> = tiles
+        .chunks(columns)
+        .map(|row| row.iter().map(shown_h).max().unwrap_or(0) + caption_h)
+        .collect();
     let (w, h) = (
         columns as u32 * (tile_width + 8) + 8,
-        rows as u32 * cell_h + 8,
+        row_h.iter().map(|r| r + 8).sum::<u32>() + 8,
     );
     let tmp = path.with_extension("tmp.png");
     {
         let root = BitMapBackend::new(&tmp, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(path, e))?;
-        for (k, t) in tiles.iter().enumerate() {
-            let (cx, cy) = (
-                (k % columns) as u32 * (tile_width + 8) + 8,
-                (k / columns) as u32 * cell_h + 8,
-            );
-            let th = (f64::from(tile_width) * t.height as f64 / t.width as f64).round() as u32;
-            for y in 0..th.min(tile_h) {
-                for x in 0..tile_width {
-                    let sx = (x as u64 * t.width as u64 / tile_width as u64) as u32;
-                    let sy = (y as u64 * t.height as u64 / th.max(1) as u64) as u32;
-                    let p =
-                        t.pixels[(sy.min(t.height - 1) * t.width + sx.min(t.width - 1)) as usize];
-                    root.draw_pixel(
-                        ((cx + x) as i32, (cy + y) as i32),
-                        &RGBColor(p[0], p[1], p[2]),
-                    )
-                    .map_err(|e| err(path, e))?;
+        let mut y_top = 8;
+        for (r, row) in tiles.chunks(columns).enumerate() {
+            for (c, t) in row.iter().enumerate() {
+                if t.width == 0 || t.height == 0 {
+                    continue;
                 }
+                let (cx, cy) = (c as u32 * (tile_width + 8) + 8, y_top);
+                let th = shown_h(t);
+                for y in 0..th {
+                    for x in 0..tile_width {
+                        let sx = (u64::from(x) * u64::from(t.width) / u64::from(tile_width)) as u32;
+                        let sy = (u64::from(y) * u64::from(t.height) / u64::from(th.max(1))) as u32;
+                        let p = t.pixels
+                            [(sy.min(t.height - 1) * t.width + sx.min(t.width - 1)) as usize];
+                        root.draw_pixel(
+                            ((cx + x) as i32, (cy + y) as i32),
+                            &RGBColor(p[0], p[1], p[2]),
+                        )
+                        .map_err(|e| err(path, e))?;
+                    }
+                }
+                root.draw_text(
+                    &t.caption,
+                    &("sans-serif", 15).into_text_style(&root),
+                    (cx as i32, (cy + th + 5) as i32),
+                )
+                .map_err(|e| err(path, e))?;
             }
-            root.draw_text(
-                &t.caption,
-                &("sans-serif", 15).into_text_style(&root),
-                ((cx) as i32, (cy + tile_h + 6) as i32),
-            )
-            .map_err(|e| err(path, e))?;
+            y_top += row_h[r] + 8;
         }
         root.present().map_err(|e| err(path, e))?;
     }

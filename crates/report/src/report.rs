@@ -7,9 +7,9 @@
 //! hand with the settings printed in the report.
 
 use crate::error::ReportError;
-use crate::imaging::{form_image, object_mask, roi_image};
+use crate::imaging::{form_image, object_mask, roi_image, RgbImage};
 use crate::io::{to_compare_image, write_exr, write_png};
-use crate::plots::{image_grid, line_chart, Series, Tile};
+use crate::plots::{image_grid, line_chart, ChartOptions, Series, Tile};
 use crate::relit::{check_bake, relight, RelightOptions};
 use glam::Vec3;
 use plotters::style::RGBColor;
@@ -37,7 +37,7 @@ pub struct ReportSettings {
     pub threshold: f32,
     /// Seed of the reference and the bake.
     pub seed: u64,
-    /// Frames timed per relighting (median).
+    /// Frames timed per relighting (the fastest is reported).
     pub timing_frames: usize,
     /// Show progress bars.
     pub progress: bool,
@@ -50,9 +50,9 @@ pub struct OrderRow {
     pub order: usize,
     /// Coefficients per channel.
     pub coefficients: usize,
-    /// Full-order shading time per frame (median), ms.
+    /// Full-order shading time per frame (fastest of the timed frames), ms.
     pub full_ms: f64,
-    /// Adaptive shading time per frame (median), ms.
+    /// Adaptive shading time per frame (fastest of the timed frames), ms.
     pub adaptive_ms: f64,
     /// `full_ms / adaptive_ms`.
     pub speedup: f64,
@@ -247,6 +247,15 @@ pub fn run_report(
     let accel = prt_tracer::Accel::build(scene)?;
     let (w, h) = (scene.camera.width, scene.camera.height);
     let mask_bits = object_mask(scene, &accel)?;
+    let mask_png = RgbImage {
+        width: w,
+        height: h,
+        pixels: mask_bits
+            .iter()
+            .map(|&m| if m { [1.0; 3] } else { [0.0; 3] })
+            .collect(),
+    };
+    write_png(&out_dir.join("images/mask.png"), &mask_png, 0.0)?;
     let mask = Mask::from_bools(w as usize, h as usize, mask_bits)?;
     let opts = CompareOptions::default();
 
@@ -272,7 +281,7 @@ pub fn run_report(
         h,
     );
     let noise = prt_compare::noise_from_variance(&variance, &reference, Some(&mask), &opts)?;
-    let noise_masked = noise.masked.clone().unwrap_or(noise.whole.clone());
+    let noise_masked = noise.masked.unwrap_or(noise.whole);
     let mut convergence = Vec::new();
     let mut spp = 1;
     while spp <= s.reference_spp / 2 {
@@ -336,11 +345,9 @@ pub fn run_report(
     // 3. Relight at every order.
     let mut rows = Vec::new();
     let mut notes = Vec::new();
-    let mut tiles = vec![srgb_tile(
-        &reference,
-        format!("path traced, {} spp", s.reference_spp),
-    )];
-    let mut error_tiles = Vec::new();
+    let reference_tile = srgb_tile(&reference, format!("path traced, {} spp", s.reference_spp));
+    let (mut full_tiles, mut ad_tiles, mut error_tiles) = (Vec::new(), Vec::new(), Vec::new());
+    let mut ad_error_tile = None;
     let mut roi_tile = None;
     let show: Vec<usize> = {
         let mut v = vec![s.orders[0], s.orders[s.orders.len() / 2], max_order];
@@ -400,8 +407,8 @@ pub fn run_report(
             0.0,
         )?;
         if show.contains(&order) {
-            tiles.push(srgb_tile(&fi, format!("full SH, order {order}")));
-            tiles.push(srgb_tile(&ai, format!("adaptive SH, order {order}")));
+            full_tiles.push(srgb_tile(&fi, format!("full SH, order {order}")));
+            ad_tiles.push(srgb_tile(&ai, format!("adaptive SH, order {order}")));
             let pic = prt_compare::render_error_picture(&fi, &reference, Some(&mask), &err_opts)?;
             prt_compare::write_png_atomic(
                 &out_dir.join(format!("images/error_full_{order:02}.png")),
@@ -410,18 +417,31 @@ pub fn run_report(
                 &pic.pixels,
             )?;
             error_tiles.push(Tile {
-                caption: format!("|full {order} − reference| (0–0.25)"),
+                caption: format!("|full {order} − path traced|, luminance"),
                 width: pic.width as u32,
                 height: pic.height as u32,
                 pixels: pic.pixels,
             });
         }
         if order == max_order {
+            let pic = prt_compare::render_error_picture(&ai, &reference, Some(&mask), &err_opts)?;
+            prt_compare::write_png_atomic(
+                &out_dir.join(format!("images/error_adaptive_{order:02}.png")),
+                pic.width,
+                pic.height,
+                &pic.pixels,
+            )?;
+            ad_error_tile = Some(Tile {
+                caption: format!("|adaptive {order} − path traced|, luminance"),
+                width: pic.width as u32,
+                height: pic.height as u32,
+                pixels: pic.pixels,
+            });
             let roi = roi_image(scene, &accel, &adaptive)?;
             write_png(&out_dir.join("images/roi.png"), &roi, 0.0)?;
             roi_tile = Some(srgb_tile(
                 &to_compare_image(&roi),
-                format!("ROI at order {order} (red)"),
+                format!("ROI, order {order}: red all bands, grey fewer"),
             ));
         }
         rows.push(OrderRow {
@@ -446,39 +466,56 @@ pub fn run_report(
     let blue = RGBColor(31, 119, 180);
     let orange = RGBColor(255, 127, 14);
     let green = RGBColor(44, 160, 44);
+    // Identical images have infinite PSNR: drawn a little above the highest finite value.
+    let finite_max = rows
+        .iter()
+        .flat_map(|r| {
+            [
+                r.psnr_full_vs_reference,
+                r.psnr_adaptive_vs_reference,
+                r.psnr_adaptive_vs_full,
+            ]
+        })
+        .chain(convergence.iter().map(|c| c.psnr_ldr))
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max);
+    let cap = (finite_max / 5.0).ceil() * 5.0 + 5.0;
+    let any_inf = rows.iter().any(|r| !r.psnr_adaptive_vs_full.is_finite());
+    let ceiling = noise_masked.psnr_ldr_ceiling;
+    let ceiling_line = vec![(ceiling, "reference noise ceiling".to_string())];
     line_chart(
         &out_dir.join("error_vs_time.png"),
-        "Error against time (object pixels)",
-        "time per image or frame (ms, log scale)",
-        "PSNR against the reference (dB, 8-bit sRGB)",
-        true,
+        "PSNR against time (object pixels)",
+        "time per image (path tracing) or per frame (SH shading), ms, log scale",
+        "PSNR vs path-traced reference (dB, 8-bit sRGB)",
+        &ChartOptions {
+            log_x: true,
+            hlines: ceiling_line.clone(),
+            legend_upper_left: true,
+            ..ChartOptions::default()
+        },
         &[
             Series {
-                label: "path tracing (spp doubling)".into(),
+                label: "path tracing (spp 1, 2, 4, …)".into(),
                 points: convergence
                     .iter()
-                    .map(|c| (c.ms, finite_or(c.psnr_ldr, 100.0)))
+                    .map(|c| (c.ms, finite_or(c.psnr_ldr, cap)))
                     .collect(),
                 colour: blue,
             },
             Series {
-                label: "full-order SH (per frame)".into(),
+                label: "full-order SH (orders in --orders)".into(),
                 points: rows
                     .iter()
-                    .map(|r| (r.full_ms, finite_or(r.psnr_full_vs_reference, 100.0)))
+                    .map(|r| (r.full_ms, finite_or(r.psnr_full_vs_reference, cap)))
                     .collect(),
                 colour: orange,
             },
             Series {
-                label: "adaptive SH (per frame)".into(),
+                label: "adaptive SH (same orders)".into(),
                 points: rows
                     .iter()
-                    .map(|r| {
-                        (
-                            r.adaptive_ms,
-                            finite_or(r.psnr_adaptive_vs_reference, 100.0),
-                        )
-                    })
+                    .map(|r| (r.adaptive_ms, finite_or(r.psnr_adaptive_vs_reference, cap)))
                     .collect(),
                 colour: green,
             },
@@ -487,36 +524,40 @@ pub fn run_report(
     line_chart(
         &out_dir.join("psnr_vs_order.png"),
         "PSNR against SH order",
-        "order (number of bands)",
+        "order (number of SH bands)",
         "PSNR (dB, 8-bit sRGB)",
-        false,
+        &ChartOptions {
+            integer_x: true,
+            hlines: ceiling_line,
+            legend_upper_left: true,
+            ..ChartOptions::default()
+        },
         &[
             Series {
-                label: "full vs path traced".into(),
+                label: "full vs path traced (object pixels)".into(),
                 points: rows
                     .iter()
-                    .map(|r| (r.order as f64, finite_or(r.psnr_full_vs_reference, 100.0)))
+                    .map(|r| (r.order as f64, finite_or(r.psnr_full_vs_reference, cap)))
                     .collect(),
                 colour: orange,
             },
             Series {
-                label: "adaptive vs path traced".into(),
+                label: "adaptive vs path traced (object pixels)".into(),
                 points: rows
                     .iter()
-                    .map(|r| {
-                        (
-                            r.order as f64,
-                            finite_or(r.psnr_adaptive_vs_reference, 100.0),
-                        )
-                    })
+                    .map(|r| (r.order as f64, finite_or(r.psnr_adaptive_vs_reference, cap)))
                     .collect(),
                 colour: green,
             },
             Series {
-                label: "adaptive vs full".into(),
+                label: if any_inf {
+                    format!("adaptive vs full (whole image; identical = ∞, drawn at {cap:.0})")
+                } else {
+                    "adaptive vs full (whole image)".into()
+                },
                 points: rows
                     .iter()
-                    .map(|r| (r.order as f64, finite_or(r.psnr_adaptive_vs_full, 100.0)))
+                    .map(|r| (r.order as f64, finite_or(r.psnr_adaptive_vs_full, cap)))
                     .collect(),
                 colour: blue,
             },
@@ -524,10 +565,17 @@ pub fn run_report(
     )?;
     line_chart(
         &out_dir.join("roi_vs_order.png"),
-        "Region of interest of adaptive SH",
-        "order (number of bands)",
-        "vertices in the ROI (%)",
-        false,
+        &format!(
+            "Region of interest of adaptive SH (threshold T = {})",
+            s.threshold
+        ),
+        "order (number of SH bands)",
+        "points in the ROI (% of active points)",
+        &ChartOptions {
+            integer_x: true,
+            legend_upper_left: true,
+            ..ChartOptions::default()
+        },
         &[
             Series {
                 label: "diffuse ROI".into(),
@@ -547,10 +595,21 @@ pub fn run_report(
             },
         ],
     )?;
-    tiles.extend(error_tiles);
-    if let Some(t) = roi_tile {
-        tiles.push(t);
-    }
+    // Grid: one column per shown order — full, adaptive, |full − reference| — then the
+    // reference, the adaptive error at the highest order and the ROI picture.
+    let pad = |mut v: Vec<Tile>| {
+        while v.len() % 3 != 0 {
+            v.push(Tile::blank());
+        }
+        v
+    };
+    let mut tiles = Vec::new();
+    tiles.extend(pad(full_tiles));
+    tiles.extend(pad(ad_tiles));
+    tiles.extend(pad(error_tiles));
+    tiles.push(reference_tile);
+    tiles.extend(ad_error_tile);
+    tiles.extend(roi_tile);
     image_grid(&out_dir.join("images.png"), &tiles, 3, 320)?;
 
     let data = ReportData {
@@ -694,6 +753,27 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
             c.rel_l2
         );
     }
+    if let Some(r) = d.orders.first() {
+        let _ = writeln!(s, "\n## Reproducing a row by hand\n");
+        let _ = writeln!(
+            s,
+            "The relit images are `images/full_NN.exr` and `images/adaptive_NN.exr`, the object mask `images/mask.png`. For order {o}:\n",
+            o = r.order
+        );
+        let _ = writeln!(
+            s,
+            "    prt relight {scene} --bake {bake} --order {o} --out full_{o:02}.exr\n    prt compare full_{o:02}.exr images/reference.exr --mask images/mask.png\n",
+            scene = d.scene,
+            bake = d.bake_file,
+            o = r.order
+        );
+        let _ = writeln!(
+            s,
+            "gives `masked_psnr_ldr` = {} dB (the table's \"PSNR full vs path traced\"); add `--adaptive --threshold {}` for the adaptive column.",
+            db(r.psnr_full_vs_reference),
+            d.settings["threshold"]
+        );
+    }
     if !d.notes.is_empty() {
         let _ = writeln!(s, "\n## Notes\n");
         for n in &d.notes {
@@ -757,6 +837,8 @@ fn html(d: &ReportData) -> String {
         } else if line.starts_with("<p><img") {
             out.push_str(line);
             out.push('\n');
+        } else if let Some(t) = line.strip_prefix("    ") {
+            let _ = writeln!(out, "<pre>{}</pre>", escape(t));
         } else if let Some(t) = line.strip_prefix("- ") {
             let _ = writeln!(out, "<li>{}</li>", escape(t));
         } else if !line.is_empty() {
