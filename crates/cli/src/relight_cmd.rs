@@ -23,7 +23,7 @@ pub struct RelightArgs {
     #[arg(long)]
     pub adaptive: bool,
     /// ROI threshold T, in units of output radiance (the thesis: 0.02 on [0,1] display values).
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     pub threshold: f32,
     /// Read --threshold as a fraction of the frame's mean radiance instead.
     #[arg(long)]

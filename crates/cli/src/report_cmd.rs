@@ -27,7 +27,7 @@ pub struct ReportArgs {
     #[arg(long)]
     pub bounces: Option<u32>,
     /// Adaptive ROI threshold T (absolute, output radiance units; the thesis uses 0.02).
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     pub threshold: f32,
     /// Frames timed per relighting (median).
     #[arg(long, default_value_t = 5)]

@@ -1,0 +1,262 @@
+//! `prt relight`: its JSON, the bake check, bit-equality of `--adaptive --threshold 0` with full
+//! order, the ROI picture, rotating-environment frames, and bad options.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn prt() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_prt"))
+}
+
+fn run(cmd: &mut Command) -> Output {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{cmd:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn json(out: &Output) -> Value {
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
+}
+
+/// An "L": a 3×3-quad floor facing +Y and a 3×3-quad wall facing +Z (32 vertices), the wall
+/// glossy so that the specular path runs too.
+fn write_obj(path: &Path, n: usize) {
+    let mut floor = String::from("# floor\n");
+    let mut wall = String::from("# wall\n");
+    for j in 0..=n {
+        for i in 0..=n {
+            let (u, v) = (i as f32 / n as f32 - 0.5, j as f32 / n as f32);
+            floor += &format!("v {u} 0 {}\n", v - 0.5);
+            wall += &format!("v {u} {v} -0.5\n");
+        }
+    }
+    let w = n + 1;
+    for j in 0..n {
+        for i in 0..n {
+            let a = 1 + j * w + i;
+            let (b, c, d) = (a + 1, a + w, a + w + 1);
+            floor += &format!("f {a} {c} {b}\nf {b} {c} {d}\n");
+            wall += &format!("f {a} {b} {c}\nf {b} {d} {c}\n");
+        }
+    }
+    std::fs::write(path.with_file_name("floor.obj"), floor).unwrap();
+    std::fs::write(path.with_file_name("wall.obj"), wall).unwrap();
+}
+
+/// The tiny scene: 24×16 pixels, a 16×8 lat-long map with a bright patch.
+fn write_scene(dir: &Path, n: usize) -> PathBuf {
+    write_obj(&dir.join("x.obj"), n);
+    exr::prelude::write_rgb_file(dir.join("env.exr"), 16, 8, |x, y| {
+        let sky = if y < 4 { 1.0 + 0.1 * x as f32 } else { 0.3 };
+        let sun = if (x, y) == (5, 2) { 20.0 } else { 0.0 };
+        (sky + sun, 0.9 * sky + sun, 0.7 * sky + sun)
+    })
+    .unwrap();
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        r#"[camera]
+eye = [0.3, 0.7, 1.8]
+target = [0.0, 0.3, 0.0]
+fov_y = 45.0
+resolution = [24, 16]
+
+[environment]
+file = "env.exr"
+
+[materials.clay]
+type = "lambert"
+albedo = [0.8, 0.6, 0.4]
+
+[materials.gloss]
+type = "phong"
+albedo = [0.3, 0.3, 0.5]
+specular = [0.4, 0.4, 0.4]
+exponent = 12.0
+
+[[objects]]
+mesh = "floor.obj"
+material = "clay"
+
+[[objects]]
+mesh = "wall.obj"
+material = "gloss"
+
+[render]
+bounces = 1
+"#,
+    )
+    .unwrap();
+    scene
+}
+
+fn fail(cmd: &mut Command) -> String {
+    let out = cmd.output().unwrap();
+    assert!(!out.status.success(), "{cmd:?} should fail");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn bake(scene: &Path, out: &Path, extra: &[&str]) {
+    run(prt()
+        .arg("bake")
+        .arg(scene)
+        .args(["--order", "5", "--rays", "64"])
+        .args(extra)
+        .arg("--out")
+        .arg(out));
+}
+
+fn relight(scene: &Path, bake: &Path) -> Command {
+    let mut c = prt();
+    c.arg("relight").arg(scene).arg("--bake").arg(bake);
+    c
+}
+
+#[test]
+fn relight_json_bake_check_exactness_roi_and_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), 3);
+    let b = dir.path().join("scene.prtb");
+    bake(&scene, &b, &[]);
+
+    // JSON keys, full order.
+    let full = dir.path().join("full.exr");
+    let j = json(&run(relight(&scene, &b)
+        .args(["--order", "4", "--json", "--out"])
+        .arg(&full)));
+    for k in [
+        "order",
+        "adaptive",
+        "threshold",
+        "shade_ms",
+        "image_ms",
+        "roi_fraction_diffuse",
+        "roi_fraction_specular",
+    ] {
+        assert!(j.get(k).is_some(), "missing {k} in {j}");
+    }
+    assert_eq!(j["order"], 4);
+    assert_eq!(j["adaptive"], false);
+    assert!(j["threshold"].is_null() && j["roi_fraction_diffuse"].is_null());
+    assert!(j["shade_ms"].as_f64().unwrap() >= 0.0 && j["image_ms"].as_f64().unwrap() > 0.0);
+    // The order is capped at the baked one.
+    let j = json(&run(relight(&scene, &b).args(["--order", "9", "--json"])));
+    assert_eq!(j["order"], 5);
+
+    // Adaptive with T = 0 keeps every band everywhere: the same image bit for bit; the ROI
+    // picture is written.
+    let exact = dir.path().join("exact.exr");
+    let roi = dir.path().join("roi.png");
+    let j = json(&run(relight(&scene, &b)
+        .args([
+            "--order",
+            "4",
+            "--adaptive",
+            "--threshold",
+            "0",
+            "--json",
+            "--out",
+        ])
+        .arg(&exact)
+        .arg("--roi-png")
+        .arg(&roi)));
+    assert_eq!(j["adaptive"], true);
+    assert_eq!(j["threshold"].as_f64(), Some(0.0));
+    let (rd, rs) = (
+        j["roi_fraction_diffuse"].as_f64().unwrap(),
+        j["roi_fraction_specular"].as_f64().unwrap(),
+    );
+    assert!(
+        (0.0..=1.0).contains(&rd) && (0.0..=1.0).contains(&rs),
+        "{j}"
+    );
+    let read = |p: &Path| {
+        exr::prelude::read_all_flat_layers_from_file(p)
+            .unwrap()
+            .layer_data[0]
+            .channel_data
+            .list
+            .iter()
+            .map(|c| {
+                c.sample_data
+                    .values_as_f32()
+                    .map(f32::to_bits)
+                    .collect::<Vec<_>>()
+            })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        read(&full),
+        read(&exact),
+        "adaptive T = 0 differs from full order"
+    );
+    let roi_img = image::open(&roi).unwrap();
+    assert_eq!((roi_img.width(), roi_img.height()), (24, 16));
+
+    // A large threshold shrinks the ROI (and the image changes).
+    let j = json(&run(relight(&scene, &b).args([
+        "--order",
+        "4",
+        "--adaptive",
+        "--threshold",
+        "1000",
+        "--json",
+    ])));
+    assert!(j["roi_fraction_diffuse"].as_f64().unwrap() <= rd);
+
+    // Rotating-environment frames report frames per second.
+    let j = json(&run(relight(&scene, &b).args([
+        "--frames",
+        "3",
+        "--rotate-y-step",
+        "10",
+        "--json",
+    ])));
+    assert_eq!(j["frames"], 3);
+    assert!(j["fps"].as_f64().unwrap() > 0.0, "{j}");
+    let text = run(relight(&scene, &b).args(["--frames", "3", "--rotate-y-step", "10"]));
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains("frames/s"), "{text}");
+
+    // A bake of another mesh is refused, naming the bake file.
+    let other_dir = dir.path().join("other");
+    std::fs::create_dir(&other_dir).unwrap();
+    let other = write_scene(&other_dir, 2);
+    let err = fail(&mut relight(&other, &b));
+    assert!(
+        err.contains(&b.display().to_string()) && err.contains("different geometry"),
+        "{err}"
+    );
+
+    // A per-pixel bake relights (per pixel) but cannot be relit adaptively.
+    let pb = dir.path().join("pixels.prtb");
+    bake(&scene, &pb, &["--per-pixel", "--bounces", "0"]);
+    let j = json(&run(relight(&scene, &pb).args(["--json"])));
+    assert_eq!(j["points"], 2 * 24 * 16);
+    let err = fail(relight(&scene, &pb).args(["--adaptive"]));
+    assert!(err.contains("per-vertex bake"), "{err}");
+
+    // Bad options.
+    for (args, needle) in [
+        (vec!["--frames", "0"], "--frames"),
+        (vec!["--threshold", "-1"], "--threshold"),
+        (vec!["--threshold", "nan"], "--threshold"),
+        (vec!["--threshold", "inf"], "--threshold"),
+        (vec!["--rotate-y", "inf"], "--rotate-y"),
+        (vec!["--roi-png", "x.png"], "--adaptive"),
+        (vec!["--order", "0"], "order"),
+        (vec!["--order", "x"], "--order"),
+        (vec!["--bogus"], "--bogus"),
+    ] {
+        let err = fail(relight(&scene, &b).args(&args));
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+    let err = fail(&mut relight(&scene, &dir.path().join("missing.prtb")));
+    assert!(err.contains("missing.prtb"), "{err}");
+}
