@@ -598,7 +598,7 @@ pub fn run_report(
     // Grid: one column per shown order — full, adaptive, |full − reference| — then the
     // reference, the adaptive error at the highest order and the ROI picture.
     let pad = |mut v: Vec<Tile>| {
-        while v.len() % 3 != 0 {
+        while !v.len().is_multiple_of(3) {
             v.push(Tile::blank());
         }
         v
