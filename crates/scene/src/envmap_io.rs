@@ -161,6 +161,9 @@ fn read_up_to(file: &mut std::fs::File, buf: &mut [u8]) -> std::io::Result<usize
 
 type Texels = (usize, usize, Vec<Rgb>);
 
+/// Largest Radiance HDR image read: 2²⁸ texels (16384 × 16384, 3 GiB as RGB f32).
+const MAX_TEXELS: u64 = 1 << 28;
+
 fn read_exr(path: &Path, warnings: &mut Vec<String>) -> Result<Texels, SceneError> {
     use exr::prelude::*;
     let image = read()
@@ -225,6 +228,15 @@ fn read_hdr(path: &Path) -> Result<Texels, SceneError> {
     let file = std::fs::File::open(path).map_err(|e| SceneError::io(path, e))?;
     let decoder = image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file))
         .map_err(|e| SceneError::format(path, format!("cannot decode Radiance HDR: {e}")))?;
+    // The decoder allocates the whole image from the header's size before reading a texel: a
+    // hostile or corrupt header (say 10⁶ × 10⁶) would abort the process.
+    let (w, h) = image::ImageDecoder::dimensions(&decoder);
+    if u64::from(w) * u64::from(h) > MAX_TEXELS {
+        return Err(SceneError::format(
+            path,
+            format!("the header declares {w}×{h} texels, more than the {MAX_TEXELS} this reader accepts"),
+        ));
+    }
     let img = image::DynamicImage::from_decoder(decoder)
         .map_err(|e| SceneError::format(path, format!("cannot decode Radiance HDR: {e}")))?
         .into_rgb32f();

@@ -100,7 +100,28 @@ pub fn load_gltf(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErr
     let gltf = ::gltf::Gltf::from_slice(&bytes)
         .map_err(|e| SceneError::mesh(path, format!("invalid glTF 2.0 file: {e}")))?;
     let buffers = ::gltf::import_buffers(&gltf.document, path.parent(), gltf.blob.clone())
-        .map_err(|e| SceneError::mesh(path, format!("cannot load buffers: {e}")))?;
+        .map_err(|e| {
+            // The gltf crate's I/O errors do not say which file: name the external ones.
+            let external: Vec<String> = gltf
+                .buffers()
+                .filter_map(|b| match b.source() {
+                    ::gltf::buffer::Source::Uri(u) if !u.starts_with("data:") => {
+                        Some(format!("`{u}`"))
+                    }
+                    _ => None,
+                })
+                .collect();
+            let files = if external.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " (buffer files {} in {})",
+                    external.join(", "),
+                    path.parent().unwrap_or(Path::new(".")).display()
+                )
+            };
+            SceneError::mesh(path, format!("cannot load buffers: {e}{files}"))
+        })?;
     let scene = gltf
         .default_scene()
         .or_else(|| gltf.scenes().next())

@@ -87,5 +87,5 @@ pub use error::SceneError;
 pub use gltf_io::{load_gltf, map_material};
 pub use mesh::{angle_weighted_normals, load_mesh, normal_matrix, object_transform};
 pub use obj::load_obj;
-pub use scene_file::load_scene;
+pub use scene_file::{load_scene, parse_scene_str};
 pub use types::*;

@@ -108,7 +108,17 @@ const MATERIAL_TYPES: [(&str, [bool; 5]); 6] = [
 /// that fails to load.
 pub fn load_scene(path: &Path) -> Result<LoadedScene, SceneError> {
     let text = std::fs::read_to_string(path).map_err(|e| SceneError::io(path, e))?;
-    let file: FileScene = toml::from_str(&text)
+    parse_scene_str(&text, path)
+}
+
+/// [`load_scene`] on scene-file text already in memory (used by the `scene_parser` fuzz
+/// target). `path` is not read: it names the scene in messages, and its folder is where
+/// relative mesh and map paths are resolved (those files are read as usual).
+///
+/// # Errors
+/// As [`load_scene`], except [`SceneError::Io`] for the scene file itself.
+pub fn parse_scene_str(text: &str, path: &Path) -> Result<LoadedScene, SceneError> {
+    let file: FileScene = toml::from_str(text)
         .map_err(|e| SceneError::format(path, format!("invalid scene file: {e}")))?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let invalid = |key: &str, msg: String| SceneError::invalid(path, key, msg);

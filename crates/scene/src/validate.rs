@@ -14,6 +14,13 @@ const UNIT_TOLERANCE: f32 = 1e-3;
 /// Sine of the smallest angle allowed between `up` and the view direction (about 0.06°).
 const MIN_UP_SINE: f64 = 1e-3;
 
+/// Largest image side, in pixels.
+const MAX_SIDE: u32 = 1 << 16;
+
+/// Largest pixel count (16384 × 16384): a render keeps several f32 buffers of this size, and
+/// a resolution of 4294967295² used to run for ever instead of failing.
+const MAX_PIXELS: u64 = 1 << 28;
+
 impl Material {
     /// The CONVENTIONS.md name of the type (`lambert`, `phong`, `blinn_phong`, `ward`,
     /// `cook_torrance`, `mirror`).
@@ -115,8 +122,9 @@ impl Camera {
         }
     }
 
-    /// Checks the camera: finite vectors, `eye ≠ target`, `up` not parallel to the view
-    /// direction, `fov_y` in (0, 180) degrees, non-zero resolution.
+    /// Checks the camera: finite vectors and view direction, `eye ≠ target`, `up` not parallel
+    /// to the view direction, `fov_y` in (0, 180) degrees, non-zero resolution of at most 65536
+    /// per side and 2²⁸ pixels.
     ///
     /// # Errors
     /// `(key, message)` with the scene-file key of the bad value (`eye`, `up`, `fov_y`, ...).
@@ -127,6 +135,12 @@ impl Camera {
             }
         }
         let dir = self.target - self.eye;
+        if !dir.length_squared().is_finite() {
+            return Err((
+                "target",
+                format!("target − eye = {dir} overflows: the view direction is undefined"),
+            ));
+        }
         if dir.length_squared() == 0.0 {
             return Err((
                 "target",
@@ -150,6 +164,18 @@ impl Camera {
             return Err((
                 "resolution",
                 format!("{}×{} has a zero side", self.width, self.height),
+            ));
+        }
+        if self.width > MAX_SIDE
+            || self.height > MAX_SIDE
+            || u64::from(self.width) * u64::from(self.height) > MAX_PIXELS
+        {
+            return Err((
+                "resolution",
+                format!(
+                    "{}×{} is too large: at most {MAX_SIDE} per side and {MAX_PIXELS} pixels",
+                    self.width, self.height
+                ),
             ));
         }
         Ok(())

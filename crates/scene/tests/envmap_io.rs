@@ -247,3 +247,20 @@ fn test08_load_environment_applies_scale_and_checks_it() {
     let (_, w) = load_environment(&path, Mapping::Angular, 0.0, 1.0).unwrap();
     assert_eq!(w.len(), 1, "{w:?}");
 }
+
+#[test]
+fn test09_hdr_header_with_huge_size_is_refused_before_allocating() {
+    // 10⁶ × 10⁶ texels would be a 12 TB allocation: the process used to abort.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("huge.hdr");
+    std::fs::write(
+        &path,
+        b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 1000000 +X 1000000\n\x80\x80\x80\x81",
+    )
+    .unwrap();
+    let msg = load_env_image(&path).unwrap_err().to_string();
+    assert!(
+        msg.contains("huge.hdr") && msg.contains("1000000×1000000"),
+        "{msg}"
+    );
+}

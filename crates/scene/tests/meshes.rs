@@ -504,3 +504,18 @@ fn test14_geometry_hash_is_fnv1a_of_the_documented_bytes() {
         "names and normals are not hashed"
     );
 }
+
+#[test]
+fn test15_gltf_missing_buffer_file_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let gltf = write(
+        dir.path(),
+        "t.gltf",
+        br#"{"asset": {"version": "2.0"}, "buffers": [{"uri": "gone.bin", "byteLength": 12}]}"#,
+    );
+    let msg = load_mesh(&gltf, &DMat4::IDENTITY).unwrap_err().to_string();
+    assert!(
+        msg.contains("t.gltf") && msg.contains("`gone.bin`"),
+        "{msg}"
+    );
+}

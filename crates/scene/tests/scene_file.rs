@@ -317,3 +317,22 @@ fn test06_gltf_objects_bring_their_materials() {
     assert!(s.meshes.iter().all(|m| m.material == 1));
     assert!(loaded.warnings.iter().any(|w| w.contains("textures")));
 }
+
+#[test]
+fn test07_camera_overflow_and_huge_resolution_are_refused() {
+    use prt_scene::Camera;
+    // A 4294967295² image used to make `prt render` run for ever.
+    let huge = Camera::look_at(DVec3::Z, DVec3::ZERO, 40.0, u32::MAX, u32::MAX);
+    let (key, msg) = huge.check().unwrap_err();
+    assert_eq!(key, "resolution", "{msg}");
+    let wide = Camera::look_at(DVec3::Z, DVec3::ZERO, 40.0, 1 << 17, 1);
+    assert_eq!(wide.check().unwrap_err().0, "resolution");
+    assert!(Camera::look_at(DVec3::Z, DVec3::ZERO, 40.0, 16384, 16384)
+        .check()
+        .is_ok());
+    // Finite eye and target whose difference overflows to infinity.
+    let far = Camera::look_at(DVec3::X * 1e308, DVec3::X * -1e308, 40.0, 8, 6);
+    let (key, msg) = far.check().unwrap_err();
+    assert_eq!(key, "target", "{msg}");
+    assert!(msg.contains("overflows"), "{msg}");
+}

@@ -47,6 +47,6 @@ pub use index::{check_order, coefficient_count, degree_and_order, index, ShError
 pub use legendre::LegendreTable;
 pub use project::{
     latlong_frame, nodes_for_trig_degree, project_env, project_fn, reconstruct_latlong,
-    reconstruct_rgb, EnvMapping, ImageRef, RgbCoefficients,
+    reconstruct_rgb, EnvMapping, ImageRef, RgbCoefficients, MAX_ANGULAR_SUBSAMPLES,
 };
 pub use rotate::Rotation;

@@ -17,6 +17,10 @@ use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
+/// Largest [`EnvMapping::Angular`] subsample count per texel side: 64² = 4096 evaluations
+/// per texel. Far more (say 10⁹, i.e. 10¹⁸ per texel) would run for ever.
+pub const MAX_ANGULAR_SUBSAMPLES: usize = 64;
+
 /// RGB coefficients: `order²` triples in index order.
 pub type RgbCoefficients = Vec<[f64; 3]>;
 
@@ -96,10 +100,11 @@ pub fn project_env(
             Ok(rot.apply_rgb(&frame_coeffs))
         }
         EnvMapping::Angular { subsamples } => {
-            if subsamples == 0 {
-                return Err(ShError::InvalidParameter(
-                    "angular subsamples must be ≥ 1".into(),
-                ));
+            if !(1..=MAX_ANGULAR_SUBSAMPLES).contains(&subsamples) {
+                return Err(ShError::InvalidParameter(format!(
+                    "angular subsamples {subsamples} must be between 1 and \
+                     {MAX_ANGULAR_SUBSAMPLES} (the work grows as its square)"
+                )));
             }
             let c = project_angular_frame(image, order, subsamples);
             if rotation_y_deg == 0.0 {

@@ -351,3 +351,20 @@ fn windows_and_deringing_of_a_bright_sun() {
         assert!(still.min_before < 0.0, "a 5% wider window must still ring");
     }
 }
+
+#[test]
+fn angular_subsample_count_is_bounded() {
+    // 10⁹ subsamples per texel side used to run for ever (10¹⁸ evaluations per texel).
+    let texels = vec![[1.0f32; 3]; 4];
+    let img = ImageRef {
+        width: 2,
+        height: 2,
+        texels: &texels,
+    };
+    for k in [0, prt_sh::MAX_ANGULAR_SUBSAMPLES + 1, 1_000_000_000] {
+        let e = project_env(img, EnvMapping::Angular { subsamples: k }, 2, 0.0).unwrap_err();
+        assert!(e.to_string().contains("angular subsamples"), "{e}");
+    }
+    let max = prt_sh::MAX_ANGULAR_SUBSAMPLES;
+    assert!(project_env(img, EnvMapping::Angular { subsamples: max }, 2, 0.0).is_ok());
+}
