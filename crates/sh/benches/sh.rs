@@ -1,4 +1,5 @@
 //! Criterion benchmarks of the SH core (figures in the crate README).
+#![allow(missing_docs)] // `criterion_group!` generates an undocumented public function.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::{DMat3, DQuat, DVec3};
