@@ -9,6 +9,7 @@
 //! (Gouraud), which is the approximation per-pixel bakes avoid.
 
 mod error;
+pub mod glossy;
 pub mod imaging;
 pub mod io;
 pub mod plots;

@@ -161,6 +161,10 @@ pub fn relight(
         )?)
     };
     let lighting = Lighting::from_rgb_coefficients(&env, rot.as_ref())?;
+    let env_rotated: Vec<[f64; 3]> = match &rot {
+        Some(r) => r.apply_rgb(&env),
+        None => env.clone(),
+    };
     let eye = scene.camera.eye.as_vec3().to_array();
     let per_pixel = matches!(bake.meta.sample_kind, SampleKind::Pixel { .. });
     let mut stats = RelightStats {
@@ -204,6 +208,9 @@ pub fn relight(
                 exponent: *exponent,
             }),
             Material::Lambert { .. } => None,
+            Material::BlinnPhong { .. } | Material::Ward { .. } | Material::CookTorrance { .. } => {
+                None
+            }
             other => {
                 stats.notes.push(format!(
                     "{}: the specular lobe of a {} material is not relit (diffuse part only)",
@@ -213,13 +220,37 @@ pub fn relight(
                 None
             }
         };
+        // Glossy materials without a zonal lobe: the bake's per-view-elevation BRDF table.
+        let material_name = scene
+            .material_names
+            .get(mesh.material)
+            .cloned()
+            .unwrap_or_default();
+        let glossy_table = match material {
+            Material::BlinnPhong { specular, .. }
+            | Material::Ward { specular, .. }
+            | Material::CookTorrance { specular, .. } => {
+                match bake.glossy.iter().find(|t| t.material == material_name) {
+                    Some(t) => Some((t, *specular)),
+                    None => {
+                        stats.notes.push(format!(
+                            "{}: the bake has no BRDF table for {material_name}; specular not relit",
+                            obj.name
+                        ));
+                        None
+                    }
+                }
+            }
+            _ => None,
+        };
         let vis_block = obj
             .blocks
             .iter()
             .find(|b| b.kind == TransferKind::Visibility);
-        let vis_data = match (phong, vis_block) {
-            (Some(_), Some(b)) => Some(truncate(&b.data, baked, order, channels, 1)),
-            (Some(_), None) => {
+        let wants_visibility = phong.is_some() || glossy_table.is_some();
+        let vis_data = match (wants_visibility, vis_block) {
+            (true, Some(b)) => Some(truncate(&b.data, baked, order, channels, 1)),
+            (true, None) => {
                 stats.notes.push(format!(
                     "{}: no visibility transfer in the bake; specular not relit",
                     obj.name
@@ -303,6 +334,31 @@ pub fn relight(
                 result = sum_terms(&last.0, &last.1, points);
             }
         }
+        let result = match (glossy_table, &vis_data) {
+            (Some((table, specular)), Some(v)) => {
+                if opt.adaptive.is_some() {
+                    stats.notes.push(format!(
+                        "{}: the glossy-table specular is shaded at full order (the adaptive scheme covers zonal lobes)",
+                        obj.name
+                    ));
+                }
+                let start = Instant::now();
+                let s = crate::glossy::glossy_specular(
+                    table,
+                    order,
+                    &env_rotated,
+                    v,
+                    &positions,
+                    &normals,
+                    eye,
+                    specular,
+                )?;
+                let dt = start.elapsed().as_secs_f64();
+                times.iter_mut().for_each(|t| *t += dt);
+                sum_terms(&result, &s, points)
+            }
+            _ => result,
+        };
         radiance.push(result);
         roi.push(in_roi);
     }

@@ -1,0 +1,126 @@
+//! Glossy-table specular relighting (Ward) against direct numerical integration, with a
+//! tolerance derived from the bake's own figures.
+
+use glam::{DVec3, Vec3};
+use prt_bake::{bake, BakeSettings};
+use prt_bakefile::TransferKind;
+use prt_scene::test_util::icosphere;
+use prt_scene::{Camera, Environment, Material, Scene};
+use prt_sh::quadrature::SphereQuadrature;
+use prt_sh::zonal;
+
+/// `∫ f_s(ω_i, ω_o) max(0, cos θ_i) dω_i` at view elevation `θ_o` (local frame, n = +Z), and
+/// `‖f_s cos‖₂`, by a dense product rule (the integrand is smooth for α = 0.3).
+fn albedo_and_norm(m: &Material, theta_o: f64) -> (f64, f64) {
+    let q = SphereQuadrature::exact_for_degree(400);
+    let wo = DVec3::new(theta_o.sin(), 0.0, theta_o.cos()).as_vec3();
+    let (mut a, mut n2) = (0.0, 0.0);
+    for (d, w) in q.dirs.iter().zip(&q.weights) {
+        if d.z <= 0.0 {
+            continue;
+        }
+        let v = f64::from(prt_shading::eval(m, Vec3::Z, wo, d.as_vec3()).x) * d.z;
+        a += w * v;
+        n2 += w * v * v;
+    }
+    (a, n2.sqrt())
+}
+
+#[test]
+fn ward_specular_from_the_brdf_table_matches_the_integral() {
+    // Albedo 0, specular 1: the image is the specular lobe alone. A convex sphere under a
+    // uniform environment of radiance 1: R = L ⊛ V = V exactly (a product with a constant),
+    // and the true radiance is the lobe's directional albedo ρ(θ_o) = ∫ V f_s cos, with V the
+    // hemisphere of n. The relit value is Σ_i V̂_i b̂_i (baked V̂, table row b̂). Its error is
+    //   |Σ V̂ b̂ − ∫ V f cos| ≤ ‖V̂ − V_n‖ ‖b̂‖ + |∫ V (P_n(f cos) − f cos)| + interpolation
+    // where the middle term is ≤ ‖V‖ · e_n ‖f cos‖ (Cauchy–Schwarz; e_n is the table's relative
+    // projection error at the order, stored in the bake; ‖V‖ = √(2π)), and linear
+    // interpolation between tabulated elevations errs by at most the albedo's change between
+    // the two neighbouring elevations.
+    let ward = Material::Ward {
+        albedo: [0.0; 3],
+        specular: [1.0; 3],
+        roughness: 0.3,
+    };
+    let cam = Camera::look_at(DVec3::new(0.0, 0.0, 4.0), DVec3::ZERO, 40.0, 16, 16);
+    let mut scene = Scene::new(cam, Environment::uniform([1.0; 3]));
+    let m = scene.add_material("ward", ward.clone());
+    scene.add_mesh(icosphere(2), m);
+    let accel = prt_tracer::Accel::build(&scene).unwrap();
+    let order = 8;
+    let out = bake(
+        &scene,
+        &accel,
+        &BakeSettings {
+            order: Some(order),
+            rays: 4096,
+            bounces: 0,
+            ..BakeSettings::final_quality()
+        },
+    )
+    .unwrap();
+    let table = &out.bake.glossy[0];
+    let e_n = table.projection_error[order - 1];
+    let relit = prt_report::relight(
+        &scene,
+        &accel,
+        &out.bake,
+        &prt_report::RelightOptions {
+            order: Some(order),
+            timing_frames: 1,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let obj = &out.bake.objects[0];
+    let vis = &obj
+        .blocks
+        .iter()
+        .find(|b| b.kind == TransferKind::Visibility)
+        .unwrap()
+        .data;
+    let n2 = order * order;
+    let ch = obj.channels as usize;
+    // Exact V_n of the hemisphere about n: 2π × the normalised e = 0 lobe rotated to n.
+    let hemi = zonal::bands_to_zonal(&zonal::phong_lobe_bands(0.0, order).unwrap());
+    let mesh = &scene.meshes[0];
+    let eye = scene.camera.eye;
+    let mut checked = 0;
+    let mut worst = 0.0f64;
+    for (p, (pos, nrm)) in mesh.positions.iter().zip(&mesh.normals).enumerate() {
+        let n = nrm.as_dvec3().normalize();
+        let wo = (eye - pos.as_dvec3()).normalize();
+        let cos_o = n.dot(wo);
+        if !(0.3..0.97).contains(&cos_o) {
+            continue;
+        }
+        let theta_o = cos_o.acos();
+        let v_hat = &vis[p * ch * n2..p * ch * n2 + n2];
+        let v_exact = zonal::rotate_zonal(&hemi, n).unwrap();
+        let dv = v_hat
+            .iter()
+            .zip(&v_exact)
+            .map(|(a, b)| (f64::from(*a) - 2.0 * std::f64::consts::PI * b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let b = prt_report::glossy::table_row(table, order, theta_o);
+        let b_norm = b.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let (rho, f_norm) = albedo_and_norm(&ward, theta_o);
+        let el = &table.elevations;
+        let i = el.partition_point(|&t| t <= theta_o).clamp(1, el.len() - 1);
+        let interp = (albedo_and_norm(&ward, el[i - 1]).0 - albedo_and_norm(&ward, el[i]).0).abs();
+        let bound = dv * b_norm + (2.0 * std::f64::consts::PI).sqrt() * e_n * f_norm + interp;
+        let got = f64::from(relit.radiance[0][p][0]);
+        assert!(
+            (got - rho).abs() <= bound,
+            "vertex {p}: θ_o {theta_o:.3}: relit {got} vs ρ {rho} (bound {bound})"
+        );
+        worst = worst.max((got - rho).abs() / rho);
+        checked += 1;
+        if checked > 40 {
+            break;
+        }
+    }
+    assert!(checked > 10, "only {checked} vertices checked");
+    eprintln!("Ward α = 0.3, order {order}: worst relative error {worst:.4} over {checked} vertices (table error e_n = {e_n:.4})");
+}
