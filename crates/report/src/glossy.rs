@@ -87,7 +87,7 @@ pub fn glossy_specular(
             let n = DVec3::from_array(normals[p].map(f64::from)).normalize_or_zero();
             let wo = (eye - DVec3::from_array(positions[p].map(f64::from))).normalize_or_zero();
             let cos_o = n.dot(wo);
-            if !(cos_o > 0.0) {
+            if cos_o.is_nan() || cos_o <= 0.0 {
                 return Ok([0.0; 3]);
             }
             let v: Vec<f64> = visibility[p * n2..(p + 1) * n2]
