@@ -41,30 +41,10 @@ fn object_pixels(scene: &Scene) -> Vec<bool> {
 
 /// Per-vertex relit diffuse radiance (albedo/π) L·T of object `o`, first channel.
 fn relit_vertices(out: &BakeOutput, o: usize, albedo: f64) -> Vec<f64> {
-    let obj = &out.bake.objects[o];
-    let env = out.bake.environment.as_ref().unwrap();
-    let n2 = (obj.order * obj.order) as usize;
-    let en2 = (env.order * env.order) as usize;
-    let block = obj
-        .blocks
+    prt_bake::relit_diffuse(&out.bake, o, [albedo as f32; 3], None)
+        .unwrap()
         .iter()
-        .find(|b| {
-            matches!(
-                b.kind,
-                TransferKind::ShadowedDiffuse | TransferKind::InterreflectedDiffuse { .. }
-            )
-        })
-        .unwrap();
-    let ch = obj.channels as usize;
-    (0..obj.points_in_file as usize)
-        .map(|p| {
-            let t = &block.data[p * ch * n2..p * ch * n2 + n2];
-            albedo / std::f64::consts::PI
-                * t.iter()
-                    .zip(&env.values[..en2])
-                    .map(|(a, b)| f64::from(*a) * b)
-                    .sum::<f64>()
-        })
+        .map(|c| c[0])
         .collect()
 }
 

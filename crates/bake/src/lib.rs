@@ -669,3 +669,57 @@ pub fn geometry_hash(positions: &[Vec3], indices: &[[u32; 3]]) -> u64 {
     let p: Vec<[f32; 3]> = positions.iter().map(|v| v.to_array()).collect();
     prt_bakefile::geometry_hash(&p, indices)
 }
+
+/// Diffuse radiance of every point of object `object` relit in f64 from the bake's own
+/// environment coefficients: `(albedo/π) Σ_{i<order²} L_i T_i` per channel, with `T` the
+/// object's interreflected (or else shadowed) diffuse transfer and `order` at most the baked
+/// one (`None`: the baked order). A reference-precision check of a bake; the fast f32 path is
+/// `prt-relight`.
+pub fn relit_diffuse(
+    bake: &Bake,
+    object: usize,
+    albedo: [f32; 3],
+    order: Option<usize>,
+) -> Result<Vec<[f64; 3]>, BakeError> {
+    let bad = |m: String| BakeError::InvalidSettings(m);
+    let obj = bake
+        .objects
+        .get(object)
+        .ok_or_else(|| bad(format!("the bake has no object {object}")))?;
+    let env = bake
+        .environment
+        .as_ref()
+        .ok_or_else(|| bad("the bake has no environment coefficients".into()))?;
+    let n2 = (obj.order * obj.order) as usize;
+    let en2 = (env.order * env.order) as usize;
+    let k = order.map_or(n2, |o| o * o);
+    if k == 0 || k > n2 || k > en2 {
+        return Err(bad(format!(
+            "relighting order {order:?} exceeds the object's order {} or the environment's {}",
+            obj.order, env.order
+        )));
+    }
+    let block = obj
+        .blocks
+        .iter()
+        .find(|b| matches!(b.kind, TransferKind::InterreflectedDiffuse { .. }))
+        .or_else(|| {
+            obj.blocks
+                .iter()
+                .find(|b| b.kind == TransferKind::ShadowedDiffuse)
+        })
+        .ok_or_else(|| bad(format!("object {} has no diffuse transfer", obj.name)))?;
+    let ch = obj.channels as usize;
+    Ok((0..obj.points_in_file as usize)
+        .map(|p| {
+            let mut rgb = [0.0; 3];
+            for (c, out) in rgb.iter_mut().enumerate() {
+                let t = &block.data[(p * ch + c.min(ch - 1)) * n2..][..k];
+                let l = &env.values[c * en2..][..k];
+                *out = f64::from(albedo[c]) / std::f64::consts::PI
+                    * t.iter().zip(l).map(|(a, b)| f64::from(*a) * b).sum::<f64>();
+            }
+            rgb
+        })
+        .collect())
+}

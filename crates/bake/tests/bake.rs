@@ -7,7 +7,6 @@ use prt_bakefile::{encode, merge, ScalarType, TransferKind};
 use prt_scene::test_util::icosphere;
 use prt_scene::{Camera, Environment, Material, Mesh, Scene};
 use prt_tracer::{Accel, Renderer, SurfacePoint};
-use std::f64::consts::PI;
 
 fn white() -> Material {
     Material::Lambert { albedo: [1.0; 3] }
@@ -100,36 +99,9 @@ fn open_box(n: usize) -> Mesh {
     mesh
 }
 
-/// Diffuse radiance of every vertex of object `o`: (albedo/π) Σ L_i T_i per channel.
+/// Diffuse radiance of every vertex of object `o` (the library's f64 reference relighting).
 fn relit(out: &prt_bake::BakeOutput, o: usize, albedo: f32) -> Vec<[f64; 3]> {
-    let b = &out.bake;
-    let obj = &b.objects[o];
-    let env = b.environment.as_ref().unwrap();
-    let n2 = (obj.order * obj.order) as usize;
-    let en2 = (env.order * env.order) as usize;
-    let block = obj
-        .blocks
-        .iter()
-        .find(|bl| {
-            matches!(
-                bl.kind,
-                TransferKind::ShadowedDiffuse | TransferKind::InterreflectedDiffuse { .. }
-            )
-        })
-        .unwrap();
-    let ch = obj.channels as usize;
-    (0..obj.points_in_file as usize)
-        .map(|p| {
-            let mut rgb = [0.0; 3];
-            for c in 0..3 {
-                let t = &block.data[(p * ch + c.min(ch - 1)) * n2..][..n2];
-                let l = &env.values[c * en2..c * en2 + n2];
-                rgb[c] = f64::from(albedo) / PI
-                    * t.iter().zip(l).map(|(a, b)| f64::from(*a) * b).sum::<f64>();
-            }
-            rgb
-        })
-        .collect()
+    prt_bake::relit_diffuse(&out.bake, o, [albedo; 3], None).unwrap()
 }
 
 #[test]

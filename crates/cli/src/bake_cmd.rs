@@ -93,19 +93,8 @@ fn parse_shard(text: &str) -> Result<(u32, u32)> {
 
 /// Runs `prt bake`.
 pub fn run_bake(args: &BakeArgs) -> Result<()> {
-    let loaded = prt_scene::load_scene(&args.scene)?;
-    for w in &loaded.warnings {
-        eprintln!("warning: {w}");
-    }
-    let scene = loaded.scene;
-    let bounces = match args.bounces {
-        Some(b) => b,
-        None if scene.render.bounces >= 0 => scene.render.bounces as u32,
-        None => bail!(
-            "{}: [render] bounces = -1 (unlimited) cannot be baked; pass --bounces B",
-            args.scene.display()
-        ),
-    };
+    let scene = crate::common::load_scene(&args.scene)?;
+    let bounces = crate::common::bake_bounces(args.bounces, &scene, &args.scene)?;
     let settings = BakeSettings {
         order: args.order,
         max_order: args.max_order,

@@ -3,6 +3,7 @@
 //! Each subcommand lives in its own module with a clap `Args` struct and a `run` function.
 
 mod bake_cmd;
+mod common;
 mod compare_cmd;
 mod relight_cmd;
 mod render_cmd;

@@ -65,11 +65,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     if args.roi_png.is_some() && !args.adaptive {
         bail!("--roi-png needs --adaptive");
     }
-    let loaded = prt_scene::load_scene(&args.scene)?;
-    for w in &loaded.warnings {
-        eprintln!("warning: {w}");
-    }
-    let scene = loaded.scene;
+    let scene = crate::common::load_scene(&args.scene)?;
     let bake = prt_bakefile::read_bake(&args.bake)?;
     prt_report::check_bake(&scene, &bake, &args.bake)?;
     let per_pixel = matches!(bake.meta.sample_kind, SampleKind::Pixel { .. });

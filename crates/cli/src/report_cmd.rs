@@ -67,19 +67,8 @@ fn parse_orders(text: &str) -> Result<Vec<usize>> {
 /// Runs `prt report`.
 pub fn run(args: &ReportArgs) -> Result<()> {
     let orders = parse_orders(&args.orders)?;
-    let loaded = prt_scene::load_scene(&args.scene)?;
-    for w in &loaded.warnings {
-        eprintln!("warning: {w}");
-    }
-    let scene = loaded.scene;
-    let bounces = match args.bounces {
-        Some(b) => b,
-        None if scene.render.bounces >= 0 => scene.render.bounces as u32,
-        None => bail!(
-            "{}: [render] bounces = -1 cannot be baked; pass --bounces B",
-            args.scene.display()
-        ),
-    };
+    let scene = crate::common::load_scene(&args.scene)?;
+    let bounces = crate::common::bake_bounces(args.bounces, &scene, &args.scene)?;
     let settings = ReportSettings {
         orders,
         reference_spp: args.reference_spp,

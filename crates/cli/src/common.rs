@@ -1,0 +1,27 @@
+//! What several subcommands do the same way.
+
+use anyhow::{bail, Result};
+use prt_scene::Scene;
+use std::path::Path;
+
+/// Loads a scene file, printing its warnings to stderr.
+pub fn load_scene(path: &Path) -> Result<Scene> {
+    let loaded = prt_scene::load_scene(path)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(loaded.scene)
+}
+
+/// The bounce count of a bake: the option if given, else the scene's `[render] bounces`
+/// (a bake cannot hold unlimited bounces).
+pub fn bake_bounces(option: Option<u32>, scene: &Scene, path: &Path) -> Result<u32> {
+    match option {
+        Some(b) => Ok(b),
+        None if scene.render.bounces >= 0 => Ok(scene.render.bounces as u32),
+        None => bail!(
+            "{}: [render] bounces = -1 (unlimited) cannot be baked; pass --bounces B",
+            path.display()
+        ),
+    }
+}
