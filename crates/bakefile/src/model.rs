@@ -298,7 +298,8 @@ pub struct EnvCoefficients {
 pub enum BrdfLobe {
     /// `max(0, cos θ)` (code 1): the Lambert transfer lobe.
     ClampedCosine,
-    /// Normalised Phong lobe `(e+2)/(2π) max(0, cos θ)^e` about the reflection direction (code 2).
+    /// The unit-integral Phong lobe `(e+1)/(2π) max(0, cos θ)^e` about the reflection direction
+    /// (code 2); CONVENTIONS.md's BRDF is `specular · (e+2)/(2π) max(0, r·ω_i)^e`.
     Phong {
         /// The exponent `e ≥ 0`.
         exponent: f64,
