@@ -86,17 +86,6 @@ pub struct BakeOutput {
     pub report: BakeReport,
 }
 
-fn diffuse_albedo(m: &Material) -> [f32; 3] {
-    match m {
-        Material::Lambert { albedo }
-        | Material::Phong { albedo, .. }
-        | Material::BlinnPhong { albedo, .. }
-        | Material::Ward { albedo, .. }
-        | Material::CookTorrance { albedo, .. }
-        | Material::Mirror { albedo, .. } => *albedo,
-    }
-}
-
 fn shard_range(count: u64, shard: Option<(u32, u32)>) -> (u64, u64) {
     match shard {
         None => (0, count),
@@ -179,7 +168,7 @@ pub fn bake(
         albedo: scene
             .meshes
             .iter()
-            .map(|m| diffuse_albedo(&scene.materials[m.material]))
+            .map(|m| scene.materials[m.material].albedo())
             .collect(),
     };
     let vertex_mode = settings.points == PointKind::Vertex;
@@ -699,15 +688,7 @@ pub fn relit_diffuse(
             obj.order, env.order
         )));
     }
-    let block = obj
-        .blocks
-        .iter()
-        .find(|b| matches!(b.kind, TransferKind::InterreflectedDiffuse { .. }))
-        .or_else(|| {
-            obj.blocks
-                .iter()
-                .find(|b| b.kind == TransferKind::ShadowedDiffuse)
-        })
+    let block = diffuse_block(obj)
         .ok_or_else(|| bad(format!("object {} has no diffuse transfer", obj.name)))?;
     let ch = obj.channels as usize;
     Ok((0..obj.points_in_file as usize)
@@ -722,4 +703,18 @@ pub fn relit_diffuse(
             rgb
         })
         .collect())
+}
+
+/// The diffuse transfer block relighting uses: the interreflected one if the object has it,
+/// else the shadowed one.
+#[must_use]
+pub fn diffuse_block(obj: &ObjectBake) -> Option<&TransferBlock> {
+    obj.blocks
+        .iter()
+        .find(|b| matches!(b.kind, TransferKind::InterreflectedDiffuse { .. }))
+        .or_else(|| {
+            obj.blocks
+                .iter()
+                .find(|b| b.kind == TransferKind::ShadowedDiffuse)
+        })
 }

@@ -1,100 +1,11 @@
 //! `prt relight`: its JSON, the bake check, bit-equality of `--adaptive --threshold 0` with full
 //! order, the ROI picture, rotating-environment frames, and bad options.
 
-use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn prt() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_prt"))
-}
-
-fn run(cmd: &mut Command) -> Output {
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{cmd:?} failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn json(out: &Output) -> Value {
-    serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
-}
-
-/// An "L": a 3×3-quad floor facing +Y and a 3×3-quad wall facing +Z (32 vertices), the wall
-/// glossy so that the specular path runs too.
-fn write_obj(path: &Path, n: usize) {
-    let mut floor = String::from("# floor\n");
-    let mut wall = String::from("# wall\n");
-    for j in 0..=n {
-        for i in 0..=n {
-            let (u, v) = (i as f32 / n as f32 - 0.5, j as f32 / n as f32);
-            floor += &format!("v {u} 0 {}\n", v - 0.5);
-            wall += &format!("v {u} {v} -0.5\n");
-        }
-    }
-    let w = n + 1;
-    for j in 0..n {
-        for i in 0..n {
-            let a = 1 + j * w + i;
-            let (b, c, d) = (a + 1, a + w, a + w + 1);
-            floor += &format!("f {a} {c} {b}\nf {b} {c} {d}\n");
-            wall += &format!("f {a} {b} {c}\nf {b} {d} {c}\n");
-        }
-    }
-    std::fs::write(path.with_file_name("floor.obj"), floor).unwrap();
-    std::fs::write(path.with_file_name("wall.obj"), wall).unwrap();
-}
-
-/// The tiny scene: 24×16 pixels, a 16×8 lat-long map with a bright patch.
-fn write_scene(dir: &Path, n: usize) -> PathBuf {
-    write_obj(&dir.join("x.obj"), n);
-    exr::prelude::write_rgb_file(dir.join("env.exr"), 16, 8, |x, y| {
-        let sky = if y < 4 { 1.0 + 0.1 * x as f32 } else { 0.3 };
-        let sun = if (x, y) == (5, 2) { 20.0 } else { 0.0 };
-        (sky + sun, 0.9 * sky + sun, 0.7 * sky + sun)
-    })
-    .unwrap();
-    let scene = dir.join("scene.toml");
-    std::fs::write(
-        &scene,
-        r#"[camera]
-eye = [0.3, 0.7, 1.8]
-target = [0.0, 0.3, 0.0]
-fov_y = 45.0
-resolution = [24, 16]
-
-[environment]
-file = "env.exr"
-
-[materials.clay]
-type = "lambert"
-albedo = [0.8, 0.6, 0.4]
-
-[materials.gloss]
-type = "phong"
-albedo = [0.3, 0.3, 0.5]
-specular = [0.4, 0.4, 0.4]
-exponent = 12.0
-
-[[objects]]
-mesh = "floor.obj"
-material = "clay"
-
-[[objects]]
-mesh = "wall.obj"
-material = "gloss"
-
-[render]
-bounces = 1
-"#,
-    )
-    .unwrap();
-    scene
-}
+use common::{json, prt, run, write_scene};
+use std::path::Path;
+use std::process::Command;
 
 fn fail(cmd: &mut Command) -> String {
     let out = cmd.output().unwrap();

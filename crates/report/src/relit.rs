@@ -182,23 +182,15 @@ pub fn relight(
         let order = opt.order.unwrap_or(baked).min(baked).min(env_order);
         stats.order = stats.order.max(order);
         let relighter = Relighter::new(order)?;
-        let diffuse_block = obj
-            .blocks
-            .iter()
-            .find(|b| matches!(b.kind, TransferKind::InterreflectedDiffuse { .. }))
-            .or_else(|| {
-                obj.blocks
-                    .iter()
-                    .find(|b| b.kind == TransferKind::ShadowedDiffuse)
-            })
-            .ok_or_else(|| ReportError::BakeMismatch {
+        let diffuse_block =
+            prt_bake::diffuse_block(obj).ok_or_else(|| ReportError::BakeMismatch {
                 path: PathBuf::from("<bake>"),
                 reason: format!("object {} has no diffuse transfer", obj.name),
             })?;
         let channels = obj.channels as usize;
         let diffuse_data = truncate(&diffuse_block.data, baked, order, channels, channels);
         let diffuse_view = TransferView::new(order, channels, &diffuse_data)?;
-        let albedo = material_albedo(material);
+        let albedo = material.albedo();
         let dparams = DiffuseParams::from_albedo(albedo);
         let phong = match material {
             Material::Phong {
@@ -215,7 +207,7 @@ pub fn relight(
                 stats.notes.push(format!(
                     "{}: the specular lobe of a {} material is not relit (diffuse part only)",
                     obj.name,
-                    material_type(other)
+                    other.type_name()
                 ));
                 None
             }
@@ -425,28 +417,4 @@ fn sum_terms(d: &[[f32; 3]], s: &[[f32; 3]], n: usize) -> Vec<[f32; 3]> {
             [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
         })
         .collect()
-}
-
-/// The diffuse albedo of a material (every material has one).
-#[must_use]
-pub fn material_albedo(m: &Material) -> [f32; 3] {
-    match m {
-        Material::Lambert { albedo }
-        | Material::Phong { albedo, .. }
-        | Material::BlinnPhong { albedo, .. }
-        | Material::Ward { albedo, .. }
-        | Material::CookTorrance { albedo, .. }
-        | Material::Mirror { albedo, .. } => *albedo,
-    }
-}
-
-fn material_type(m: &Material) -> &'static str {
-    match m {
-        Material::Lambert { .. } => "lambert",
-        Material::Phong { .. } => "phong",
-        Material::BlinnPhong { .. } => "blinn_phong",
-        Material::Ward { .. } => "ward",
-        Material::CookTorrance { .. } => "cook_torrance",
-        Material::Mirror { .. } => "mirror",
-    }
 }

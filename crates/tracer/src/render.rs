@@ -271,7 +271,7 @@ impl<'s> Renderer<'s> {
                             if aov {
                                 let ns = if v.ns.dot(dir) > 0.0 { -v.ns } else { v.ns };
                                 normal += ns.as_dvec3();
-                                albedo += material_albedo(v.mat).as_dvec3();
+                                albedo += Vec3::from_array(v.mat.albedo()).as_dvec3();
                                 depth += f64::from(hit.t);
                             }
                             self.li_surface(v, -dir, &mut s)
@@ -375,17 +375,4 @@ impl<'s> Renderer<'s> {
     pub fn mode(&self) -> Mode {
         self.settings.mode
     }
-}
-
-/// The diffuse reflectance of a material (its `albedo`).
-fn material_albedo(m: &Material) -> Vec3 {
-    let a = match m {
-        Material::Lambert { albedo }
-        | Material::Phong { albedo, .. }
-        | Material::BlinnPhong { albedo, .. }
-        | Material::Ward { albedo, .. }
-        | Material::CookTorrance { albedo, .. }
-        | Material::Mirror { albedo, .. } => albedo,
-    };
-    Vec3::from_array(*a)
 }
