@@ -4,7 +4,9 @@
 //! and how much time does it save?" ([`report`]).
 //!
 //! The relighting follows Sloan, Kautz & Snyder 2002 (diffuse PRT) and Lee & Kim 2014 (specular
-//! PRT through SH products and locally adaptive SH), as implemented by `prt-relight`; image
+//! PRT through SH products and locally adaptive SH), as implemented by `prt-relight`, and, for
+//! Blinn–Phong, Ward and Cook–Torrance, Kautz, Sloan & Snyder 2002 (per-view-elevation BRDF
+//! projections, [`glossy`]); image
 //! formation interpolates per-vertex radiance over the triangles hit by the scene camera's rays
 //! (Gouraud), which is the approximation per-pixel bakes avoid.
 
