@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use prt_bakefile::SampleKind;
-use prt_relight::{AdaptiveParams, Threshold};
+use prt_relight::{AdaptiveParams, StopRule, Threshold};
 use prt_report::{RelightOptions, RelightStats};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -26,8 +26,20 @@ pub struct RelightArgs {
     #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     pub threshold: f32,
     /// Read --threshold as a fraction of the frame's mean radiance instead.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "display_threshold")]
     pub relative_threshold: bool,
+    /// Measure --threshold on the display instead: in units of the [0, 1] colour of the PNG
+    /// view (exposure --exposure, clamp, sRGB), diffuse and specular seen together.
+    #[arg(long)]
+    pub display_threshold: bool,
+    /// Exposure of the PNG view and of --display-threshold, stops.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub exposure: f32,
+    /// Adaptive: when a vertex stops adding levels. `convergence`: once its last two levels
+    /// changed it by less than T; `significance`: Lee & Kim's Algorithm 1, at the first level
+    /// where its accumulated difference from the base is below T; `either`: whichever first.
+    #[arg(long, value_enum, default_value_t = StopArg::Convergence)]
+    pub stop: StopArg,
     /// Rotate the environment about +Y by this many degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub rotate_y: f64,
@@ -51,6 +63,17 @@ pub struct RelightArgs {
     pub json: bool,
 }
 
+/// `--stop` values (see [`StopRule`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum StopArg {
+    /// The value has converged (the default).
+    Convergence,
+    /// Lee & Kim's Algorithm 1.
+    Significance,
+    /// Whichever comes first.
+    Either,
+}
+
 /// Runs `prt relight`.
 pub fn run(args: &RelightArgs) -> Result<()> {
     if args.frames == 0 {
@@ -62,6 +85,12 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     if !args.rotate_y.is_finite() || !args.rotate_y_step.is_finite() {
         bail!("--rotate-y and --rotate-y-step must be finite");
     }
+    if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
+        bail!("--exposure must be a finite number of stops within ±64");
+    }
+    if args.display_threshold && !args.adaptive {
+        bail!("--display-threshold needs --adaptive");
+    }
     if args.roi_png.is_some() && !args.adaptive {
         bail!("--roi-png needs --adaptive");
     }
@@ -71,12 +100,21 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     let per_pixel = matches!(bake.meta.sample_kind, SampleKind::Pixel { .. });
     let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
     let adaptive = args.adaptive.then(|| AdaptiveParams {
-        threshold: if args.relative_threshold {
+        stop: match args.stop {
+            StopArg::Convergence => StopRule::Convergence,
+            StopArg::Significance => StopRule::Significance,
+            StopArg::Either => StopRule::Either,
+        },
+        ..AdaptiveParams::new(if args.relative_threshold {
             Threshold::RelativeToMean(args.threshold)
+        } else if args.display_threshold {
+            Threshold::Display {
+                t: args.threshold,
+                exposure_ev: args.exposure,
+            }
         } else {
             Threshold::Absolute(args.threshold)
-        },
-        ..AdaptiveParams::thesis()
+        })
     });
     let mut opt = RelightOptions {
         order: args.order,
@@ -110,7 +148,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         prt_report::io::write_exr(p, &image, &attrs)?;
     }
     if let Some(p) = &args.png {
-        prt_report::io::write_png(p, &image, 0.0)?;
+        prt_report::io::write_png(p, &image, args.exposure)?;
     }
     if let Some(p) = &args.roi_png {
         let roi = prt_report::roi_image(&scene, &accel, &relit)?;

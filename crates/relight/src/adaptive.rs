@@ -5,13 +5,14 @@
 use crate::adjacency::Adjacency;
 use crate::error::RelightError;
 use crate::input::{DiffuseParams, SpecularInput, TransferView};
-use crate::kernel::{Accum, CHUNK};
+use crate::kernel::{Accum, Measure, Stop, BLOCK, CHUNK};
 use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
 
-/// The ROI threshold `T` on the accumulated high-order difference `max_c |D_c|` of a point.
+/// The threshold `T` of the stopping tests ([`StopRule`]): on the accumulated high-order
+/// difference `D` of a point, or on the change of its last two levels.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub enum Threshold {
     /// `T` in units of output radiance. Lee & Kim use `T = 0.02` on colours normalised to
@@ -21,6 +22,31 @@ pub enum Threshold {
     /// `T = factor × ` the frame's mean base radiance (over points and channels, diffuse plus
     /// specular, bands `0..3` — the only frame-wide figure known before the adaptive levels).
     RelativeToMean(f32),
+    /// `t` on the display, in the units of the 8-bit view normalised to [0, 1] (CONVENTIONS:
+    /// radiance times `2^exposure_ev`, clamped to [0, 1], sRGB curve; one 8-bit step is
+    /// 1/255): a change counts by how much it changes the shown colour, so changes above white
+    /// count for nothing and changes in the dark count more. This is the reading of the
+    /// thesis' "T = 0.02 on 8-bit normalised values" closest to what `psnr_ldr` measures. The
+    /// shown colour is diffuse plus specular: the specular term is filtered against the diffuse
+    /// base, then the diffuse term against the final specular.
+    Display {
+        /// `T`, as a fraction of the display range.
+        t: f32,
+        /// Exposure of the display, stops.
+        exposure_ev: f32,
+    },
+}
+
+impl Threshold {
+    /// How the tests measure changes.
+    fn measure(self) -> Measure {
+        match self {
+            Self::Display { exposure_ev, .. } => Measure::Display {
+                scale: exposure_ev.exp2(),
+            },
+            _ => Measure::Radiance,
+        }
+    }
 }
 
 /// Parameters of the adaptive path.
@@ -32,16 +58,72 @@ pub struct AdaptiveParams {
     pub refine: bool,
     /// Smooth the ROI boundary over two tiers of neighbours (5.2.2).
     pub smooth: bool,
+    /// When a point stops adding levels.
+    pub stop: StopRule,
+}
+
+/// When a point stops adding levels (each test is made after every level above the base).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum StopRule {
+    /// Lee & Kim's Algorithm 1: stop after the first level where the accumulated high-order
+    /// difference from the base is insignificant, `max_c |D_c| < T` (the point leaves the ROI).
+    /// Points whose difference stays significant go on to the target order.
+    Significance,
+    /// Stop once the last two levels together changed the point's value by less than `T`
+    /// (`max_c scale_c (|δ_l,c| + |δ_l−1,c|) < T`, from level 4 on): the value has converged and
+    /// the remaining bands are estimated to matter less than `T`. Two levels, because one band
+    /// alone can vanish while the next does not (the clamped cosine has no odd bands ≥ 3).
+    /// Nothing is truncated by significance, so refinement and smoothing have nothing to do.
+    Convergence,
+    /// Whichever of the two comes first; refinement continues the insignificant points
+    /// until they converge.
+    Either,
+}
+
+impl StopRule {
+    /// The kernel's stopping rules for threshold `t` in the filtering pass and in refinement.
+    pub(crate) fn rules(self, t: f32, measure: Measure) -> (Stop, Stop) {
+        let converged = matches!(self, Self::Convergence | Self::Either).then_some(t);
+        let insignificant = matches!(self, Self::Significance | Self::Either).then_some(t);
+        (
+            Stop {
+                insignificant,
+                converged,
+                measure,
+            },
+            Stop {
+                insignificant: None,
+                converged,
+                measure,
+            },
+        )
+    }
 }
 
 impl AdaptiveParams {
-    /// The thesis' setting: `T = 0.02` absolute, refinement and smoothing on.
+    /// The recommended setting for threshold `threshold`: [`StopRule::Convergence`] (each
+    /// point gets its own order, level by level, and stops once its value has settled), with
+    /// refinement and smoothing on (they act only on points truncated by significance, so
+    /// they matter with [`StopRule::Either`] or [`StopRule::Significance`]).
+    #[must_use]
+    pub const fn new(threshold: Threshold) -> Self {
+        Self {
+            threshold,
+            refine: true,
+            smooth: true,
+            stop: StopRule::Convergence,
+        }
+    }
+
+    /// The thesis' setting: `T = 0.02` absolute, [`StopRule::Significance`], refinement and
+    /// smoothing on.
     #[must_use]
     pub const fn thesis() -> Self {
         Self {
             threshold: Threshold::Absolute(0.02),
             refine: true,
             smooth: true,
+            stop: StopRule::Significance,
         }
     }
 
@@ -52,6 +134,7 @@ impl AdaptiveParams {
             threshold: Threshold::Absolute(0.0),
             refine: true,
             smooth: true,
+            stop: StopRule::Either,
         }
     }
 }
@@ -79,10 +162,15 @@ pub struct TermStats {
     pub initial_roi_fraction: f64,
     /// Fraction significant at full order after refinement (the final ROI).
     pub roi_fraction: f64,
-    /// Fraction shaded at full order in the end (ROI plus neighbours tested by the refinement).
+    /// Fraction shaded up to the top level in the end (ROI plus neighbours tested by the
+    /// refinement, less the points that converged earlier).
     pub full_order_fraction: f64,
+    /// Fraction whose value converged below the top level ([`StopRule::Convergence`]).
+    pub converged_fraction: f64,
     /// `1 − full_order_fraction`: the thesis' "filtering ratio" (Table 6.1).
     pub filtered_out_fraction: f64,
+    /// Mean number of bands shaded per active point (the order a point ended at, averaged).
+    pub mean_order: f64,
     /// Points tested at full order by the refinement.
     pub refined_points: usize,
     /// Breadth-first rounds of the refinement.
@@ -128,8 +216,11 @@ pub struct AdaptiveFrame {
     pub stats: FrameStats,
 }
 
-/// Evaluates a point: `(point, previous sums or None, last level, threshold, scratch) → sums`.
-type Eval<'a> = dyn Fn(usize, Option<Accum>, usize, Option<f32>, &mut [f32]) -> Accum + Sync + 'a;
+/// Evaluates a block of points in place: `(points, sums, fresh, last level, stopping rules,
+/// scratch)`; with `fresh` the sums are started from the base, otherwise continued.
+type Eval<'a> = dyn Fn(&[usize], &mut [Accum], bool, usize, Stop, Option<&[[f32; 3]]>, &mut Vec<f32>)
+    + Sync
+    + 'a;
 
 impl Relighter {
     /// Shades one frame adaptively (Lee & Kim 2014, Algorithms 1–3, 5.2.1, 5.2.2), diffuse and
@@ -164,7 +255,7 @@ impl Relighter {
             });
         }
         let (t_raw, relative) = match params.threshold {
-            Threshold::Absolute(t) => (t, false),
+            Threshold::Absolute(t) | Threshold::Display { t, .. } => (t, false),
             Threshold::RelativeToMean(t) => (t, true),
         };
         if t_raw.is_nan() || t_raw < 0.0 || t_raw.is_infinite() {
@@ -172,16 +263,37 @@ impl Relighter {
                 "threshold {t_raw} must be finite and ≥ 0"
             )));
         }
+        if let Threshold::Display { exposure_ev, .. } = params.threshold {
+            if !exposure_ev.is_finite() || exposure_ev.abs() > 64.0 {
+                return Err(RelightError::InvalidParameter(format!(
+                    "display exposure {exposure_ev} EV must be finite and within ±64 stops"
+                )));
+            }
+        }
+        let measure = params.threshold.measure();
+        let display = matches!(measure, Measure::Display { .. });
 
         let n2 = self.order() * self.order();
         let diffuse_eval = input.diffuse.as_ref().map(|(t, p)| {
             let kernel = self.diffuse_kernel(frame);
             let (t, scale) = (*t, p.albedo_over_pi);
-            move |v: usize, prev: Option<Accum>, to: usize, th: Option<f32>, _: &mut [f32]| {
-                let x = t.point(v);
-                let mut acc = prev.unwrap_or_else(|| kernel.base(x, t.channels, scale));
-                kernel.extend(&mut acc, x, t.channels, to, th);
-                acc
+            move |pts: &[usize],
+                  accs: &mut [Accum],
+                  fresh: bool,
+                  to: usize,
+                  stop: Stop,
+                  offsets: Option<&[[f32; 3]]>,
+                  _: &mut Vec<f32>| {
+                for (&v, acc) in pts.iter().zip(accs.iter_mut()) {
+                    let x = t.point(v);
+                    if fresh {
+                        *acc = kernel.base(x, t.channels, scale);
+                    }
+                    if let Some(o) = offsets {
+                        acc.offset = o[v];
+                    }
+                    kernel.extend(acc, x, t.channels, to, stop);
+                }
             }
         });
         let specular_eval = match &input.specular {
@@ -191,24 +303,37 @@ impl Relighter {
                 let lobe = self.lobe(&s.phong)?;
                 let s = *s;
                 Some(
-                    move |v: usize,
-                          prev: Option<Accum>,
+                    move |pts: &[usize],
+                          accs: &mut [Accum],
+                          fresh: bool,
                           to: usize,
-                          th: Option<f32>,
-                          w: &mut [f32]| {
-                        let g = specular_point(&s, v);
-                        if !g.active {
-                            return Accum {
-                                last_level: top as u16,
-                                inactive: true,
-                                ..Accum::default()
-                            };
+                          stop: Stop,
+                          offsets: Option<&[[f32; 3]]>,
+                          w: &mut Vec<f32>| {
+                        w.resize(pts.len() * n2, 0.0);
+                        let mut vis: Vec<&[f32]> = Vec::with_capacity(pts.len());
+                        for (k, (&v, acc)) in pts.iter().zip(accs.iter_mut()).enumerate() {
+                            let x = s.visibility.point(v);
+                            vis.push(x);
+                            let g = specular_point(&s, v);
+                            if !g.active {
+                                *acc = Accum {
+                                    last_level: top as u16,
+                                    inactive: true,
+                                    ..Accum::default()
+                                };
+                                continue;
+                            }
+                            let wk = &mut w[k * n2..(k + 1) * n2];
+                            self.weights(&lobe, g.reflection, wk);
+                            if fresh {
+                                *acc = kernel.base(x, wk, g.scale);
+                            }
+                            if let Some(o) = offsets {
+                                acc.offset = o[v];
+                            }
                         }
-                        self.weights(&lobe, g.reflection, w);
-                        let x = s.visibility.point(v);
-                        let mut acc = prev.unwrap_or_else(|| kernel.base(x, w, g.scale));
-                        kernel.extend(&mut acc, x, w, to, th);
-                        acc
+                        kernel.extend_block(accs, &vis, w, to, stop);
                     },
                 )
             }
@@ -224,7 +349,9 @@ impl Relighter {
             let mut sum = 0.0f64;
             for (k, eval) in terms.iter().enumerate() {
                 if let Some(eval) = eval {
-                    let acc = evaluate_all(points, n2, |v, s| eval(v, None, b - 1, None, s));
+                    let acc = evaluate_all(points, None, |pts, a, fresh, s| {
+                        eval(pts, a, fresh, b - 1, Stop::NEVER, None, s)
+                    });
                     sum += acc
                         .iter()
                         .map(|a| {
@@ -250,15 +377,31 @@ impl Relighter {
         let mut roi: [Vec<bool>; 2] = [Vec::new(), Vec::new()];
         let mut stats: [Option<TermStats>; 2] = [None, None];
         let (full_d, full_s) = self.full_products();
-        for (k, eval) in terms.iter().enumerate() {
-            let Some(eval) = eval else { continue };
+        // On the display both terms are seen together: the specular term is filtered first,
+        // against the diffuse base, then the diffuse term against the final specular.
+        let both = terms[0].is_some() && terms[1].is_some();
+        let sequence = if display && both { [1, 0] } else { [0, 1] };
+        if display && both && bases[0].is_none() {
+            let eval = terms[0].expect("diffuse term");
+            bases[0] = Some(evaluate_all(points, None, |pts, a, fresh, s| {
+                eval(pts, a, fresh, b - 1, Stop::NEVER, None, s)
+            }));
+        }
+        for k in sequence {
+            let Some(eval) = terms[k] else { continue };
             let t0 = Instant::now();
-            let mut acc = match bases[k].take() {
-                Some(base) => evaluate_all(points, n2, |v, s| {
-                    eval(v, Some(base[v]), top, Some(threshold), s)
-                }),
-                None => evaluate_all(points, n2, |v, s| eval(v, None, top, Some(threshold), s)),
+            let (filter, test) = params.stop.rules(threshold, measure);
+            let offsets: Option<Vec<[f32; 3]>> = match (display && both, k) {
+                (false, _) => None,
+                (true, 1) => bases[0]
+                    .as_ref()
+                    .map(|b| b.iter().map(Accum::radiance).collect()),
+                (true, _) => Some(radiance[1].clone()),
             };
+            let offsets = offsets.as_deref();
+            let mut acc = evaluate_all(points, bases[k].take(), |pts, a, fresh, s| {
+                eval(pts, a, fresh, top, filter, offsets, s)
+            });
             let mut st = TermStats::default();
             let active: Vec<bool> = acc.iter().map(|a| !a.inactive).collect();
             st.active_points = active.iter().filter(|a| **a).count();
@@ -272,18 +415,20 @@ impl Relighter {
                 })
                 .collect();
             let significant = |a: &Accum| {
-                !a.inactive && a.last_level as usize == top && a.significance() >= threshold
+                !a.inactive && a.complete(top) && a.significance_in(measure) >= threshold
             };
             st.initial_roi_fraction = acc.iter().filter(|a| significant(a)).count() as f64 / denom;
-            let any_truncated = acc
-                .iter()
-                .any(|a| !a.inactive && (a.last_level as usize) < top);
+            let any_truncated = acc.iter().any(|a| !a.complete(top));
             if params.refine && any_truncated {
-                let (rounds, tested) =
-                    refine_roi(input.adjacency, &mut acc, top, threshold, |v, a| {
-                        let mut w = vec![0.0f32; n2];
-                        eval(v, Some(a), top, None, &mut w)
-                    });
+                // Tested neighbours go on to the top level, or until they converge.
+                let (rounds, tested) = refine_roi(
+                    input.adjacency,
+                    &mut acc,
+                    top,
+                    threshold,
+                    measure,
+                    |pts, a, w| eval(pts, a, false, top, test, offsets, w),
+                );
                 st.refinement_rounds = rounds;
                 st.refined_points = tested;
             }
@@ -294,7 +439,18 @@ impl Relighter {
                 .filter(|a| !a.inactive && a.last_level as usize == top)
                 .count() as f64
                 / denom;
+            st.converged_fraction = acc
+                .iter()
+                .filter(|a| !a.inactive && a.converged && (a.last_level as usize) < top)
+                .count() as f64
+                / denom;
             st.filtered_out_fraction = 1.0 - st.full_order_fraction;
+            st.mean_order = acc
+                .iter()
+                .filter(|a| !a.inactive)
+                .map(|a| f64::from(a.last_level) + 1.0)
+                .sum::<f64>()
+                / denom;
             let mut out: Vec<[f32; 3]> = acc.iter().map(Accum::radiance).collect();
             if params.smooth && any_truncated {
                 let (corrections, tiers) = smooth_boundary(input.adjacency, &acc, top);
@@ -329,39 +485,45 @@ impl Relighter {
     }
 }
 
-/// Runs `f(point, scratch)` for every point in parallel chunks (scratch of `n2` floats per chunk).
+/// Runs `f(points, sums, fresh, scratch)` over every point in parallel blocks of
+/// [`BLOCK`] points. The sums start from `start` (`fresh = false`) or from defaults
+/// (`fresh = true`: `f` computes the base).
 fn evaluate_all(
     points: usize,
-    n2: usize,
-    f: impl Fn(usize, &mut [f32]) -> Accum + Sync,
+    start: Option<Vec<Accum>>,
+    f: impl Fn(&[usize], &mut [Accum], bool, &mut Vec<f32>) + Sync,
 ) -> Vec<Accum> {
-    let mut acc = vec![Accum::default(); points];
+    let fresh = start.is_none();
+    let mut acc = start.unwrap_or_else(|| vec![Accum::default(); points]);
     acc.par_chunks_mut(CHUNK)
         .enumerate()
-        .for_each(|(ci, chunk)| {
-            let mut w = vec![0.0f32; n2];
-            for (k, a) in chunk.iter_mut().enumerate() {
-                *a = f(ci * CHUNK + k, &mut w);
+        .for_each_init(Vec::new, |scratch, (ci, chunk)| {
+            for (bi, block) in chunk.chunks_mut(BLOCK).enumerate() {
+                let first = ci * CHUNK + bi * BLOCK;
+                let pts: Vec<usize> = (first..first + block.len()).collect();
+                f(&pts, block, fresh, scratch);
             }
         });
     acc
 }
 
-/// ROI refinement (Lee & Kim 2014, 5.2.1): breadth-first from the significant full-order
-/// points, each round evaluates (in parallel) the not-yet-full-order neighbours of the points
-/// that became significant in the previous round, at full order, and continues from those that
-/// are significant (`max_c |D_c| ≥ threshold`). Tested points keep their full-order value.
-/// Returns (rounds, points tested).
+/// ROI refinement (Lee & Kim 2014, 5.2.1): breadth-first from the significant complete points
+/// (shaded to the top level or converged), each round evaluates (in parallel) the truncated
+/// neighbours of the points that became significant in the previous round with `full` (to the
+/// top level, or until converged), and continues from those that are significant
+/// (`max_c |D_c| ≥ threshold`). Tested points keep their new value. `full(points, sums,
+/// scratch)` continues a block of points in place. Returns (rounds, points tested).
 pub(crate) fn refine_roi(
     adjacency: &Adjacency,
     acc: &mut [Accum],
     top: usize,
     threshold: f32,
-    full: impl Fn(usize, Accum) -> Accum + Sync,
+    measure: Measure,
+    full: impl Fn(&[usize], &mut [Accum], &mut Vec<f32>) + Sync,
 ) -> (usize, usize) {
-    let complete = |a: &Accum| a.inactive || a.last_level as usize == top;
+    let complete = |a: &Accum| a.complete(top);
     let significant =
-        |a: &Accum| !a.inactive && a.last_level as usize == top && a.significance() >= threshold;
+        |a: &Accum| !a.inactive && a.complete(top) && a.significance_in(measure) >= threshold;
     let mut seeds: Vec<usize> = (0..acc.len()).filter(|&v| significant(&acc[v])).collect();
     let (mut rounds, mut tested) = (0, 0);
     loop {
@@ -378,7 +540,15 @@ pub(crate) fn refine_roi(
         rounds += 1;
         tested += frontier.len();
         let snapshot: &[Accum] = acc;
-        let evaluated: Vec<Accum> = frontier.par_iter().map(|&v| full(v, snapshot[v])).collect();
+        let evaluated: Vec<Accum> = frontier
+            .par_chunks(BLOCK)
+            .map_init(Vec::new, |w, pts| {
+                let mut a: Vec<Accum> = pts.iter().map(|&v| snapshot[v]).collect();
+                full(pts, &mut a, w);
+                a
+            })
+            .flatten_iter()
+            .collect();
         seeds.clear();
         for (&v, a) in frontier.iter().zip(evaluated) {
             acc[v] = a;
@@ -389,7 +559,8 @@ pub(crate) fn refine_roi(
     }
 }
 
-/// Boundary smoothing (Lee & Kim 2014, 5.2.2). Sources are the points shaded at full order;
+/// Boundary smoothing (Lee & Kim 2014, 5.2.2). Sources are the complete points (shaded to the
+/// top level, or converged);
 /// tier 1 are truncated points next to a source, tier 2 truncated points next to tier 1 (and
 /// not in it). The extrapolated correction is the mean correction `D` of the adjacent sources
 /// (tier 1) or the mean extrapolated correction of the adjacent tier-1 points (tier 2), and it
@@ -401,8 +572,8 @@ pub(crate) fn smooth_boundary(
     acc: &[Accum],
     top: usize,
 ) -> (Vec<(usize, [f32; 3])>, [usize; 2]) {
-    let source = |a: &Accum| !a.inactive && a.last_level as usize == top;
-    let truncated = |a: &Accum| !a.inactive && (a.last_level as usize) < top;
+    let source = |a: &Accum| !a.inactive && a.complete(top);
+    let truncated = |a: &Accum| !a.complete(top);
     let mean_of = |items: &mut dyn Iterator<Item = [f32; 3]>| {
         let (mut s, mut n) = ([0.0f32; 3], 0u32);
         for d in items {
@@ -475,6 +646,7 @@ mod tests {
             last_level,
             products: 0,
             inactive: false,
+            ..Accum::default()
         }
     }
 
@@ -492,7 +664,11 @@ mod tests {
         let mut a: Vec<Accum> = (0..12)
             .map(|v| if v == 0 { acc(5, 1.0) } else { acc(3, 0.0) })
             .collect();
-        let (rounds, tested) = refine_roi(&adj, &mut a, 5, 0.1, |v, _| acc(5, full_high[v]));
+        let (rounds, tested) = refine_roi(&adj, &mut a, 5, 0.1, Measure::Radiance, |pts, a, _| {
+            for (&v, x) in pts.iter().zip(a.iter_mut()) {
+                *x = acc(5, full_high[v]);
+            }
+        });
         assert_eq!((rounds, tested), (3, 5));
         let full: Vec<usize> = (0..12).filter(|&v| a[v].last_level == 5).collect();
         assert_eq!(full, vec![0, 1, 2, 3, 4, 5]);

@@ -73,7 +73,7 @@ mod kernel;
 mod relighter;
 
 pub use adaptive::{
-    AdaptiveFrame, AdaptiveInput, AdaptiveParams, FrameStats, TermStats, Threshold,
+    AdaptiveFrame, AdaptiveInput, AdaptiveParams, FrameStats, StopRule, TermStats, Threshold,
 };
 pub use adjacency::Adjacency;
 pub use error::RelightError;

@@ -2,7 +2,7 @@
 
 use crate::error::RelightError;
 use crate::input::{DiffuseParams, Lighting, PhongParams, SpecularInput, TransferView, Viewer};
-use crate::kernel::{DiffuseKernel, SpecularKernel, CHUNK};
+use crate::kernel::{Accum, DiffuseKernel, SpecularKernel, Stop, BLOCK, CHUNK};
 use glam::Vec3;
 use prt_sh::{zonal, Basis, GauntTensor, MAX_GAUNT_ORDER};
 use rayon::prelude::*;
@@ -155,11 +155,11 @@ impl Relighter {
             .products
             .as_ref()
             .ok_or(RelightError::MissingProducts)?;
-        Ok(SpecularKernel {
-            products: [&p[0], &p[1], &p[2]],
-            row_offsets: &self.row_offsets,
-            order: self.order,
-        })
+        Ok(SpecularKernel::new(
+            [&p[0], &p[1], &p[2]],
+            &self.row_offsets,
+            self.order,
+        ))
     }
 
     /// Full-order diffuse radiance per point: `albedo/π ⊙ (L_c · T_c)` for each channel `c`
@@ -183,7 +183,7 @@ impl Relighter {
                 for (k, o) in chunk.iter_mut().enumerate() {
                     let t = transfer.point(ci * CHUNK + k);
                     let mut acc = kernel.base(t, transfer.channels, params.albedo_over_pi);
-                    kernel.extend(&mut acc, t, transfer.channels, top, None);
+                    kernel.extend(&mut acc, t, transfer.channels, top, Stop::NEVER);
                     *o = acc.radiance();
                 }
             });
@@ -269,18 +269,36 @@ impl Relighter {
         out.par_chunks_mut(CHUNK)
             .enumerate()
             .for_each(|(ci, chunk)| {
-                let mut w = vec![0.0f32; n2];
-                for (k, o) in chunk.iter_mut().enumerate() {
-                    let p = ci * CHUNK + k;
-                    let g = specular_point(input, p);
-                    if !g.active {
-                        continue;
+                let mut w = vec![0.0f32; BLOCK * n2];
+                let mut accs = [Accum::default(); BLOCK];
+                for (bi, block) in chunk.chunks_mut(BLOCK).enumerate() {
+                    let first = ci * CHUNK + bi * BLOCK;
+                    let accs = &mut accs[..block.len()];
+                    let mut vis: Vec<&[f32]> = Vec::with_capacity(block.len());
+                    for (k, acc) in accs.iter_mut().enumerate() {
+                        let p = first + k;
+                        let v = input.visibility.point(p);
+                        vis.push(v);
+                        let g = specular_point(input, p);
+                        if !g.active {
+                            *acc = Accum {
+                                inactive: true,
+                                ..Accum::default()
+                            };
+                            continue;
+                        }
+                        let wk = &mut w[k * n2..(k + 1) * n2];
+                        self.weights(&lobe, g.reflection, wk);
+                        *acc = kernel.base(v, wk, g.scale);
                     }
-                    self.weights(&lobe, g.reflection, &mut w);
-                    let v = input.visibility.point(p);
-                    let mut acc = kernel.base(v, &w, g.scale);
-                    kernel.extend(&mut acc, v, &w, top, None);
-                    *o = acc.radiance();
+                    kernel.extend_block(accs, &vis, &w, top, Stop::NEVER);
+                    for (o, acc) in block.iter_mut().zip(accs.iter()) {
+                        *o = if acc.inactive {
+                            [0.0; 3]
+                        } else {
+                            acc.radiance()
+                        };
+                    }
                 }
             });
         Ok(out)

@@ -6,7 +6,7 @@ mod common;
 use glam::DVec3;
 use prt_relight::{
     AdaptiveInput, AdaptiveParams, Adjacency, DiffuseParams, FrameLighting, Lighting, PhongParams,
-    RelightError, Relighter, SpecularInput, Surface, Threshold, TransferView, Viewer,
+    RelightError, Relighter, SpecularInput, StopRule, Surface, Threshold, TransferView, Viewer,
 };
 
 struct Scene {
@@ -89,24 +89,159 @@ fn rms(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
     (s / (3 * a.len()) as f64).sqrt()
 }
 
+/// Every stopping rule, with the threshold measured in radiance and on the display.
+fn all_params(t: f32) -> Vec<AdaptiveParams> {
+    let mut out = Vec::new();
+    for stop in [
+        StopRule::Significance,
+        StopRule::Convergence,
+        StopRule::Either,
+    ] {
+        for threshold in [
+            Threshold::Absolute(t),
+            Threshold::Display {
+                t,
+                exposure_ev: -1.0,
+            },
+        ] {
+            out.push(AdaptiveParams {
+                stop,
+                ..AdaptiveParams::new(threshold)
+            });
+        }
+    }
+    out
+}
+
 #[test]
 fn test01_threshold_zero_is_bit_identical_to_full_order() {
     for order in [2usize, 3, 4, 9] {
         let s = scene(order, 2);
         let (fd, fs) = s.full();
-        let out = s
-            .relighter
-            .adaptive(&s.input(), &s.frame, &AdaptiveParams::exact())
-            .unwrap();
-        assert_eq!(out.diffuse, fd, "order {order}");
-        assert_eq!(out.specular, fs, "order {order}");
-        for st in [out.stats.diffuse.unwrap(), out.stats.specular.unwrap()] {
-            assert_eq!(st.full_order_fraction, 1.0);
-            assert_eq!(st.products, st.full_order_products);
-            assert_eq!(st.refined_points, 0);
-            assert_eq!(st.smoothed_points, [0, 0]);
+        for p in [AdaptiveParams::exact()].into_iter().chain(all_params(0.0)) {
+            let out = s.relighter.adaptive(&s.input(), &s.frame, &p).unwrap();
+            assert_eq!(out.diffuse, fd, "order {order}, {p:?}");
+            assert_eq!(out.specular, fs, "order {order}, {p:?}");
+            for st in [out.stats.diffuse.unwrap(), out.stats.specular.unwrap()] {
+                assert_eq!(st.full_order_fraction, 1.0);
+                assert_eq!(st.converged_fraction, 0.0);
+                assert_eq!(st.mean_order, order as f64);
+                assert_eq!(st.products, st.full_order_products);
+                assert_eq!(st.refined_points, 0);
+                assert_eq!(st.smoothed_points, [0, 0]);
+            }
         }
     }
+}
+
+#[test]
+fn test07_convergence_and_display_thresholds_trade_error_for_work() {
+    // Same sphere as test02. For the convergence rule a point's stopping level can only fall
+    // as T grows (the test `change < T` passes at a level for T if it does for any smaller T),
+    // so work is monotone by construction; error is checked to rise on this scene. On the
+    // display the sRGB view of the per-vertex radiance (what psnr_ldr sees) is compared.
+    let s = scene(10, 3);
+    let (fd, fs) = s.full();
+    let shown = |d: &[[f32; 3]], sp: &[[f32; 3]], ev: f32| -> Vec<[f32; 3]> {
+        d.iter()
+            .zip(sp)
+            .map(|(a, b)| {
+                [0, 1, 2].map(|c| {
+                    let y = f64::from((a[c] + b[c]) * ev.exp2()).clamp(0.0, 1.0);
+                    (if y <= 0.003_130_8 {
+                        12.92 * y
+                    } else {
+                        1.055 * y.powf(1.0 / 2.4) - 0.055
+                    }) as f32
+                })
+            })
+            .collect()
+    };
+    for display in [false, true] {
+        let ev = -1.0f32;
+        let full_shown = shown(&fd, &fs, ev);
+        let mut last: Option<(f64, u64)> = None;
+        let mut ratio = 1.0;
+        for t in [0.0f32, 0.003, 0.01, 0.03, 0.1] {
+            let threshold = if display {
+                Threshold::Display { t, exposure_ev: ev }
+            } else {
+                Threshold::Absolute(t)
+            };
+            let out = s
+                .relighter
+                .adaptive(&s.input(), &s.frame, &AdaptiveParams::new(threshold))
+                .unwrap();
+            let (d, sp) = (out.stats.diffuse.unwrap(), out.stats.specular.unwrap());
+            let err = if display {
+                rms(&shown(&out.diffuse, &out.specular, ev), &full_shown)
+            } else {
+                rms(&out.diffuse, &fd).max(rms(&out.specular, &fs))
+            };
+            let work = d.products + sp.products;
+            ratio = work as f64 / (d.full_order_products + sp.full_order_products) as f64;
+            println!(
+                "display {display} T {t}: error {err:.2e}, work {:.3} of full, mean order d {:.2} s {:.2}, converged d {:.2} s {:.2}",
+                work as f64 / (d.full_order_products + sp.full_order_products) as f64,
+                d.mean_order,
+                sp.mean_order,
+                d.converged_fraction,
+                sp.converged_fraction
+            );
+            // Convergence truncates nothing by significance: nothing to refine or smooth.
+            assert_eq!(d.refined_points + sp.refined_points, 0);
+            assert_eq!(d.smoothed_points, [0, 0]);
+            if t > 0.0 {
+                // The remaining levels were estimated below T: the error stays of that order
+                // (a few T: the estimate is two levels, not a bound).
+                assert!(err < 3.0 * f64::from(t), "T {t}: error {err}");
+            }
+            if let Some((le, lw)) = last {
+                assert!(work <= lw, "work must not grow with T");
+                assert!(err >= le, "error must not fall as T grows (T = {t})");
+            }
+            last = Some((err, work));
+        }
+        // At T = 0.1 (a third of the mean radiance) most of the work is saved.
+        assert!(ratio < 0.5, "work {ratio} of full at T = 0.1");
+    }
+}
+
+#[test]
+fn test08_points_shown_white_stop_at_the_first_test_on_the_display() {
+    // Ten times the albedo at +6 EV: every diffuse point is shown white (checked). On the
+    // display a point goes on past the first test (level 4) only if its last two levels are
+    // large enough to bring it below white, `m > x − 2^-6`: a few points with strong band-3/4
+    // shadow detail (1.9 % here). In radiance, the same points mostly go on.
+    let s = scene(9, 2);
+    let mut i = s.input();
+    i.specular = None;
+    let (t, _) = i.diffuse.unwrap();
+    i.diffuse = Some((t, DiffuseParams::from_albedo([8.0; 3])));
+    let white = Threshold::Display {
+        t: 0.01,
+        exposure_ev: 6.0,
+    };
+    let out = s
+        .relighter
+        .adaptive(&i, &s.frame, &AdaptiveParams::new(white))
+        .unwrap();
+    let d = out.stats.diffuse.unwrap();
+    assert!(out.diffuse.iter().flatten().all(|v| v * 64.0 > 1.0));
+    println!("display: beyond level 4 {}", d.level_fraction[5]);
+    assert!(d.level_fraction[5] < 0.05);
+    assert_eq!(d.roi_fraction, 0.0);
+    let radiance = s
+        .relighter
+        .adaptive(
+            &i,
+            &s.frame,
+            &AdaptiveParams::new(Threshold::Absolute(0.01)),
+        )
+        .unwrap();
+    let r = radiance.stats.diffuse.unwrap();
+    println!("radiance: beyond level 4 {}", r.level_fraction[5]);
+    assert!(r.level_fraction[5] > 0.5);
 }
 
 #[test]
@@ -129,6 +264,7 @@ fn test02_error_grows_and_work_falls_with_the_threshold() {
                 threshold: Threshold::Absolute(t),
                 refine,
                 smooth,
+                stop: StopRule::Significance,
             };
             let out = s.relighter.adaptive(&s.input(), &s.frame, &p).unwrap();
             let (d, sp) = (out.stats.diffuse.unwrap(), out.stats.specular.unwrap());
@@ -171,11 +307,7 @@ fn test02_error_grows_and_work_falls_with_the_threshold() {
 #[test]
 fn test03_relative_threshold_resolves_to_the_mean_base_radiance() {
     let s = scene(6, 2);
-    let rel = AdaptiveParams {
-        threshold: Threshold::RelativeToMean(0.05),
-        refine: true,
-        smooth: true,
-    };
+    let rel = AdaptiveParams::new(Threshold::RelativeToMean(0.05));
     let a = s.relighter.adaptive(&s.input(), &s.frame, &rel).unwrap();
     // The mean base radiance recomputed independently in f64: diffuse albedo/π Σ_{i<9} L_i T_i;
     // specular (e+2)/(e+1) cos θ_o · ks Σ_{i,j<9} A_l y_i(r) M(L)_ij V_j, with M(L) the order-6
@@ -255,6 +387,7 @@ fn test04_bad_inputs_are_errors() {
         threshold: Threshold::Absolute(f32::NAN),
         refine: false,
         smooth: false,
+        stop: StopRule::Either,
     };
     assert!(matches!(
         s.relighter.adaptive(&s.input(), &s.frame, &p),

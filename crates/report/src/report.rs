@@ -368,10 +368,7 @@ pub fn run_report(
         };
         let full = relight(scene, &accel, &bake, &full_opt)?;
         let ad_opt = RelightOptions {
-            adaptive: Some(AdaptiveParams {
-                threshold: Threshold::Absolute(s.threshold),
-                ..AdaptiveParams::thesis()
-            }),
+            adaptive: Some(AdaptiveParams::new(Threshold::Absolute(s.threshold))),
             ..full_opt.clone()
         };
         let adaptive = relight(scene, &accel, &bake, &ad_opt)?;
