@@ -167,6 +167,13 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     }
     let s = &relit.stats;
     if args.json {
+        let threshold_kind = if args.relative_threshold {
+            "relative to mean radiance"
+        } else if args.display_threshold {
+            "display"
+        } else {
+            "absolute radiance"
+        };
         let obj = serde_json::json!({
             "order": s.order,
             "adaptive": s.adaptive,
@@ -178,6 +185,11 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             "roi_fraction_specular": s.roi_fraction_specular,
             "level_fraction_diffuse": s.level_fraction_diffuse,
             "level_fraction_specular": s.level_fraction_specular,
+            "mean_order_diffuse": s.mean_order_diffuse,
+            "mean_order_specular": s.mean_order_specular,
+            "work_fraction": s.products.zip(s.full_order_products).map(|(p, f)| p as f64 / f.max(1) as f64),
+            "stop": args.adaptive.then(|| format!("{:?}", args.stop).to_lowercase()),
+            "threshold_kind": args.adaptive.then_some(threshold_kind),
             "points": s.points,
             "frames": args.frames,
             "fps": fps,
@@ -189,7 +201,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             eprintln!("note: {n}");
         }
         println!(
-            "order {}  points {}  shading {:.3} ms/frame (median)  image {:.1} ms",
+            "order {}  points {}  shading {:.3} ms/frame (median of 5)  image {:.1} ms",
             s.order, s.points, s.shade_ms, image_ms
         );
         if let Some(f) = &full_stats {

@@ -109,6 +109,38 @@ fn relight_json_bake_check_exactness_roi_and_frames() {
     );
     let roi_img = image::open(&roi).unwrap();
     assert_eq!((roi_img.width(), roi_img.height()), (24, 16));
+    // Every stopping rule, and the threshold on the display, are exact at T = 0 too.
+    for extra in [
+        vec!["--stop", "significance"],
+        vec!["--stop", "either"],
+        vec!["--display-threshold", "--exposure", "-1"],
+    ] {
+        let out = dir.path().join("exact2.exr");
+        let j = json(&run(relight(&scene, &b)
+            .args(["--order", "4", "--adaptive", "--threshold", "0", "--json"])
+            .args(&extra)
+            .arg("--out")
+            .arg(&out)));
+        assert_eq!(read(&full), read(&out), "{extra:?}");
+        assert_eq!(
+            j["mean_order_diffuse"].as_f64(),
+            Some(4.0),
+            "{extra:?}: {j}"
+        );
+        assert_eq!(j["work_fraction"].as_f64(), Some(1.0), "{extra:?}: {j}");
+    }
+    let j = json(&run(relight(&scene, &b).args([
+        "--order",
+        "5",
+        "--adaptive",
+        "--display-threshold",
+        "--threshold",
+        "0.05",
+        "--json",
+    ])));
+    assert_eq!(j["threshold_kind"], "display");
+    assert_eq!(j["stop"], "convergence");
+    assert!(j["work_fraction"].as_f64().unwrap() <= 1.0, "{j}");
 
     // A large threshold shrinks the ROI (and the image changes).
     let j = json(&run(relight(&scene, &b).args([
@@ -161,6 +193,13 @@ fn relight_json_bake_check_exactness_roi_and_frames() {
         (vec!["--threshold", "inf"], "--threshold"),
         (vec!["--rotate-y", "inf"], "--rotate-y"),
         (vec!["--roi-png", "x.png"], "--adaptive"),
+        (vec!["--display-threshold"], "--adaptive"),
+        (vec!["--adaptive", "--stop", "sometimes"], "--stop"),
+        (
+            vec!["--adaptive", "--display-threshold", "--relative-threshold"],
+            "--relative-threshold",
+        ),
+        (vec!["--exposure", "nan"], "--exposure"),
         (vec!["--order", "0"], "order"),
         (vec!["--order", "x"], "--order"),
         (vec!["--bogus"], "--bogus"),

@@ -217,7 +217,9 @@ pub struct AdaptiveFrame {
 }
 
 /// Evaluates a block of points in place: `(points, sums, fresh, last level, stopping rules,
-/// scratch)`; with `fresh` the sums are started from the base, otherwise continued.
+/// offsets, scratch)`; with `fresh` the sums are started from the base, otherwise continued;
+/// `offsets[k]` (if given) is what the display shows besides this term at point `k` of the
+/// block.
 type Eval<'a> = dyn Fn(&[usize], &mut [Accum], bool, usize, Stop, Option<&[[f32; 3]]>, &mut Vec<f32>)
     + Sync
     + 'a;
@@ -274,6 +276,7 @@ impl Relighter {
         let display = matches!(measure, Measure::Display { .. });
 
         let n2 = self.order() * self.order();
+        let low_top = crate::LOW_ORDER.min(self.order()) - 1;
         let diffuse_eval = input.diffuse.as_ref().map(|(t, p)| {
             let kernel = self.diffuse_kernel(frame);
             let (t, scale) = (*t, p.albedo_over_pi);
@@ -284,15 +287,22 @@ impl Relighter {
                   stop: Stop,
                   offsets: Option<&[[f32; 3]]>,
                   _: &mut Vec<f32>| {
-                for (&v, acc) in pts.iter().zip(accs.iter_mut()) {
-                    let x = t.point(v);
+                for (k, (&v, acc)) in pts.iter().zip(accs.iter_mut()).enumerate() {
+                    // The low bands from the compact copy, the rest from the full row.
+                    let low = t.low_point(v);
                     if fresh {
-                        *acc = kernel.base(x, t.channels, scale);
+                        *acc = kernel.base(low, t.channels, scale);
                     }
                     if let Some(o) = offsets {
-                        acc.offset = o[v];
+                        acc.offset = o[k];
                     }
-                    kernel.extend(acc, x, t.channels, to, stop);
+                    let mut stopped = false;
+                    if (acc.last_level as usize) < low_top {
+                        stopped = kernel.extend(acc, low, t.channels, to.min(low_top), stop);
+                    }
+                    if !stopped && to > acc.last_level as usize {
+                        kernel.extend(acc, t.point(v), t.channels, to, stop);
+                    }
                 }
             }
         });
@@ -310,11 +320,8 @@ impl Relighter {
                           stop: Stop,
                           offsets: Option<&[[f32; 3]]>,
                           w: &mut Vec<f32>| {
-                        w.resize(pts.len() * n2, 0.0);
-                        let mut vis: Vec<&[f32]> = Vec::with_capacity(pts.len());
+                        w.resize(n2, 0.0);
                         for (k, (&v, acc)) in pts.iter().zip(accs.iter_mut()).enumerate() {
-                            let x = s.visibility.point(v);
-                            vis.push(x);
                             let g = specular_point(&s, v);
                             if !g.active {
                                 *acc = Accum {
@@ -324,16 +331,25 @@ impl Relighter {
                                 };
                                 continue;
                             }
-                            let wk = &mut w[k * n2..(k + 1) * n2];
-                            self.weights(&lobe, g.reflection, wk);
+                            // The low bands (weights and visibility) first; the rest only for
+                            // points that go on.
+                            self.weights_low(&lobe, g.reflection, w);
+                            let low = s.visibility.low_point(v);
                             if fresh {
-                                *acc = kernel.base(x, wk, g.scale);
+                                *acc = kernel.base(low, w, g.scale);
                             }
                             if let Some(o) = offsets {
-                                acc.offset = o[v];
+                                acc.offset = o[k];
+                            }
+                            let mut stopped = false;
+                            if (acc.last_level as usize) < low_top {
+                                stopped = kernel.extend(acc, low, w, to.min(low_top), stop);
+                            }
+                            if !stopped && to > acc.last_level as usize {
+                                self.weights(&lobe, g.reflection, w);
+                                kernel.extend(acc, s.visibility.point(v), w, to, stop);
                             }
                         }
-                        kernel.extend_block(accs, &vis, w, to, stop);
                     },
                 )
             }
@@ -377,49 +393,42 @@ impl Relighter {
         let mut roi: [Vec<bool>; 2] = [Vec::new(), Vec::new()];
         let mut stats: [Option<TermStats>; 2] = [None, None];
         let (full_d, full_s) = self.full_products();
-        // On the display both terms are seen together: the specular term is filtered first,
-        // against the diffuse base, then the diffuse term against the final specular.
+        let (filter, test) = params.stop.rules(threshold, measure);
         let both = terms[0].is_some() && terms[1].is_some();
-        let sequence = if display && both { [1, 0] } else { [0, 1] };
-        if display && both && bases[0].is_none() {
-            let eval = terms[0].expect("diffuse term");
-            bases[0] = Some(evaluate_all(points, None, |pts, a, fresh, s| {
-                eval(pts, a, fresh, b - 1, Stop::NEVER, None, s)
-            }));
-        }
+        let seen_together = display && both;
+        // The filtering pass (Algorithms 1–3): both terms block by block in one sweep.
+        let t0 = Instant::now();
+        let mut accs = filter_pass(points, terms, bases, b, top, filter, seen_together);
+        let pass_seconds = t0.elapsed().as_secs_f64();
+        // What the display test adds to each term in refinement: the other term, as in the
+        // filtering pass (the diffuse base for specular, the specular value for diffuse).
+        let diffuse_base: Option<Vec<[f32; 3]>> = seen_together.then(|| {
+            accs[0]
+                .iter()
+                .map(|a| [0, 1, 2].map(|c| a.scale[c] * a.base[c]))
+                .collect()
+        });
+        let sequence = if seen_together { [1, 0] } else { [0, 1] };
         for k in sequence {
             let Some(eval) = terms[k] else { continue };
             let t0 = Instant::now();
-            let (filter, test) = params.stop.rules(threshold, measure);
-            let offsets: Option<Vec<[f32; 3]>> = match (display && both, k) {
+            let mut acc = std::mem::take(&mut accs[k]);
+            let offsets: Option<&[[f32; 3]]> = match (seen_together, k) {
                 (false, _) => None,
-                (true, 1) => bases[0]
-                    .as_ref()
-                    .map(|b| b.iter().map(Accum::radiance).collect()),
-                (true, _) => Some(radiance[1].clone()),
+                (true, 1) => diffuse_base.as_deref(),
+                (true, _) => Some(&radiance[1]),
             };
-            let offsets = offsets.as_deref();
-            let mut acc = evaluate_all(points, bases[k].take(), |pts, a, fresh, s| {
-                eval(pts, a, fresh, top, filter, offsets, s)
-            });
+            let significant =
+                |a: &Accum| !a.inactive && a.complete(top) && a.is_significant(threshold, measure);
             let mut st = TermStats::default();
-            let active: Vec<bool> = acc.iter().map(|a| !a.inactive).collect();
-            st.active_points = active.iter().filter(|a| **a).count();
-            let denom = st.active_points.max(1) as f64;
-            st.level_fraction = (0..=top)
-                .map(|l| {
-                    acc.iter()
-                        .filter(|a| !a.inactive && a.last_level as usize >= l)
-                        .count() as f64
-                        / denom
-                })
-                .collect();
-            let significant = |a: &Accum| {
-                !a.inactive && a.complete(top) && a.significance_in(measure) >= threshold
+            let any_truncated = acc.par_iter().any(|a| !a.complete(top));
+            let refine = params.refine && any_truncated;
+            let initial_roi = if refine {
+                Some(acc.par_iter().filter(|a| significant(a)).count())
+            } else {
+                None
             };
-            st.initial_roi_fraction = acc.iter().filter(|a| significant(a)).count() as f64 / denom;
-            let any_truncated = acc.iter().any(|a| !a.complete(top));
-            if params.refine && any_truncated {
+            if refine {
                 // Tested neighbours go on to the top level, or until they converge.
                 let (rounds, tested) = refine_roi(
                     input.adjacency,
@@ -427,31 +436,51 @@ impl Relighter {
                     top,
                     threshold,
                     measure,
-                    |pts, a, w| eval(pts, a, false, top, test, offsets, w),
+                    |pts, a, w| {
+                        let local: Option<Vec<[f32; 3]>> =
+                            offsets.map(|o| pts.iter().map(|&v| o[v]).collect());
+                        eval(pts, a, false, top, test, local.as_deref(), w);
+                    },
                 );
                 st.refinement_rounds = rounds;
                 st.refined_points = tested;
             }
-            roi[k] = acc.iter().map(significant).collect();
-            st.roi_fraction = roi[k].iter().filter(|r| **r).count() as f64 / denom;
-            st.full_order_fraction = acc
-                .iter()
-                .filter(|a| !a.inactive && a.last_level as usize == top)
-                .count() as f64
-                / denom;
-            st.converged_fraction = acc
-                .iter()
-                .filter(|a| !a.inactive && a.converged && (a.last_level as usize) < top)
-                .count() as f64
-                / denom;
+            roi[k] = acc.par_iter().map(significant).collect();
+            // One pass for the counts: per level, points that evaluated it.
+            let mut at_level = vec![0usize; top + 1];
+            let (mut active, mut full, mut converged, mut bands, mut products) =
+                (0usize, 0usize, 0usize, 0u64, 0u64);
+            for a in &acc {
+                products += a.products;
+                if a.inactive {
+                    continue;
+                }
+                active += 1;
+                at_level[a.last_level as usize] += 1;
+                bands += u64::from(a.last_level) + 1;
+                if a.last_level as usize == top {
+                    full += 1;
+                } else if a.converged {
+                    converged += 1;
+                }
+            }
+            st.active_points = active;
+            let denom = active.max(1) as f64;
+            let mut reached = 0usize;
+            let mut level_fraction = vec![0.0; top + 1];
+            for l in (0..=top).rev() {
+                reached += at_level[l];
+                level_fraction[l] = reached as f64 / denom;
+            }
+            st.level_fraction = level_fraction;
+            let final_roi = roi[k].iter().filter(|r| **r).count();
+            st.initial_roi_fraction = initial_roi.unwrap_or(final_roi) as f64 / denom;
+            st.roi_fraction = final_roi as f64 / denom;
+            st.full_order_fraction = full as f64 / denom;
+            st.converged_fraction = converged as f64 / denom;
             st.filtered_out_fraction = 1.0 - st.full_order_fraction;
-            st.mean_order = acc
-                .iter()
-                .filter(|a| !a.inactive)
-                .map(|a| f64::from(a.last_level) + 1.0)
-                .sum::<f64>()
-                / denom;
-            let mut out: Vec<[f32; 3]> = acc.iter().map(Accum::radiance).collect();
+            st.mean_order = bands as f64 / denom;
+            let mut out: Vec<[f32; 3]> = acc.par_iter().map(Accum::radiance).collect();
             if params.smooth && any_truncated {
                 let (corrections, tiers) = smooth_boundary(input.adjacency, &acc, top);
                 for (v, c) in corrections {
@@ -460,12 +489,17 @@ impl Relighter {
                 }
                 st.smoothed_points = tiers;
             }
-            st.products = acc.iter().map(|a| a.products).sum();
+            st.products = products;
             let full_each = if k == 0 { full_d } else { full_s };
             st.full_order_products = full_each * st.active_points as u64;
+            // The shared filtering pass is split between the terms by their products.
             st.seconds = t0.elapsed().as_secs_f64();
             radiance[k] = out;
             stats[k] = Some(st);
+        }
+        let total: u64 = stats.iter().flatten().map(|s| s.products).sum();
+        for st in stats.iter_mut().flatten() {
+            st.seconds += pass_seconds * st.products as f64 / total.max(1) as f64;
         }
         let [diffuse, specular] = radiance;
         let [diffuse_stats, specular_stats] = stats;
@@ -483,6 +517,78 @@ impl Relighter {
             },
         })
     }
+}
+
+/// The filtering pass over both terms, block by block (each block's transfers are read once,
+/// while in cache): the diffuse base, the specular term (on the display against the diffuse
+/// base), then the diffuse levels (on the display against the specular value). `bases` are
+/// precomputed bases (relative threshold), else the bases are computed here.
+fn filter_pass(
+    points: usize,
+    terms: [Option<&Eval<'_>>; 2],
+    mut bases: [Option<Vec<Accum>>; 2],
+    b: usize,
+    top: usize,
+    filter: Stop,
+    seen_together: bool,
+) -> [Vec<Accum>; 2] {
+    let fresh = [bases[0].is_none(), bases[1].is_none()];
+    let mut acc: [Vec<Accum>; 2] = [0, 1].map(|k| match terms[k] {
+        Some(_) => bases[k]
+            .take()
+            .unwrap_or_else(|| vec![Accum::default(); points]),
+        None => Vec::new(),
+    });
+    let chunks = points.div_ceil(CHUNK);
+    fn split(v: &mut [Accum], chunks: usize) -> Vec<Option<&mut [Accum]>> {
+        if v.is_empty() {
+            (0..chunks).map(|_| None).collect()
+        } else {
+            v.chunks_mut(CHUNK).map(Some).collect()
+        }
+    }
+    let [ad, asp] = &mut acc;
+    let (dc, sc) = (split(ad, chunks), split(asp, chunks));
+    dc.into_par_iter().zip(sc).enumerate().for_each_init(
+        Vec::new,
+        |scratch, (ci, (mut d, mut s))| {
+            let len = d
+                .as_ref()
+                .map(|x| x.len())
+                .or(s.as_ref().map(|x| x.len()))
+                .unwrap_or(0);
+            for lo in (0..len).step_by(BLOCK) {
+                let hi = (lo + BLOCK).min(len);
+                let pts: Vec<usize> = (ci * CHUNK + lo..ci * CHUNK + hi).collect();
+                let mut db = d.as_deref_mut().map(|x| &mut x[lo..hi]);
+                let sb = s.as_deref_mut().map(|x| &mut x[lo..hi]);
+                if let (Some(eval), Some(db)) = (terms[0], db.as_deref_mut()) {
+                    if fresh[0] {
+                        eval(&pts, db, true, b - 1, Stop::NEVER, None, scratch);
+                    }
+                }
+                let mut spec_value: Option<Vec<[f32; 3]>> = None;
+                if let (Some(eval), Some(sb)) = (terms[1], sb) {
+                    let base: Option<Vec<[f32; 3]>> = match (&db, seen_together) {
+                        (Some(db), true) => Some(
+                            db.iter()
+                                .map(|a| [0, 1, 2].map(|c| a.scale[c] * a.base[c]))
+                                .collect(),
+                        ),
+                        _ => None,
+                    };
+                    eval(&pts, sb, fresh[1], top, filter, base.as_deref(), scratch);
+                    if seen_together {
+                        spec_value = Some(sb.iter().map(Accum::radiance).collect());
+                    }
+                }
+                if let (Some(eval), Some(db)) = (terms[0], db) {
+                    eval(&pts, db, false, top, filter, spec_value.as_deref(), scratch);
+                }
+            }
+        },
+    );
+    acc
 }
 
 /// Runs `f(points, sums, fresh, scratch)` over every point in parallel blocks of

@@ -19,6 +19,27 @@ pub struct TransferView<'a> {
     pub channels: usize,
     /// `[point][channel][coeff]`.
     pub data: &'a [f32],
+    /// Optional compact copy of the first [`LOW_ORDER`] bands, `[point][channel][coeff < 25]`
+    /// (see [`TransferView::with_low_bands`]): the adaptive path reads it for the base and the
+    /// first levels, and a point's full row only if it goes on past them.
+    pub low: Option<&'a [f32]>,
+}
+
+/// Bands held by a transfer's compact low-band copy ([`TransferView::with_low_bands`]): the
+/// base (3) and the two levels every point of the adaptive path evaluates before its first
+/// convergence test.
+pub const LOW_ORDER: usize = 5;
+
+/// The compact low-band copy of `[point][channel][coeff]` data of order `order`: the first
+/// `min(order, LOW_ORDER)²` coefficients of every point and channel (for
+/// [`TransferView::with_low_bands`]; make it once, not per frame).
+#[must_use]
+pub fn low_bands(data: &[f32], order: usize) -> Vec<f32> {
+    // Rows of `order²` floats are (point, channel) pairs.
+    let (n2, k) = (order * order, LOW_ORDER.min(order).pow(2));
+    data.chunks_exact(n2.max(1))
+        .flat_map(|row| row[..k].iter().copied())
+        .collect()
 }
 
 impl<'a> TransferView<'a> {
@@ -28,9 +49,41 @@ impl<'a> TransferView<'a> {
             order,
             channels,
             data,
+            low: None,
         };
         view.validate()?;
         Ok(view)
+    }
+
+    /// The view with its compact low-band copy (from [`low_bands`] of the same data): the
+    /// adaptive path then reads `min(order, 5)²` floats per point and channel for every point
+    /// and the full row only for points that go on (a layout for level-by-level reading: with
+    /// rows of `order²` floats the memory traffic of the first levels is that of the whole
+    /// row). Results are identical with and without it.
+    pub fn with_low_bands(mut self, low: &'a [f32]) -> Result<Self, RelightError> {
+        let k = LOW_ORDER.min(self.order).pow(2) * self.channels;
+        if low.len() != self.point_count() * k {
+            return Err(RelightError::InvalidParameter(format!(
+                "low-band copy holds {} floats, expected {} ({} points × {k})",
+                low.len(),
+                self.point_count() * k,
+                self.point_count()
+            )));
+        }
+        self.low = Some(low);
+        Ok(self)
+    }
+
+    /// The low-band floats of point `p` if there is a copy, else its full row.
+    #[must_use]
+    pub(crate) fn low_point(&self, p: usize) -> &'a [f32] {
+        match self.low {
+            Some(low) => {
+                let k = LOW_ORDER.min(self.order).pow(2) * self.channels;
+                &low[p * k..(p + 1) * k]
+            }
+            None => self.point(p),
+        }
     }
 
     /// Checks the order (≥ 1), the channel count (1 or 3) and that the data is a whole number

@@ -78,7 +78,8 @@ pub use adaptive::{
 pub use adjacency::Adjacency;
 pub use error::RelightError;
 pub use input::{
-    DiffuseParams, Lighting, PhongParams, SpecularInput, Surface, TransferView, Viewer,
+    low_bands, DiffuseParams, Lighting, PhongParams, SpecularInput, Surface, TransferView, Viewer,
+    LOW_ORDER,
 };
 pub use kernel::BASE_ORDER;
 pub use relighter::{FrameLighting, Relighter};

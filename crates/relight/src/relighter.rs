@@ -2,7 +2,7 @@
 
 use crate::error::RelightError;
 use crate::input::{DiffuseParams, Lighting, PhongParams, SpecularInput, TransferView, Viewer};
-use crate::kernel::{Accum, DiffuseKernel, SpecularKernel, Stop, BLOCK, CHUNK};
+use crate::kernel::{DiffuseKernel, SpecularKernel, Stop, CHUNK};
 use glam::Vec3;
 use prt_sh::{zonal, Basis, GauntTensor, MAX_GAUNT_ORDER};
 use rayon::prelude::*;
@@ -13,10 +13,17 @@ use rayon::prelude::*;
 pub struct Relighter {
     order: usize,
     basis: Basis,
+    /// The basis of the first `min(order, LOW_ORDER)` bands, for the adaptive path's first
+    /// levels (its values are those of the first bands of `basis`, bit for bit: the
+    /// recurrences do not depend on the order — tested).
+    basis_low: Basis,
     gaunt: Option<GauntTensor>,
     /// Row `i` of the packed block-lower product matrix is `row_offsets[i]..row_offsets[i+1]`,
     /// holding columns `j < (l_i + 1)²`.
     row_offsets: Vec<usize>,
+    /// Band `l`'s column block of the level kernel's layout is
+    /// `column_offsets[l]..column_offsets[l+1]` (`(l+1)²` columns of `lanes(l)` floats).
+    column_offsets: Vec<usize>,
 }
 
 /// The lighting of one frame, prepared for a [`Relighter`]: the f32 coefficients truncated to
@@ -27,13 +34,17 @@ pub struct FrameLighting {
     pub lighting: Lighting,
     /// Packed block-lower rows of `L̂_c` per channel (f32), if prepared for specular.
     products: Option<[Vec<f32>; 3]>,
+    /// Per channel, band `l`'s rows of `L̂_c` stored by column for the level kernel: columns
+    /// `j < (l+1)²`, each `lanes(l)` floats (rows `l²..(l+1)²`, zero-padded to a multiple of 8),
+    /// band blocks at `Relighter::column_offsets`.
+    columns: Option<[Vec<f32>; 3]>,
 }
 
 impl FrameLighting {
     /// Whether the specular product matrices were built.
     #[must_use]
     pub fn has_specular(&self) -> bool {
-        self.products.is_some()
+        self.products.is_some() && self.columns.is_some()
     }
 }
 
@@ -51,6 +62,7 @@ impl Relighter {
     /// beyond it only diffuse shading is available.
     pub fn new(order: usize) -> Result<Self, RelightError> {
         let basis = Basis::new(order)?;
+        let basis_low = Basis::new(crate::LOW_ORDER.min(order))?;
         let gaunt = if order <= MAX_GAUNT_ORDER {
             Some(GauntTensor::new(order)?)
         } else {
@@ -65,11 +77,18 @@ impl Relighter {
                 row_offsets.push(last + (l + 1) * (l + 1));
             }
         }
+        let mut column_offsets = vec![0usize];
+        for l in 0..order {
+            let last = *column_offsets.last().unwrap_or(&0);
+            column_offsets.push(last + (l + 1) * (l + 1) * crate::kernel::lanes(l));
+        }
         Ok(Self {
             order,
             basis,
+            basis_low,
             gaunt,
             row_offsets,
+            column_offsets,
         })
     }
 
@@ -87,7 +106,7 @@ impl Relighter {
         specular: bool,
     ) -> Result<FrameLighting, RelightError> {
         let lighting = lighting.truncated(self.order)?;
-        let products = if specular {
+        let (products, columns) = if specular {
             let gaunt = self.gaunt.as_ref().ok_or(RelightError::OrderMismatch {
                 what: "specular relighter (Gaunt tensor limit)",
                 expected: MAX_GAUNT_ORDER,
@@ -95,7 +114,8 @@ impl Relighter {
             })?;
             let n2 = self.order * self.order;
             let mut out: [Vec<f32>; 3] = Default::default();
-            for (c, packed) in out.iter_mut().enumerate() {
+            let mut cols: [Vec<f32>; 3] = Default::default();
+            for (c, (packed, col)) in out.iter_mut().zip(cols.iter_mut()).enumerate() {
                 let l64: Vec<f64> = lighting.rgb[c].iter().map(|v| f64::from(*v)).collect();
                 let dense = gaunt.product_matrix(&l64)?;
                 packed.reserve(self.row_offsets[n2]);
@@ -103,12 +123,26 @@ impl Relighter {
                     let len = self.row_offsets[i + 1] - self.row_offsets[i];
                     packed.extend(dense[i * n2..i * n2 + len].iter().map(|v| *v as f32));
                 }
+                col.resize(self.column_offsets[self.order], 0.0);
+                for l in 0..self.order {
+                    let (s, e, lanes) = (l * l, (l + 1) * (l + 1), crate::kernel::lanes(l));
+                    let block = &mut col[self.column_offsets[l]..self.column_offsets[l + 1]];
+                    for j in 0..e {
+                        for r in 0..2 * l + 1 {
+                            block[j * lanes + r] = dense[(s + r) * n2 + j] as f32;
+                        }
+                    }
+                }
             }
-            Some(out)
+            (Some(out), Some(cols))
         } else {
-            None
+            (None, None)
         };
-        Ok(FrameLighting { lighting, products })
+        Ok(FrameLighting {
+            lighting,
+            products,
+            columns,
+        })
     }
 
     pub(crate) fn check_transfer(
@@ -155,9 +189,15 @@ impl Relighter {
             .products
             .as_ref()
             .ok_or(RelightError::MissingProducts)?;
+        let cols = frame
+            .columns
+            .as_ref()
+            .ok_or(RelightError::MissingProducts)?;
         Ok(SpecularKernel::new(
             [&p[0], &p[1], &p[2]],
             &self.row_offsets,
+            [&cols[0], &cols[1], &cols[2]],
+            &self.column_offsets,
             self.order,
         ))
     }
@@ -252,6 +292,18 @@ impl Relighter {
         }
     }
 
+    /// Fills the first `min(order, LOW_ORDER)²` weights only (the rest of `w` is untouched).
+    #[inline]
+    pub(crate) fn weights_low(&self, lobe: &[f32], reflection: Vec3, w: &mut [f32]) {
+        let k = self.basis_low.len();
+        self.basis_low.eval_f32_unchecked(reflection, &mut w[..k]);
+        for (l, a) in lobe.iter().enumerate().take(self.basis_low.order()) {
+            for v in &mut w[l * l..(l + 1) * (l + 1)] {
+                *v *= a;
+            }
+        }
+    }
+
     /// Full-order Phong specular radiance per point (see the crate docs for the approximation):
     /// `specular ⊙ (e+2)/(e+1) · max(0, n·ω_o) · Σ_lm A_l (L ⊛ V)_lm y_lm(r)` per channel.
     pub fn specular(
@@ -269,36 +321,18 @@ impl Relighter {
         out.par_chunks_mut(CHUNK)
             .enumerate()
             .for_each(|(ci, chunk)| {
-                let mut w = vec![0.0f32; BLOCK * n2];
-                let mut accs = [Accum::default(); BLOCK];
-                for (bi, block) in chunk.chunks_mut(BLOCK).enumerate() {
-                    let first = ci * CHUNK + bi * BLOCK;
-                    let accs = &mut accs[..block.len()];
-                    let mut vis: Vec<&[f32]> = Vec::with_capacity(block.len());
-                    for (k, acc) in accs.iter_mut().enumerate() {
-                        let p = first + k;
-                        let v = input.visibility.point(p);
-                        vis.push(v);
-                        let g = specular_point(input, p);
-                        if !g.active {
-                            *acc = Accum {
-                                inactive: true,
-                                ..Accum::default()
-                            };
-                            continue;
-                        }
-                        let wk = &mut w[k * n2..(k + 1) * n2];
-                        self.weights(&lobe, g.reflection, wk);
-                        *acc = kernel.base(v, wk, g.scale);
+                let mut w = vec![0.0f32; n2];
+                for (k, o) in chunk.iter_mut().enumerate() {
+                    let p = ci * CHUNK + k;
+                    let g = specular_point(input, p);
+                    if !g.active {
+                        continue;
                     }
-                    kernel.extend_block(accs, &vis, &w, top, Stop::NEVER);
-                    for (o, acc) in block.iter_mut().zip(accs.iter()) {
-                        *o = if acc.inactive {
-                            [0.0; 3]
-                        } else {
-                            acc.radiance()
-                        };
-                    }
+                    self.weights(&lobe, g.reflection, &mut w);
+                    let v = input.visibility.point(p);
+                    let mut acc = kernel.base(v, &w, g.scale);
+                    kernel.extend(&mut acc, v, &w, top, Stop::NEVER);
+                    *o = acc.radiance();
                 }
             });
         Ok(out)

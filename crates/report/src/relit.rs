@@ -23,7 +23,7 @@ pub struct RelightOptions {
     pub adaptive: Option<AdaptiveParams>,
     /// Environment rotation about +Y, degrees (same sense as the scene's `rotation_y`).
     pub rotate_y_deg: f64,
-    /// Frames timed; the fastest is reported.
+    /// Frames timed; the median is reported.
     pub timing_frames: usize,
 }
 
@@ -58,8 +58,8 @@ pub struct RelightStats {
     pub adaptive: bool,
     /// Absolute threshold (adaptive only).
     pub threshold: Option<f32>,
-    /// Shading time of one frame over all objects, milliseconds: the fastest of the timed
-    /// frames (the minimum is the estimate least disturbed by other load on the machine).
+    /// Shading time of one frame over all objects, milliseconds: the median of the timed
+    /// frames (the upper median for an even count).
     pub shade_ms: f64,
     /// Points shaded.
     pub points: usize,
@@ -71,6 +71,14 @@ pub struct RelightStats {
     pub level_fraction_diffuse: Vec<f64>,
     /// Per-level fractions of the specular filtering pass (adaptive), weighted over objects.
     pub level_fraction_specular: Vec<f64>,
+    /// Mean number of bands a diffuse point was shaded with (adaptive), weighted over objects.
+    pub mean_order_diffuse: Option<f64>,
+    /// Mean number of bands an active specular point was shaded with (adaptive).
+    pub mean_order_specular: Option<f64>,
+    /// Coefficient products spent (adaptive, both terms, all objects).
+    pub products: Option<u64>,
+    /// Products the full-order path spends on the same points.
+    pub full_order_products: Option<u64>,
     /// Notes (e.g. specular lobes that could not be relit).
     pub notes: Vec<String>,
 }
@@ -189,7 +197,11 @@ pub fn relight(
             })?;
         let channels = obj.channels as usize;
         let diffuse_data = truncate(&diffuse_block.data, baked, order, channels, channels);
-        let diffuse_view = TransferView::new(order, channels, &diffuse_data)?;
+        // Compact copies of the low bands for the adaptive path's level-by-level reading
+        // (made once per run, outside the timed frames).
+        let diffuse_low = prt_relight::low_bands(&diffuse_data, order);
+        let diffuse_view =
+            TransferView::new(order, channels, &diffuse_data)?.with_low_bands(&diffuse_low)?;
         let albedo = material.albedo();
         let dparams = DiffuseParams::from_albedo(albedo);
         let phong = match material {
@@ -264,9 +276,10 @@ pub fn relight(
                     .collect(),
             )
         };
-        let specular_input = match (phong, &vis_data) {
-            (Some(p), Some(v)) => Some(SpecularInput {
-                visibility: TransferView::new(order, 1, v)?,
+        let vis_low = vis_data.as_ref().map(|v| prt_relight::low_bands(v, order));
+        let specular_input = match (phong, &vis_data, &vis_low) {
+            (Some(p), Some(v), Some(low)) => Some(SpecularInput {
+                visibility: TransferView::new(order, 1, v)?.with_low_bands(low)?,
                 surface: Surface {
                     positions: &positions,
                     normals: &normals,
@@ -355,12 +368,18 @@ pub fn relight(
         roi.push(in_roi);
     }
     times.sort_by(f64::total_cmp);
-    stats.shade_ms = 1e3 * times[0];
+    stats.shade_ms = 1e3 * times[times.len() / 2];
     if stats.adaptive {
         stats.roi_fraction_diffuse = (n_d > 0.0).then(|| roi_d / n_d);
         stats.roi_fraction_specular = (n_s > 0.0).then(|| roi_s / n_s);
         let total_d = n_d.max(1.0);
         let total_s = n_s.max(1.0);
+        if let Some(m) = stats.mean_order_diffuse.as_mut() {
+            *m /= total_d;
+        }
+        if let Some(m) = stats.mean_order_specular.as_mut() {
+            *m /= total_s;
+        }
         stats
             .level_fraction_diffuse
             .iter_mut()
@@ -386,16 +405,28 @@ fn accumulate_stats(
     n_s: &mut f64,
 ) {
     stats.threshold = Some(f.threshold);
+    let mut add_work = |t: &prt_relight::TermStats| {
+        *stats.products.get_or_insert(0) += t.products;
+        *stats.full_order_products.get_or_insert(0) += t.full_order_products;
+    };
+    if let Some(d) = &f.diffuse {
+        add_work(d);
+    }
+    if let Some(s) = &f.specular {
+        add_work(s);
+    }
     if let Some(d) = &f.diffuse {
         let n = d.active_points as f64;
         *roi_d += d.roi_fraction * n;
         *n_d += n;
+        *stats.mean_order_diffuse.get_or_insert(0.0) += d.mean_order * n;
         add_levels(&mut stats.level_fraction_diffuse, &d.level_fraction, n);
     }
     if let Some(s) = &f.specular {
         let n = s.active_points as f64;
         *roi_s += s.roi_fraction * n;
         *n_s += n;
+        *stats.mean_order_specular.get_or_insert(0.0) += s.mean_order * n;
         add_levels(&mut stats.level_fraction_specular, &s.level_fraction, n);
     }
 }

@@ -37,7 +37,7 @@ pub struct ReportSettings {
     pub threshold: f32,
     /// Seed of the reference and the bake.
     pub seed: u64,
-    /// Frames timed per relighting (the fastest is reported).
+    /// Frames timed per relighting (the median is reported).
     pub timing_frames: usize,
     /// Show progress bars.
     pub progress: bool,
@@ -50,9 +50,9 @@ pub struct OrderRow {
     pub order: usize,
     /// Coefficients per channel.
     pub coefficients: usize,
-    /// Full-order shading time per frame (fastest of the timed frames), ms.
+    /// Full-order shading time per frame (median of the timed frames), ms.
     pub full_ms: f64,
-    /// Adaptive shading time per frame (fastest of the timed frames), ms.
+    /// Adaptive shading time per frame (median of the timed frames), ms.
     pub adaptive_ms: f64,
     /// `full_ms / adaptive_ms`.
     pub speedup: f64,
