@@ -163,6 +163,23 @@ fn relight_json_bake_check_exactness_roi_and_frames() {
     ])));
     assert_eq!(j["frames"], 3);
     assert!(j["fps"].as_f64().unwrap() > 0.0, "{j}");
+    // The image of a rotating run is its first frame: the same as a single frame.
+    let (rot3, rot1) = (dir.path().join("rot3.exr"), dir.path().join("rot1.exr"));
+    run(relight(&scene, &b)
+        .args([
+            "--rotate-y",
+            "30",
+            "--frames",
+            "3",
+            "--rotate-y-step",
+            "10",
+            "--out",
+        ])
+        .arg(&rot3));
+    run(relight(&scene, &b)
+        .args(["--rotate-y", "30", "--out"])
+        .arg(&rot1));
+    assert_eq!(read(&rot3), read(&rot1));
     let text = run(relight(&scene, &b).args(["--frames", "3", "--rotate-y-step", "10"]));
     let text = String::from_utf8_lossy(&text.stdout);
     assert!(text.contains("frames/s"), "{text}");

@@ -46,55 +46,117 @@ pub(crate) const fn lanes(l: usize) -> usize {
     (2 * l + 1).div_ceil(4) * 4
 }
 
-/// [`SpecularKernel::level`] for the baseline instruction set.
-fn level_any(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> f32 {
-    level_lanes(l, block, v, w)
+/// Level of the three channels of a band of at most 16 lanes, baseline instruction set.
+fn level3_any(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [f32; 3] {
+    level3_lanes(l, block, v, w)
 }
 
-/// [`SpecularKernel::level`] compiled for AVX2 (8-lane registers; 16 of them hold the
-/// accumulators of bands up to 15). The arithmetic is the same element-wise multiply and add
-/// in the same order (Rust never fuses them into FMA on its own), so the results are
-/// bit-identical to [`level_any`]'s — tested.
+/// One channel's level of a band of more than 16 lanes, baseline instruction set.
+fn level1_any(l: usize, cols: &[f32], v: &[f32], w: &[f32]) -> f32 {
+    level1_lanes(l, cols, v, w)
+}
+
+/// [`level3_any`] compiled for AVX2 (8-lane registers). The arithmetic is the same
+/// element-wise multiply and add in the same order (Rust never fuses them into FMA on its
+/// own), so the results are bit-identical — tested.
 ///
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[allow(unsafe_code)] // Runtime feature dispatch: the only unsafe code of the crate.
-unsafe fn level_avx2(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> f32 {
-    level_lanes(l, block, v, w)
+unsafe fn level3_avx2(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [f32; 3] {
+    level3_lanes(l, block, v, w)
 }
 
-/// Dispatch on the lane count, so each instance keeps its accumulators in registers.
+/// [`level1_any`] compiled for AVX2; bit-identical as [`level3_avx2`].
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(unsafe_code)] // Runtime feature dispatch: the only unsafe code of the crate.
+unsafe fn level1_avx2(l: usize, cols: &[f32], v: &[f32], w: &[f32]) -> f32 {
+    level1_lanes(l, cols, v, w)
+}
+
+/// Dispatch on the lane count (≤ 16), so each instance keeps its accumulators in registers.
 #[inline(always)]
-fn level_lanes(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> f32 {
+fn level3_lanes(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [f32; 3] {
     match lanes(l) {
         4 => level_in::<4>(l, block, v, w),
         8 => level_in::<8>(l, block, v, w),
         12 => level_in::<12>(l, block, v, w),
-        16 => level_in::<16>(l, block, v, w),
-        20 => level_in::<20>(l, block, v, w),
-        24 => level_in::<24>(l, block, v, w),
-        28 => level_in::<28>(l, block, v, w),
-        32 => level_in::<32>(l, block, v, w),
-        36 => level_in::<36>(l, block, v, w),
-        40 => level_in::<40>(l, block, v, w),
-        44 => level_in::<44>(l, block, v, w),
-        48 => level_in::<48>(l, block, v, w),
-        52 => level_in::<52>(l, block, v, w),
-        56 => level_in::<56>(l, block, v, w),
-        60 => level_in::<60>(l, block, v, w),
-        _ => level_in::<64>(l, block, v, w),
+        _ => level_in::<16>(l, block, v, w),
     }
 }
 
-/// [`SpecularKernel::level`] with `NL = lanes(l)` lanes: `block` is band `l`'s columns.
+/// Dispatch on the lane count (> 16).
 #[inline(always)]
-fn level_in<const NL: usize>(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> f32 {
+fn level1_lanes(l: usize, cols: &[f32], v: &[f32], w: &[f32]) -> f32 {
+    match lanes(l) {
+        20 => level_channel::<20>(l, cols, v, w),
+        24 => level_channel::<24>(l, cols, v, w),
+        28 => level_channel::<28>(l, cols, v, w),
+        32 => level_channel::<32>(l, cols, v, w),
+        36 => level_channel::<36>(l, cols, v, w),
+        40 => level_channel::<40>(l, cols, v, w),
+        44 => level_channel::<44>(l, cols, v, w),
+        48 => level_channel::<48>(l, cols, v, w),
+        52 => level_channel::<52>(l, cols, v, w),
+        56 => level_channel::<56>(l, cols, v, w),
+        60 => level_channel::<60>(l, cols, v, w),
+        _ => level_channel::<64>(l, cols, v, w),
+    }
+}
+
+/// The three channels' level of a band of `NL = lanes(l) ≤ 16` lanes; `block` is the band's
+/// columns with the channels side by side (see [`column_index`]), summed in one sweep (`v_j`,
+/// `w_j` loaded once, 6 accumulators of ≤ 16 lanes). Wider bands go channel by channel
+/// ([`level_channel`]): three channels' accumulators would not fit in registers.
+#[inline(always)]
+fn level_in<const NL: usize>(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [f32; 3] {
     let (s, e) = (l * l, (l + 1) * (l + 1));
+    let rows = 2 * l + 1;
+    let finish = |p: &[f32; NL], q: &[f32; NL]| {
+        let mut sum = 0.0f32;
+        for r in 0..rows {
+            sum += w[s + r] * p[r] + v[s + r] * q[r];
+        }
+        sum
+    };
+    {
+        let (old, new) = block.split_at(s * 3 * NL);
+        let mut p = [[0.0f32; NL]; 3];
+        let mut q = [[0.0f32; NL]; 3];
+        for ((cols, vj), wj) in old.chunks_exact(3 * NL).zip(&v[..s]).zip(&w[..s]) {
+            for c in 0..3 {
+                let col = &cols[c * NL..(c + 1) * NL];
+                for k in 0..NL {
+                    p[c][k] += vj * col[k];
+                    q[c][k] += wj * col[k];
+                }
+            }
+        }
+        for (cols, vj) in new.chunks_exact(3 * NL).zip(&v[s..e]) {
+            for c in 0..3 {
+                let col = &cols[c * NL..(c + 1) * NL];
+                for k in 0..NL {
+                    p[c][k] += vj * col[k];
+                }
+            }
+        }
+        [0, 1, 2].map(|c| finish(&p[c], &q[c]))
+    }
+}
+
+/// One channel of [`level_in`] over its contiguous columns.
+#[inline(always)]
+fn level_channel<const NL: usize>(l: usize, cols: &[f32], v: &[f32], w: &[f32]) -> f32 {
+    let (s, e) = (l * l, (l + 1) * (l + 1));
+    let (old, new) = cols.split_at(s * NL);
     let mut p = [0.0f32; NL];
     let mut q = [0.0f32; NL];
-    let (old, new) = block.split_at(s * NL);
     for ((col, vj), wj) in old.chunks_exact(NL).zip(&v[..s]).zip(&w[..s]) {
         for k in 0..NL {
             p[k] += vj * col[k];
@@ -106,12 +168,23 @@ fn level_in<const NL: usize>(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> f
             p[k] += vj * col[k];
         }
     }
-    let rows = 2 * l + 1;
     let mut sum = 0.0f32;
-    for r in 0..rows {
+    for r in 0..2 * l + 1 {
         sum += w[s + r] * p[r] + v[s + r] * q[r];
     }
     sum
+}
+
+/// Index of row `l² + r` of band `l`, column `j`, channel `c` in band `l`'s block of the column
+/// layout: channels side by side per column up to 16 lanes, channel-major above.
+#[inline]
+pub(crate) const fn column_index(l: usize, j: usize, c: usize, r: usize) -> usize {
+    let nl = lanes(l);
+    if nl <= 16 {
+        (3 * j + c) * nl + r
+    } else {
+        (c * (l + 1) * (l + 1) + j) * nl + r
+    }
 }
 
 /// The running sums of one point.
@@ -211,11 +284,13 @@ impl Accum {
                     return 0.0;
                 }
                 let x = self.radiance();
+                let y = [0, 1, 2].map(|c| scale * (x[c] + self.offset[c]));
+                // Shown white whatever the change: nothing moves on the display.
+                if (0..3).all(|c| y[c] - scale * m[c] >= 1.0) {
+                    return 0.0;
+                }
                 (0..3)
-                    .map(|c| {
-                        let y = scale * (x[c] + self.offset[c]);
-                        0.5 * (display(y + scale * m[c]) - display(y - scale * m[c]))
-                    })
+                    .map(|c| 0.5 * (display(y[c] + scale * m[c]) - display(y[c] - scale * m[c])))
                     .fold(0.0, f32::max)
             }
         }
@@ -403,8 +478,8 @@ impl DiffuseKernel<'_> {
 /// per row, with the same multiply count as Algorithm 3 (`(2l+1)((l+1)² + l²)` per channel).
 /// Only the block-lower rows are stored (packed, `row_offsets`).
 pub(crate) struct SpecularKernel<'a> {
-    /// Band `l`'s rows of `L̂_c` by column (see `FrameLighting::columns`).
-    columns: [&'a [f32]; 3],
+    /// Band `l`'s rows of the three `L̂_c` by column (see `FrameLighting::columns`).
+    columns: &'a [f32],
     column_offsets: &'a [usize],
     pub order: usize,
     /// Whether the CPU has AVX2 (the level kernel then runs its AVX2 instance).
@@ -418,7 +493,7 @@ impl<'a> SpecularKernel<'a> {
     pub fn new(
         products: [&'a [f32]; 3],
         row_offsets: &'a [usize],
-        columns: [&'a [f32]; 3],
+        columns: &'a [f32],
         column_offsets: &'a [usize],
         order: usize,
     ) -> Self {
@@ -466,15 +541,29 @@ impl SpecularKernel<'_> {
     /// once (8-lane chunks, rows zero-padded), and the level is one dot product over the band:
     /// no per-row reductions or tails, which dominated at the low levels where rows are short.
     #[inline]
-    fn level(&self, l: usize, c: usize, v: &[f32], w: &[f32]) -> f32 {
-        let block = &self.columns[c][self.column_offsets[l]..self.column_offsets[l + 1]];
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: `avx2` is set only when the CPU reports AVX2 (`SpecularKernel::new`).
-            #[allow(unsafe_code)]
-            return unsafe { level_avx2(l, block, v, w) };
+    fn level(&self, l: usize, v: &[f32], w: &[f32]) -> [f32; 3] {
+        let block = &self.columns[self.column_offsets[l]..self.column_offsets[l + 1]];
+        let nl = lanes(l);
+        if nl <= 16 {
+            #[cfg(target_arch = "x86_64")]
+            if self.avx2 {
+                // SAFETY: `avx2` is set only when the CPU reports AVX2 (`Self::new`).
+                #[allow(unsafe_code)]
+                return unsafe { level3_avx2(l, block, v, w) };
+            }
+            return level3_any(l, block, v, w);
         }
-        level_any(l, block, v, w)
+        let e = (l + 1) * (l + 1);
+        [0, 1, 2].map(|c| {
+            let cols = &block[c * e * nl..(c + 1) * e * nl];
+            #[cfg(target_arch = "x86_64")]
+            if self.avx2 {
+                // SAFETY: as above.
+                #[allow(unsafe_code)]
+                return unsafe { level1_avx2(l, cols, v, w) };
+            }
+            level1_any(l, cols, v, w)
+        })
     }
 
     /// Base (levels `0..b`) of a point with visibility `v` and weights `w`: the dense
@@ -508,10 +597,9 @@ impl SpecularKernel<'_> {
     #[inline]
     pub fn extend(&self, acc: &mut Accum, v: &[f32], w: &[f32], to: usize, stop: Stop) -> bool {
         for l in (acc.last_level as usize + 1)..=to {
-            let mut delta = [0.0f32; 3];
-            for (c, d) in delta.iter_mut().enumerate() {
-                *d = self.level(l, c, v, w);
-                acc.high[c] += *d;
+            let delta = self.level(l, v, w);
+            for c in 0..3 {
+                acc.high[c] += delta[c];
             }
             acc.products += Self::products_of_level(l);
             if acc.step(l, delta, stop) {
@@ -595,31 +683,43 @@ mod tests {
         for l in 0..32usize {
             let e = (l + 1) * (l + 1);
             let nl = lanes(l);
-            let block: Vec<f32> = (0..e * nl)
+            // Padding lanes (r ≥ 2l+1 of each nl) are zero in either layout.
+            let block: Vec<f32> = (0..3 * e * nl)
                 .map(|k| if k % nl < 2 * l + 1 { next() } else { 0.0 })
                 .collect();
             let v: Vec<f32> = (0..e).map(|_| next()).collect();
             let w: Vec<f32> = (0..e).map(|_| next()).collect();
-            let a = level_any(l, &block, &v, &w);
-            // SAFETY: AVX2 checked above.
-            #[allow(unsafe_code)]
-            let b = unsafe { level_avx2(l, &block, &v, &w) };
-            assert_eq!(a.to_bits(), b.to_bits(), "band {l}");
+            let (a, b) = if nl <= 16 {
+                // SAFETY: AVX2 checked above.
+                #[allow(unsafe_code)]
+                let b = unsafe { level3_avx2(l, &block, &v, &w) };
+                (level3_any(l, &block, &v, &w), b)
+            } else {
+                let part = |c: usize| &block[c * e * nl..(c + 1) * e * nl];
+                // SAFETY: AVX2 checked above.
+                #[allow(unsafe_code)]
+                let b = [0, 1, 2].map(|c| unsafe { level1_avx2(l, part(c), &v, &w) });
+                ([0, 1, 2].map(|c| level1_any(l, part(c), &v, &w)), b)
+            };
+            assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "band {l}");
             // And both equal the row-by-row definition in f64 to rounding.
             let s = l * l;
-            let mut exact = 0.0f64;
-            for r in 0..2 * l + 1 {
-                let row = |j: usize| f64::from(block[j * nl + r]);
-                let pv: f64 = (0..e).map(|j| row(j) * f64::from(v[j])).sum();
-                let qw: f64 = (0..s).map(|j| row(j) * f64::from(w[j])).sum();
-                exact += f64::from(w[s + r]) * pv + f64::from(v[s + r]) * qw;
+            for c in 0..3 {
+                let mut exact = 0.0f64;
+                for r in 0..2 * l + 1 {
+                    let row = |j: usize| f64::from(block[column_index(l, j, c, r)]);
+                    let pv: f64 = (0..e).map(|j| row(j) * f64::from(v[j])).sum();
+                    let qw: f64 = (0..s).map(|j| row(j) * f64::from(w[j])).sum();
+                    exact += f64::from(w[s + r]) * pv + f64::from(v[s + r]) * qw;
+                }
+                // (2l+1)·2e terms of magnitude ≤ 1 summed in f32.
+                let tol = ((2 * l + 1) * 2 * e) as f64 * 4.0 * f64::from(f32::EPSILON);
+                assert!(
+                    (f64::from(a[c]) - exact).abs() <= tol,
+                    "band {l}, channel {c}: {} vs {exact}",
+                    a[c]
+                );
             }
-            // (2l+1)·2e terms of magnitude ≤ 1 summed in f32.
-            let tol = ((2 * l + 1) * 2 * e) as f64 * 4.0 * f64::from(f32::EPSILON);
-            assert!(
-                (f64::from(a) - exact).abs() <= tol,
-                "band {l}: {a} vs {exact}"
-            );
         }
     }
 

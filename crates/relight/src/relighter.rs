@@ -34,10 +34,10 @@ pub struct FrameLighting {
     pub lighting: Lighting,
     /// Packed block-lower rows of `L̂_c` per channel (f32), if prepared for specular.
     products: Option<[Vec<f32>; 3]>,
-    /// Per channel, band `l`'s rows of `L̂_c` stored by column for the level kernel: columns
-    /// `j < (l+1)²`, each `lanes(l)` floats (rows `l²..(l+1)²`, zero-padded to a multiple of 8),
-    /// band blocks at `Relighter::column_offsets`.
-    columns: Option<[Vec<f32>; 3]>,
+    /// Band `l`'s rows of the three `L̂_c` stored by column for the level kernel: for each
+    /// column `j < (l+1)²`, channel by channel, `lanes(l)` floats (rows `l²..(l+1)²`,
+    /// zero-padded to a multiple of 4); band blocks at `Relighter::column_offsets`.
+    columns: Option<Vec<f32>>,
 }
 
 impl FrameLighting {
@@ -80,7 +80,7 @@ impl Relighter {
         let mut column_offsets = vec![0usize];
         for l in 0..order {
             let last = *column_offsets.last().unwrap_or(&0);
-            column_offsets.push(last + (l + 1) * (l + 1) * crate::kernel::lanes(l));
+            column_offsets.push(last + 3 * (l + 1) * (l + 1) * crate::kernel::lanes(l));
         }
         Ok(Self {
             order,
@@ -114,8 +114,8 @@ impl Relighter {
             })?;
             let n2 = self.order * self.order;
             let mut out: [Vec<f32>; 3] = Default::default();
-            let mut cols: [Vec<f32>; 3] = Default::default();
-            for (c, (packed, col)) in out.iter_mut().zip(cols.iter_mut()).enumerate() {
+            let mut cols = vec![0.0f32; self.column_offsets[self.order]];
+            for (c, packed) in out.iter_mut().enumerate() {
                 let l64: Vec<f64> = lighting.rgb[c].iter().map(|v| f64::from(*v)).collect();
                 let dense = gaunt.product_matrix(&l64)?;
                 packed.reserve(self.row_offsets[n2]);
@@ -123,13 +123,13 @@ impl Relighter {
                     let len = self.row_offsets[i + 1] - self.row_offsets[i];
                     packed.extend(dense[i * n2..i * n2 + len].iter().map(|v| *v as f32));
                 }
-                col.resize(self.column_offsets[self.order], 0.0);
                 for l in 0..self.order {
-                    let (s, e, lanes) = (l * l, (l + 1) * (l + 1), crate::kernel::lanes(l));
-                    let block = &mut col[self.column_offsets[l]..self.column_offsets[l + 1]];
+                    let (s, e) = (l * l, (l + 1) * (l + 1));
+                    let block = &mut cols[self.column_offsets[l]..self.column_offsets[l + 1]];
                     for j in 0..e {
                         for r in 0..2 * l + 1 {
-                            block[j * lanes + r] = dense[(s + r) * n2 + j] as f32;
+                            block[crate::kernel::column_index(l, j, c, r)] =
+                                dense[(s + r) * n2 + j] as f32;
                         }
                     }
                 }
@@ -196,7 +196,7 @@ impl Relighter {
         Ok(SpecularKernel::new(
             [&p[0], &p[1], &p[2]],
             &self.row_offsets,
-            [&cols[0], &cols[1], &cols[2]],
+            cols,
             &self.column_offsets,
             self.order,
         ))

@@ -25,6 +25,10 @@ pub struct RelightOptions {
     pub rotate_y_deg: f64,
     /// Frames timed; the median is reported.
     pub timing_frames: usize,
+    /// Rotation about +Y added per timed frame, degrees (0: the same frame again). Frame `k`
+    /// is lit by the environment rotated by `rotate_y_deg + k · step`; the radiance returned
+    /// is frame 0's.
+    pub rotate_y_step_deg: f64,
 }
 
 impl Default for RelightOptions {
@@ -34,6 +38,7 @@ impl Default for RelightOptions {
             adaptive: None,
             rotate_y_deg: 0.0,
             timing_frames: 5,
+            rotate_y_step_deg: 0.0,
         }
     }
 }
@@ -61,6 +66,9 @@ pub struct RelightStats {
     /// Shading time of one frame over all objects, milliseconds: the median of the timed
     /// frames (the upper median for an even count).
     pub shade_ms: f64,
+    /// Frames per second of the whole per-frame work over the timed frames: environment
+    /// rotation, per-frame lighting preparation (light product matrices) and shading.
+    pub fps: f64,
     /// Points shaded.
     pub points: usize,
     /// Fraction of points in the diffuse ROI (adaptive), weighted over objects.
@@ -160,15 +168,29 @@ pub fn relight(
     opt: &RelightOptions,
 ) -> Result<Relit, ReportError> {
     let (env_order, env) = environment(bake);
-    let rot = if opt.rotate_y_deg == 0.0 {
-        None
-    } else {
-        Some(Rotation::new(
-            env_order,
-            DMat3::from_rotation_y(opt.rotate_y_deg.to_radians()),
-        )?)
+    let rotation = |deg: f64| -> Result<Option<Rotation>, ReportError> {
+        Ok(if deg == 0.0 {
+            None
+        } else {
+            Some(Rotation::new(
+                env_order,
+                DMat3::from_rotation_y(deg.to_radians()),
+            )?)
+        })
     };
-    let lighting = Lighting::from_rgb_coefficients(&env, rot.as_ref())?;
+    let rot = rotation(opt.rotate_y_deg)?;
+    // The lighting of timed frame `k` (rotated by its own angle), and the time that took.
+    let frame_angle = |k: usize| opt.rotate_y_deg + opt.rotate_y_step_deg * k as f64;
+    let frame_light = |k: usize| -> Result<(Lighting, f64), ReportError> {
+        let start = Instant::now();
+        let r = if k == 0 {
+            None
+        } else {
+            rotation(frame_angle(k))?
+        };
+        let l = Lighting::from_rgb_coefficients(&env, r.as_ref().or(rot.as_ref()))?;
+        Ok((l, start.elapsed().as_secs_f64()))
+    };
     let env_rotated: Vec<[f64; 3]> = match &rot {
         Some(r) => r.apply_rgb(&env),
         None => env.clone(),
@@ -182,6 +204,8 @@ pub fn relight(
     let mut radiance = Vec::new();
     let mut roi = Vec::new();
     let mut times = vec![0.0f64; opt.timing_frames.max(1)];
+    // Whole per-frame work (rotation, lighting preparation, shading), for frames per second.
+    let mut frame_seconds = 0.0f64;
     let (mut roi_d, mut roi_s, mut n_d, mut n_s) = (0.0, 0.0, 0.0, 0.0);
     for (o, obj) in bake.objects.iter().enumerate() {
         let mesh = &scene.meshes[o];
@@ -301,15 +325,20 @@ pub fn relight(
                     specular: specular_input,
                     adjacency: &adjacency,
                 };
-                let mut last = None;
-                for t in times.iter_mut() {
+                let mut first = None;
+                for (k, t) in times.iter_mut().enumerate() {
+                    let (lighting, rotate) = frame_light(k)?;
+                    let prep = Instant::now();
                     let frame = relighter.frame_lighting(&lighting, specular_input.is_some())?;
                     let start = Instant::now();
                     let f = relighter.adaptive(&input, &frame, params)?;
                     *t += start.elapsed().as_secs_f64();
-                    last = Some(f);
+                    frame_seconds += rotate + prep.elapsed().as_secs_f64();
+                    if k == 0 {
+                        first = Some(f);
+                    }
                 }
-                let f = last.expect("at least one frame");
+                let f = first.expect("at least one frame");
                 accumulate_stats(
                     &mut stats, &f.stats, &mut roi_d, &mut roi_s, &mut n_d, &mut n_s,
                 );
@@ -324,8 +353,10 @@ pub fn relight(
                     .into(),
             )),
             (None, _) => {
-                let mut last = (Vec::new(), Vec::new());
-                for t in times.iter_mut() {
+                let mut first = (Vec::new(), Vec::new());
+                for (k, t) in times.iter_mut().enumerate() {
+                    let (lighting, rotate) = frame_light(k)?;
+                    let prep = Instant::now();
                     let frame = relighter.frame_lighting(&lighting, specular_input.is_some())?;
                     let start = Instant::now();
                     let d = relighter.diffuse(&diffuse_view, &frame, &dparams)?;
@@ -334,9 +365,12 @@ pub fn relight(
                         None => Vec::new(),
                     };
                     *t += start.elapsed().as_secs_f64();
-                    last = (d, s);
+                    frame_seconds += rotate + prep.elapsed().as_secs_f64();
+                    if k == 0 {
+                        first = (d, s);
+                    }
                 }
-                result = sum_terms(&last.0, &last.1, points);
+                result = sum_terms(&first.0, &first.1, points);
             }
         }
         let result = match (glossy_table, &vis_data) {
@@ -360,6 +394,7 @@ pub fn relight(
                 )?;
                 let dt = start.elapsed().as_secs_f64();
                 times.iter_mut().for_each(|t| *t += dt);
+                frame_seconds += dt * times.len() as f64;
                 sum_terms(&result, &s, points)
             }
             _ => result,
@@ -367,6 +402,7 @@ pub fn relight(
         radiance.push(result);
         roi.push(in_roi);
     }
+    stats.fps = times.len() as f64 / frame_seconds.max(1e-12);
     times.sort_by(f64::total_cmp);
     stats.shade_ms = 1e3 * times[times.len() / 2];
     if stats.adaptive {

@@ -365,6 +365,7 @@ pub fn run_report(
             adaptive: None,
             rotate_y_deg: 0.0,
             timing_frames: s.timing_frames,
+            rotate_y_step_deg: 0.0,
         };
         let full = relight(scene, &accel, &bake, &full_opt)?;
         let ad_opt = RelightOptions {
