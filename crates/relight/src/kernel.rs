@@ -4,7 +4,9 @@
 //! Summation order (fixed, documented so results are reproducible):
 //! - the **base** (bands `0..BASE_ORDER`) is one accumulator per channel, and every further band
 //!   `l` adds its own contribution to a second accumulator `high` in increasing `l`;
-//! - the value is `scale · (base + high)`.
+//! - the value is `scale · (base + high)`;
+//! - inside a specular level, each lane's column sum runs over the columns in increasing
+//!   order, whatever the instruction set (see `level3_avx2`).
 
 /// Bands always evaluated for every point: the first three (Lee & Kim 2014, 5.1.1, after
 /// Ramamoorthi & Hanrahan 2001: three bands carry almost all of the diffuse response).
@@ -474,9 +476,10 @@ impl DiffuseKernel<'_> {
 /// rows `i ∈ band l` against columns `j < (l+1)²`, and the new columns `j ∈ band l` against the
 /// old rows `i < l²`. Since `L̂` is symmetric (the Gaunt tensor is), the second block is read as
 /// rows of band `l` too, so level `l` is
-/// `Σ_{i∈band l} [ w_i (L̂_i,·<(l+1)² · V) + V_i (L̂_i,·<l² · w) ]` — two contiguous dot products
-/// per row, with the same multiply count as Algorithm 3 (`(2l+1)((l+1)² + l²)` per channel).
-/// Only the block-lower rows are stored (packed, `row_offsets`).
+/// `Σ_{i∈band l} [ w_i (L̂_i,·<(l+1)² · V) + V_i (L̂_i,·<l² · w) ]`, with the multiply count of
+/// Algorithm 3 (`(2l+1)((l+1)² + l²)` per channel, plus the padding of the rows to 4 lanes).
+/// Only band `l`'s rows are read, stored by column ([`column_index`]); the base uses a dense
+/// copy of the `9 × 9` corner.
 pub(crate) struct SpecularKernel<'a> {
     /// Band `l`'s rows of the three `L̂_c` by column (see `FrameLighting::columns`).
     columns: &'a [f32],

@@ -19,7 +19,12 @@
 //!   point, then band by band only while the accumulated difference from the base stays above
 //!   a threshold (Algorithms 1–3, with the incremental product of Algorithm 3), ROI refinement
 //!   by breadth-first search over the mesh ([`Adjacency`], 5.2.1) and boundary smoothing over
-//!   two tiers (5.2.2). See [`Relighter::adaptive`].
+//!   two tiers (5.2.2) — [`StopRule::Significance`]. Our addition, the default
+//!   ([`StopRule::Convergence`]): a point also stops once its last two levels moved it by less
+//!   than the threshold, so points inside the ROI get their own order too; and
+//!   [`Threshold::Display`] measures every change on the 8-bit view (exposure, clamp, sRGB), as
+//!   the thesis' "T = 0.02 on 8-bit normalised values" and `psnr_ldr` do. See
+//!   [`Relighter::adaptive`] and the crate README for what each buys on a real bake.
 //!
 //! # The specular approximation, precisely
 //! `CONVENTIONS.md`'s Phong term gives the outgoing radiance
@@ -38,11 +43,18 @@
 //! from the lobe.
 //!
 //! # Layout and determinism
-//! Inner loops are f32 dot products over contiguous slices with 8 independent lanes (they
-//! auto-vectorise), parallel over chunks of 256 points with rayon; every point's sums are formed
-//! in a fixed order, so results do not depend on the thread count, and the adaptive path with
-//! threshold 0 equals the full-order path bit for bit (both go through the same band-by-band
-//! kernels).
+//! The diffuse kernel is f32 dot products with 8 independent lanes. The specular kernel keeps
+//! each band's rows of `L̂` by column (rows zero-padded to a multiple of 4 lanes), so a level is
+//! two sums of columns scaled by `v_j` and `w_j` and one dot product — no per-row reductions;
+//! bands of ≤ 16 lanes do the three colour channels in one sweep. It runs an AVX2 instance when
+//! the CPU has AVX2 (detected at run time; the only `unsafe` of the crate) and a baseline one
+//! otherwise; both do the same element-wise multiplies and adds in the same order (no FMA
+//! contraction), so they agree bit for bit (tested). Work is parallel over chunks of 256 points
+//! with rayon; every point's sums are formed in a fixed order, so results do not depend on the
+//! thread count or the CPU, and the adaptive path with threshold 0 equals the full-order path
+//! bit for bit (both go through the same band-by-band kernels). The adaptive path reads bands
+//! `0..5` from compact copies ([`TransferView::with_low_bands`]) and a point's whole row only
+//! if it goes on.
 //!
 //! ```
 //! use prt_relight::{DiffuseParams, Lighting, Relighter, TransferView};
