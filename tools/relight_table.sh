@@ -10,8 +10,8 @@ set -euo pipefail
 scene=$1; bake=$2; orders=$3; opts=$4; out=${5:-/tmp/relight_table}; runs=${6:-3}
 prt=${PRT:-target/release/prt}
 mkdir -p "$out"
-echo "| order | coeffs | full ms | adaptive ms | speed-up | psnr_ldr adaptive vs full | ROI diffuse | ROI specular | mean order d / s | work |"
-echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+echo "| SH level (lmax) | order | coeffs | full ms | adaptive ms | FPS full | FPS ours | speed-up | psnr_ldr adaptive vs full | ROI diffuse | ROI specular | mean order d / s | work |"
+echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 for n in $orders; do
   "$prt" relight "$scene" --bake "$bake" --order "$n" --out "$out/full$n.exr" >/dev/null 2>&1
   js=()
@@ -30,7 +30,7 @@ ps = "∞" if p is None or p > 1e300 else f"{p:.2f}"
 md, ms = j.get("mean_order_diffuse"), j.get("mean_order_specular")
 mo = f"{md:.2f} / {ms:.2f}" if md is not None else "–"
 wf = j.get("work_fraction")
-print(f"| {n} | {n*n} | {full:.2f} | {ad:.2f} | {full/ad:.2f}× | {ps} | "
+print(f"| {n-1} | {n} | {n*n} | {full:.2f} | {ad:.2f} | {1000/full:.1f} | {1000/ad:.1f} | {full/ad:.2f}× | {ps} | "
       f"{100*j['roi_fraction_diffuse']:.1f} % | {100*j['roi_fraction_specular']:.1f} % | {mo} | {wf:.3f} |")
 PY
 done
