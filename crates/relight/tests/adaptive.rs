@@ -416,3 +416,42 @@ fn test05_adaptive_result_does_not_depend_on_the_thread_count() {
     }
     assert_eq!(sa, sb);
 }
+
+#[test]
+fn test09_low_band_copies_change_nothing_but_what_is_read() {
+    // The compact copies of bands 0..5 are a memory layout: with them the adaptive result and
+    // statistics are identical, for every rule and threshold kind, at an order above 5 (so
+    // points do switch from the copy to the full row).
+    let s = scene(9, 2);
+    let dlow = prt_relight::low_bands(&s.diffuse, s.order);
+    let vlow = prt_relight::low_bands(&s.visibility, s.order);
+    assert_eq!(
+        dlow.len(),
+        s.positions.len() * prt_relight::LOW_ORDER.pow(2)
+    );
+    let plain = s.input();
+    let mut with = s.input();
+    let (t, dp) = with.diffuse.unwrap();
+    with.diffuse = Some((t.with_low_bands(&dlow).unwrap(), dp));
+    let mut sp = with.specular.unwrap();
+    sp.visibility = sp.visibility.with_low_bands(&vlow).unwrap();
+    with.specular = Some(sp);
+    for t in [0.0f32, 0.01, 0.05] {
+        for p in all_params(t) {
+            let a = s.relighter.adaptive(&plain, &s.frame, &p).unwrap();
+            let b = s.relighter.adaptive(&with, &s.frame, &p).unwrap();
+            assert_eq!(a.diffuse, b.diffuse, "{p:?}");
+            assert_eq!(a.specular, b.specular, "{p:?}");
+            assert_eq!(a.roi, b.roi, "{p:?}");
+        }
+    }
+    // A copy of the wrong length is refused.
+    assert!(matches!(
+        t_view(&s).with_low_bands(&dlow[1..]),
+        Err(RelightError::InvalidParameter(_))
+    ));
+}
+
+fn t_view(s: &Scene) -> TransferView<'_> {
+    TransferView::new(s.order, 1, &s.diffuse).unwrap()
+}
