@@ -26,9 +26,12 @@ pub struct ReportArgs {
     /// Bounces (default: the scene's `[render] bounces`).
     #[arg(long)]
     pub bounces: Option<u32>,
-    /// Adaptive ROI threshold T (absolute, output radiance units; the thesis uses 0.02).
+    /// Adaptive threshold T (absolute, output radiance units; the thesis uses 0.02).
     #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     pub threshold: f32,
+    /// Measure --threshold on the 8-bit view (as psnr_ldr) instead of in radiance.
+    #[arg(long)]
+    pub display_threshold: bool,
     /// Frames timed per relighting (median).
     #[arg(long, default_value_t = 5)]
     pub frames: usize,
@@ -75,6 +78,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         rays: args.rays,
         bounces,
         threshold: args.threshold,
+        display_threshold: args.display_threshold,
         seed: scene.render.seed,
         timing_frames: args.frames,
         progress: true,

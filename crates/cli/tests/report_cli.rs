@@ -188,4 +188,61 @@ fn report_writes_everything_and_its_figures_are_reproduced_by_hand() {
         v
     };
     assert_eq!(strip(&first), strip(&second));
+
+    // The threshold on the display: the report says so, and prt relight with the same options
+    // reproduces its adaptive image at order 4 (where bands are filtered) bit for bit.
+    let out2 = dir.path().join("report_display");
+    run(prt()
+        .arg("report")
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out2)
+        .args([
+            "--orders",
+            "4",
+            "--reference-spp",
+            "8",
+            "--rays",
+            "64",
+            "--frames",
+            "1",
+            "--display-threshold",
+            "--threshold",
+            "0.05",
+        ]));
+    let third: Value =
+        serde_json::from_str(&std::fs::read_to_string(out2.join("report.json")).unwrap()).unwrap();
+    assert!(
+        third["settings"]["threshold_kind"]
+            .as_str()
+            .unwrap()
+            .starts_with("display"),
+        "{}",
+        third["settings"]
+    );
+    let bake2 = PathBuf::from(third["bake_file"].as_str().unwrap());
+    let mine_d = dir.path().join("mine_display_04.exr");
+    run(prt()
+        .arg("relight")
+        .arg(&scene)
+        .arg("--bake")
+        .arg(&bake2)
+        .args([
+            "--order",
+            "4",
+            "--adaptive",
+            "--display-threshold",
+            "--threshold",
+            "0.05",
+            "--out",
+        ])
+        .arg(&mine_d));
+    let same = json(&run(prt()
+        .arg("compare")
+        .arg(&mine_d)
+        .arg(out2.join("images/adaptive_04.exr"))
+        .arg("--json")));
+    assert_eq!(same["max_abs"].as_f64(), Some(0.0), "{same}");
+    let md = std::fs::read_to_string(out2.join("report.md")).unwrap();
+    assert!(md.contains("--display-threshold"), "{md}");
 }

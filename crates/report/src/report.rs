@@ -33,8 +33,12 @@ pub struct ReportSettings {
     pub rays: u32,
     /// Bounces of both the reference and the bake.
     pub bounces: u32,
-    /// Adaptive threshold `T` (absolute, output radiance units).
+    /// Adaptive threshold `T` (absolute, output radiance units; or on the display, see
+    /// `display_threshold`). The adaptive runs use the convergence stop
+    /// ([`prt_relight::AdaptiveParams::new`]).
     pub threshold: f32,
+    /// Measure `threshold` on the 8-bit view (exposure 0, as `psnr_ldr`) instead of in radiance.
+    pub display_threshold: bool,
     /// Seed of the reference and the bake.
     pub seed: u64,
     /// Frames timed per relighting (the median is reported).
@@ -369,7 +373,14 @@ pub fn run_report(
         };
         let full = relight(scene, &accel, &bake, &full_opt)?;
         let ad_opt = RelightOptions {
-            adaptive: Some(AdaptiveParams::new(Threshold::Absolute(s.threshold))),
+            adaptive: Some(AdaptiveParams::new(if s.display_threshold {
+                Threshold::Display {
+                    t: s.threshold,
+                    exposure_ev: 0.0,
+                }
+            } else {
+                Threshold::Absolute(s.threshold)
+            })),
             ..full_opt.clone()
         };
         let adaptive = relight(scene, &accel, &bake, &ad_opt)?;
@@ -615,7 +626,7 @@ pub fn run_report(
         machine: machine(),
         settings: serde_json::json!({
             "orders": s.orders, "reference_spp": s.reference_spp, "rays": s.rays, "bounces": s.bounces,
-            "threshold": s.threshold, "threshold_kind": "absolute (output radiance)", "seed": s.seed,
+            "threshold": s.threshold, "threshold_kind": if s.display_threshold { "display (8-bit view, exposure 0)" } else { "absolute (output radiance)" }, "seed": s.seed,
             "timing_frames": s.timing_frames, "image": format!("{w}x{h}"),
         }),
         reference_seconds: reference_out.seconds,
@@ -767,9 +778,14 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
         );
         let _ = writeln!(
             s,
-            "gives `masked_psnr_ldr` = {} dB (the table's \"PSNR full vs path traced\"); add `--adaptive --threshold {}` for the adaptive column.",
+            "gives `masked_psnr_ldr` = {} dB (the table's \"PSNR full vs path traced\"); add `--adaptive --threshold {}{}` for the adaptive column.",
             db(r.psnr_full_vs_reference),
-            d.settings["threshold"]
+            d.settings["threshold"],
+            if d.settings["threshold_kind"].as_str().is_some_and(|k| k.starts_with("display")) {
+                " --display-threshold"
+            } else {
+                ""
+            }
         );
     }
     if !d.notes.is_empty() {
