@@ -9,16 +9,18 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 
 fn report(scene: &Path, out: &Path) -> Value {
-    run(prt().arg("report").arg(scene).arg("--out").arg(out).args([
-        "--orders",
-        "2..4",
-        "--reference-spp",
-        "8",
-        "--rays",
-        "64",
-        "--frames",
-        "1",
-    ]));
+    report_with(scene, out, &["--orders", "2..4"])
+}
+
+/// A quick report (8 spp, 64 rays, 1 timed frame) with extra options; its report.json.
+fn report_with(scene: &Path, out: &Path, extra: &[&str]) -> Value {
+    run(prt()
+        .arg("report")
+        .arg(scene)
+        .arg("--out")
+        .arg(out)
+        .args(["--reference-spp", "8", "--rays", "64", "--frames", "1"])
+        .args(extra));
     serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap()
 }
 
@@ -192,26 +194,17 @@ fn report_writes_everything_and_its_figures_are_reproduced_by_hand() {
     // The threshold on the display: the report says so, and prt relight with the same options
     // reproduces its adaptive image at order 4 (where bands are filtered) bit for bit.
     let out2 = dir.path().join("report_display");
-    run(prt()
-        .arg("report")
-        .arg(&scene)
-        .arg("--out")
-        .arg(&out2)
-        .args([
+    let third = report_with(
+        &scene,
+        &out2,
+        &[
             "--orders",
             "4",
-            "--reference-spp",
-            "8",
-            "--rays",
-            "64",
-            "--frames",
-            "1",
             "--display-threshold",
             "--threshold",
             "0.05",
-        ]));
-    let third: Value =
-        serde_json::from_str(&std::fs::read_to_string(out2.join("report.json")).unwrap()).unwrap();
+        ],
+    );
     assert!(
         third["settings"]["threshold_kind"]
             .as_str()

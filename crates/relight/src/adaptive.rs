@@ -365,8 +365,8 @@ impl Relighter {
             let mut sum = 0.0f64;
             for (k, eval) in terms.iter().enumerate() {
                 if let Some(eval) = eval {
-                    let acc = evaluate_all(points, None, |pts, a, fresh, s| {
-                        eval(pts, a, fresh, b - 1, Stop::NEVER, None, s)
+                    let acc = evaluate_all(points, |pts, a, s| {
+                        eval(pts, a, true, b - 1, Stop::NEVER, None, s)
                     });
                     sum += acc
                         .iter()
@@ -591,23 +591,20 @@ fn filter_pass(
     acc
 }
 
-/// Runs `f(points, sums, fresh, scratch)` over every point in parallel blocks of
-/// [`BLOCK`] points. The sums start from `start` (`fresh = false`) or from defaults
-/// (`fresh = true`: `f` computes the base).
+/// Runs `f(points, sums, scratch)` over every point in parallel blocks of [`BLOCK`] points,
+/// from default sums.
 fn evaluate_all(
     points: usize,
-    start: Option<Vec<Accum>>,
-    f: impl Fn(&[usize], &mut [Accum], bool, &mut Vec<f32>) + Sync,
+    f: impl Fn(&[usize], &mut [Accum], &mut Vec<f32>) + Sync,
 ) -> Vec<Accum> {
-    let fresh = start.is_none();
-    let mut acc = start.unwrap_or_else(|| vec![Accum::default(); points]);
+    let mut acc = vec![Accum::default(); points];
     acc.par_chunks_mut(CHUNK)
         .enumerate()
         .for_each_init(Vec::new, |scratch, (ci, chunk)| {
             for (bi, block) in chunk.chunks_mut(BLOCK).enumerate() {
                 let first = ci * CHUNK + bi * BLOCK;
                 let pts: Vec<usize> = (first..first + block.len()).collect();
-                f(&pts, block, fresh, scratch);
+                f(&pts, block, scratch);
             }
         });
     acc

@@ -119,37 +119,38 @@ fn level1_lanes(l: usize, cols: &[f32], v: &[f32], w: &[f32]) -> f32 {
 #[inline(always)]
 fn level_in<const NL: usize>(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [f32; 3] {
     let (s, e) = (l * l, (l + 1) * (l + 1));
-    let rows = 2 * l + 1;
-    let finish = |p: &[f32; NL], q: &[f32; NL]| {
-        let mut sum = 0.0f32;
-        for r in 0..rows {
-            sum += w[s + r] * p[r] + v[s + r] * q[r];
-        }
-        sum
-    };
-    {
-        let (old, new) = block.split_at(s * 3 * NL);
-        let mut p = [[0.0f32; NL]; 3];
-        let mut q = [[0.0f32; NL]; 3];
-        for ((cols, vj), wj) in old.chunks_exact(3 * NL).zip(&v[..s]).zip(&w[..s]) {
-            for c in 0..3 {
-                let col = &cols[c * NL..(c + 1) * NL];
-                for k in 0..NL {
-                    p[c][k] += vj * col[k];
-                    q[c][k] += wj * col[k];
-                }
+    let (old, new) = block.split_at(s * 3 * NL);
+    let mut p = [[0.0f32; NL]; 3];
+    let mut q = [[0.0f32; NL]; 3];
+    for ((cols, vj), wj) in old.chunks_exact(3 * NL).zip(&v[..s]).zip(&w[..s]) {
+        for c in 0..3 {
+            let col = &cols[c * NL..(c + 1) * NL];
+            for k in 0..NL {
+                p[c][k] += vj * col[k];
+                q[c][k] += wj * col[k];
             }
         }
-        for (cols, vj) in new.chunks_exact(3 * NL).zip(&v[s..e]) {
-            for c in 0..3 {
-                let col = &cols[c * NL..(c + 1) * NL];
-                for k in 0..NL {
-                    p[c][k] += vj * col[k];
-                }
-            }
-        }
-        [0, 1, 2].map(|c| finish(&p[c], &q[c]))
     }
+    for (cols, vj) in new.chunks_exact(3 * NL).zip(&v[s..e]) {
+        for c in 0..3 {
+            let col = &cols[c * NL..(c + 1) * NL];
+            for k in 0..NL {
+                p[c][k] += vj * col[k];
+            }
+        }
+    }
+    [0, 1, 2].map(|c| band_sum(l, &p[c], &q[c], v, w))
+}
+
+/// `Σ_r w_{l²+r} p_r + v_{l²+r} q_r` over band `l`'s `2l + 1` rows.
+#[inline(always)]
+fn band_sum(l: usize, p: &[f32], q: &[f32], v: &[f32], w: &[f32]) -> f32 {
+    let s = l * l;
+    let mut sum = 0.0f32;
+    for r in 0..2 * l + 1 {
+        sum += w[s + r] * p[r] + v[s + r] * q[r];
+    }
+    sum
 }
 
 /// One channel of [`level_in`] over its contiguous columns.
@@ -170,11 +171,7 @@ fn level_channel<const NL: usize>(l: usize, cols: &[f32], v: &[f32], w: &[f32]) 
             p[k] += vj * col[k];
         }
     }
-    let mut sum = 0.0f32;
-    for r in 0..2 * l + 1 {
-        sum += w[s + r] * p[r] + v[s + r] * q[r];
-    }
-    sum
+    band_sum(l, &p, &q, v, w)
 }
 
 /// Index of row `l² + r` of band `l`, column `j`, channel `c` in band `l`'s block of the column
@@ -433,9 +430,9 @@ impl DiffuseKernel<'_> {
         acc
     }
 
-    /// Adds levels `acc.last_level + 1 ..= to`, stopping early by the rules of `stop`.
+    /// Adds levels `acc.last_level + 1 ..= to`, stopping early by the rules of `stop`; returns
+    /// whether a rule stopped the point (rather than reaching `to`).
     #[inline]
-    /// Returns whether a rule stopped the point (rather than reaching `to`).
     pub fn extend(
         &self,
         acc: &mut Accum,
@@ -488,31 +485,17 @@ pub(crate) struct SpecularKernel<'a> {
     /// Whether the CPU has AVX2 (the level kernel then runs its AVX2 instance).
     avx2: bool,
     /// The dense `b² × b²` corner of each `L̂_c` (`b` = the base order), for [`Self::base`].
-    base_dense: [Vec<f32>; 3],
+    base_dense: [&'a [f32]; 3],
 }
 
 impl<'a> SpecularKernel<'a> {
-    /// The kernel over the packed block-lower rows of `L̂_c`.
+    /// The kernel over a frame's column layout and dense base corners.
     pub fn new(
-        products: [&'a [f32]; 3],
-        row_offsets: &'a [usize],
+        base_dense: [&'a [f32]; 3],
         columns: &'a [f32],
         column_offsets: &'a [usize],
         order: usize,
     ) -> Self {
-        let bb = BASE_ORDER.min(order).pow(2);
-        let base_dense = products.map(|m| {
-            let at = |i: usize, j: usize| {
-                // Row i holds the columns below its band's end; the rest by symmetry.
-                let (a, b) = if row_offsets[i] + j < row_offsets[i + 1] {
-                    (i, j)
-                } else {
-                    (j, i)
-                };
-                m[row_offsets[a] + b]
-            };
-            (0..bb * bb).map(|k| at(k / bb, k % bb)).collect()
-        });
         #[cfg(target_arch = "x86_64")]
         let avx2 = std::arch::is_x86_feature_detected!("avx2");
         #[cfg(not(target_arch = "x86_64"))]
@@ -538,11 +521,11 @@ impl SpecularKernel<'_> {
         (0..=level).map(Self::products_of_level).sum()
     }
 
-    /// Level `l` of channel `c`: `Σ_{i∈band l} [w_i (L̂_i,·<e · v) + v_i (L̂_i,·<s · w)]`
+    /// Level `l` of the three channels: `Σ_{i∈band l} [w_i (L̂_i,·<e · v) + v_i (L̂_i,·<s · w)]`
     /// (`s = l²`, `e = (l+1)²`). The band's rows are stored by column, so both matrix–vector
     /// products are sums of columns scaled by `v_j` and `w_j` over the band's `2l+1` rows at
-    /// once (8-lane chunks, rows zero-padded), and the level is one dot product over the band:
-    /// no per-row reductions or tails, which dominated at the low levels where rows are short.
+    /// once (rows zero-padded to [`lanes`]), and the level is one dot product over the band: no
+    /// per-row reductions or tails, which dominated at the low levels where rows are short.
     #[inline]
     fn level(&self, l: usize, v: &[f32], w: &[f32]) -> [f32; 3] {
         let block = &self.columns[self.column_offsets[l]..self.column_offsets[l + 1]];
@@ -583,7 +566,7 @@ impl SpecularKernel<'_> {
             ..Accum::default()
         };
         for c in 0..3 {
-            let m = &self.base_dense[c];
+            let m = self.base_dense[c];
             let mut u = [0.0f32; 9];
             for (i, wi) in w[..bb].iter().enumerate() {
                 for (uj, mij) in u[..bb].iter_mut().zip(&m[i * bb..(i + 1) * bb]) {

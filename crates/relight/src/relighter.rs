@@ -7,8 +7,8 @@ use glam::Vec3;
 use prt_sh::{zonal, Basis, GauntTensor, MAX_GAUNT_ORDER};
 use rayon::prelude::*;
 
-/// Relighting at one SH order: holds the basis, the Gaunt tensor (for specular) and the packing
-/// of the light product matrices. Build once, shade many frames.
+/// Relighting at one SH order: holds the bases, the Gaunt tensor (for specular) and the column
+/// layout of the light product matrices. Build once, shade many frames.
 #[derive(Clone, Debug)]
 pub struct Relighter {
     order: usize,
@@ -18,9 +18,6 @@ pub struct Relighter {
     /// recurrences do not depend on the order — tested).
     basis_low: Basis,
     gaunt: Option<GauntTensor>,
-    /// Row `i` of the packed block-lower product matrix is `row_offsets[i]..row_offsets[i+1]`,
-    /// holding columns `j < (l_i + 1)²`.
-    row_offsets: Vec<usize>,
     /// Band `l`'s column block of the level kernel's layout is
     /// `column_offsets[l]..column_offsets[l+1]` (`(l+1)²` columns of `lanes(l)` floats).
     column_offsets: Vec<usize>,
@@ -32,8 +29,8 @@ pub struct Relighter {
 pub struct FrameLighting {
     /// The lighting, truncated to the relighter's order.
     pub lighting: Lighting,
-    /// Packed block-lower rows of `L̂_c` per channel (f32), if prepared for specular.
-    products: Option<[Vec<f32>; 3]>,
+    /// The dense `b² × b²` corner of each `L̂_c` (`b = min(order, BASE_ORDER)`), for the base.
+    base_corner: Option<[Vec<f32>; 3]>,
     /// Band `l`'s rows of the three `L̂_c` stored by column for the level kernel: for each
     /// column `j < (l+1)²`, channel by channel, `lanes(l)` floats (rows `l²..(l+1)²`,
     /// zero-padded to a multiple of 4); band blocks at `Relighter::column_offsets`.
@@ -44,7 +41,7 @@ impl FrameLighting {
     /// Whether the specular product matrices were built.
     #[must_use]
     pub fn has_specular(&self) -> bool {
-        self.products.is_some() && self.columns.is_some()
+        self.base_corner.is_some() && self.columns.is_some()
     }
 }
 
@@ -68,15 +65,6 @@ impl Relighter {
         } else {
             None
         };
-        let n2 = order * order;
-        let mut row_offsets = Vec::with_capacity(n2 + 1);
-        row_offsets.push(0);
-        for l in 0..order {
-            for _ in 0..2 * l + 1 {
-                let last = *row_offsets.last().unwrap_or(&0);
-                row_offsets.push(last + (l + 1) * (l + 1));
-            }
-        }
         let mut column_offsets = vec![0usize];
         for l in 0..order {
             let last = *column_offsets.last().unwrap_or(&0);
@@ -87,7 +75,6 @@ impl Relighter {
             basis,
             basis_low,
             gaunt,
-            row_offsets,
             column_offsets,
         })
     }
@@ -106,23 +93,22 @@ impl Relighter {
         specular: bool,
     ) -> Result<FrameLighting, RelightError> {
         let lighting = lighting.truncated(self.order)?;
-        let (products, columns) = if specular {
+        let (base_corner, columns) = if specular {
             let gaunt = self.gaunt.as_ref().ok_or(RelightError::OrderMismatch {
                 what: "specular relighter (Gaunt tensor limit)",
                 expected: MAX_GAUNT_ORDER,
                 got: self.order,
             })?;
             let n2 = self.order * self.order;
-            let mut out: [Vec<f32>; 3] = Default::default();
+            let bb = crate::BASE_ORDER.min(self.order).pow(2);
+            let mut corner: [Vec<f32>; 3] = Default::default();
             let mut cols = vec![0.0f32; self.column_offsets[self.order]];
-            for (c, packed) in out.iter_mut().enumerate() {
+            for (c, corner) in corner.iter_mut().enumerate() {
                 let l64: Vec<f64> = lighting.rgb[c].iter().map(|v| f64::from(*v)).collect();
                 let dense = gaunt.product_matrix(&l64)?;
-                packed.reserve(self.row_offsets[n2]);
-                for i in 0..n2 {
-                    let len = self.row_offsets[i + 1] - self.row_offsets[i];
-                    packed.extend(dense[i * n2..i * n2 + len].iter().map(|v| *v as f32));
-                }
+                *corner = (0..bb * bb)
+                    .map(|k| dense[(k / bb) * n2 + k % bb] as f32)
+                    .collect();
                 for l in 0..self.order {
                     let (s, e) = (l * l, (l + 1) * (l + 1));
                     let block = &mut cols[self.column_offsets[l]..self.column_offsets[l + 1]];
@@ -134,13 +120,13 @@ impl Relighter {
                     }
                 }
             }
-            (Some(out), Some(cols))
+            (Some(corner), Some(cols))
         } else {
             (None, None)
         };
         Ok(FrameLighting {
             lighting,
-            products,
+            base_corner,
             columns,
         })
     }
@@ -185,17 +171,11 @@ impl Relighter {
         &'a self,
         frame: &'a FrameLighting,
     ) -> Result<SpecularKernel<'a>, RelightError> {
-        let p = frame
-            .products
-            .as_ref()
-            .ok_or(RelightError::MissingProducts)?;
-        let cols = frame
-            .columns
-            .as_ref()
-            .ok_or(RelightError::MissingProducts)?;
+        let (Some(corner), Some(cols)) = (&frame.base_corner, &frame.columns) else {
+            return Err(RelightError::MissingProducts);
+        };
         Ok(SpecularKernel::new(
-            [&p[0], &p[1], &p[2]],
-            &self.row_offsets,
+            [&corner[0], &corner[1], &corner[2]],
             cols,
             &self.column_offsets,
             self.order,

@@ -183,12 +183,8 @@ pub fn relight(
     let frame_angle = |k: usize| opt.rotate_y_deg + opt.rotate_y_step_deg * k as f64;
     let frame_light = |k: usize| -> Result<(Lighting, f64), ReportError> {
         let start = Instant::now();
-        let r = if k == 0 {
-            None
-        } else {
-            rotation(frame_angle(k))?
-        };
-        let l = Lighting::from_rgb_coefficients(&env, r.as_ref().or(rot.as_ref()))?;
+        let r = rotation(frame_angle(k))?;
+        let l = Lighting::from_rgb_coefficients(&env, r.as_ref())?;
         Ok((l, start.elapsed().as_secs_f64()))
     };
     let env_rotated: Vec<[f64; 3]> = match &rot {
