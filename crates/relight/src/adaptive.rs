@@ -5,7 +5,7 @@
 use crate::adjacency::Adjacency;
 use crate::error::RelightError;
 use crate::input::{DiffuseParams, SpecularInput, TransferView};
-use crate::kernel::{Accum, Measure, Stop, BLOCK, CHUNK};
+use crate::kernel::{prefetch, Accum, Measure, Stop, BLOCK, CHUNK};
 use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -216,7 +216,13 @@ pub struct AdaptiveFrame {
     pub stats: FrameStats,
 }
 
-/// Evaluates a block of points in place: `(points, sums, fresh, last level, stopping rules,
+/// Points ahead whose full rows are hinted into cache in the second pass of a block.
+const PREFETCH_DISTANCE: usize = 3;
+/// Floats of a full row hinted (per channel): through band 7 (`8² = 64`), the levels most of
+/// the points that go on past the low bands reach.
+const AHEAD_FLOATS: usize = 64;
+
+/// Evaluates a block of at most [`BLOCK`] points in place: `(points, sums, fresh, last level, stopping rules,
 /// offsets, scratch)`; with `fresh` the sums are started from the base, otherwise continued;
 /// `offsets[k]` (if given) is what the display shows besides this term at point `k` of the
 /// block.
@@ -287,8 +293,12 @@ impl Relighter {
                   stop: Stop,
                   offsets: Option<&[[f32; 3]]>,
                   _: &mut Vec<f32>| {
+                // Two passes: the low bands of every point from the compact copy, then the
+                // points that go on from their full rows, each row hinted into cache a few
+                // points ahead (see `kernel::prefetch`).
+                let mut go_on = [0usize; BLOCK];
+                let mut n = 0;
                 for (k, (&v, acc)) in pts.iter().zip(accs.iter_mut()).enumerate() {
-                    // The low bands from the compact copy, the rest from the full row.
                     let low = t.low_point(v);
                     if fresh {
                         *acc = kernel.base(low, t.channels, scale);
@@ -301,8 +311,26 @@ impl Relighter {
                         stopped = kernel.extend(acc, low, t.channels, to.min(low_top), stop);
                     }
                     if !stopped && to > acc.last_level as usize {
-                        kernel.extend(acc, t.point(v), t.channels, to, stop);
+                        go_on[n] = k;
+                        n += 1;
                     }
+                }
+                let hint = |k: usize| {
+                    let row = t.point(pts[k]);
+                    let n2 = row.len() / t.channels;
+                    for c in 0..t.channels {
+                        prefetch(&row[c * n2..(c + 1) * n2], AHEAD_FLOATS);
+                    }
+                };
+                go_on[..n]
+                    .iter()
+                    .take(PREFETCH_DISTANCE)
+                    .for_each(|&k| hint(k));
+                for (i, &k) in go_on[..n].iter().enumerate() {
+                    if let Some(&next) = go_on[..n].get(i + PREFETCH_DISTANCE) {
+                        hint(next);
+                    }
+                    kernel.extend(&mut accs[k], t.point(pts[k]), t.channels, to, stop);
                 }
             }
         });
@@ -321,6 +349,10 @@ impl Relighter {
                           offsets: Option<&[[f32; 3]]>,
                           w: &mut Vec<f32>| {
                         w.resize(n2, 0.0);
+                        // Two passes as for diffuse: the low bands (weights and visibility) of
+                        // every point, then the points that go on, rows hinted ahead.
+                        let mut go_on = [(0usize, glam::Vec3::ZERO); BLOCK];
+                        let mut n = 0;
                         for (k, (&v, acc)) in pts.iter().zip(accs.iter_mut()).enumerate() {
                             let g = specular_point(&s, v);
                             if !g.active {
@@ -331,8 +363,6 @@ impl Relighter {
                                 };
                                 continue;
                             }
-                            // The low bands (weights and visibility) first; the rest only for
-                            // points that go on.
                             self.weights_low(&lobe, g.reflection, w);
                             let low = s.visibility.low_point(v);
                             if fresh {
@@ -346,9 +376,21 @@ impl Relighter {
                                 stopped = kernel.extend(acc, low, w, to.min(low_top), stop);
                             }
                             if !stopped && to > acc.last_level as usize {
-                                self.weights(&lobe, g.reflection, w);
-                                kernel.extend(acc, s.visibility.point(v), w, to, stop);
+                                go_on[n] = (k, g.reflection);
+                                n += 1;
                             }
+                        }
+                        let hint = |k: usize| prefetch(s.visibility.point(pts[k]), AHEAD_FLOATS);
+                        go_on[..n]
+                            .iter()
+                            .take(PREFETCH_DISTANCE)
+                            .for_each(|&(k, _)| hint(k));
+                        for (i, &(k, reflection)) in go_on[..n].iter().enumerate() {
+                            if let Some(&(next, _)) = go_on[..n].get(i + PREFETCH_DISTANCE) {
+                                hint(next);
+                            }
+                            self.weights(&lobe, reflection, w);
+                            kernel.extend(&mut accs[k], s.visibility.point(pts[k]), w, to, stop);
                         }
                     },
                 )

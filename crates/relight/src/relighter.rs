@@ -29,8 +29,12 @@ pub struct Relighter {
 pub struct FrameLighting {
     /// The lighting, truncated to the relighter's order.
     pub lighting: Lighting,
-    /// The dense `b² × b²` corner of each `L̂_c` (`b = min(order, BASE_ORDER)`), for the base.
-    base_corner: Option<[Vec<f32>; 3]>,
+    /// The lighting interleaved by coefficient, `[L_0,i, L_1,i, L_2,i, 0]`, for the diffuse
+    /// kernel.
+    light4: Vec<[f32; 4]>,
+    /// The `b² × b²` corner of the three `L̂_c` (`b = min(order, BASE_ORDER)`) by column, for
+    /// the base (layout at `SpecularKernel::base_columns`).
+    base_corner: Option<Vec<f32>>,
     /// Band `l`'s rows of the three `L̂_c` stored by column for the level kernel: for each
     /// column `j < (l+1)²`, channel by channel, `lanes(l)` floats (rows `l²..(l+1)²`,
     /// zero-padded to a multiple of 4); band blocks at `Relighter::column_offsets`.
@@ -101,14 +105,17 @@ impl Relighter {
             })?;
             let n2 = self.order * self.order;
             let bb = crate::BASE_ORDER.min(self.order).pow(2);
-            let mut corner: [Vec<f32>; 3] = Default::default();
+            let lanes = crate::kernel::BASE_LANES;
+            let mut corner = vec![0.0f32; bb * 3 * lanes];
             let mut cols = vec![0.0f32; self.column_offsets[self.order]];
-            for (c, corner) in corner.iter_mut().enumerate() {
+            for c in 0..3 {
                 let l64: Vec<f64> = lighting.rgb[c].iter().map(|v| f64::from(*v)).collect();
                 let dense = gaunt.product_matrix(&l64)?;
-                *corner = (0..bb * bb)
-                    .map(|k| dense[(k / bb) * n2 + k % bb] as f32)
-                    .collect();
+                for j in 0..bb {
+                    for r in 0..bb {
+                        corner[(3 * j + c) * lanes + r] = dense[r * n2 + j] as f32;
+                    }
+                }
                 for l in 0..self.order {
                     let (s, e) = (l * l, (l + 1) * (l + 1));
                     let block = &mut cols[self.column_offsets[l]..self.column_offsets[l + 1]];
@@ -124,8 +131,15 @@ impl Relighter {
         } else {
             (None, None)
         };
+        let light4 = (0..self.order * self.order)
+            .map(|i| {
+                let [r, g, b] = &lighting.rgb;
+                [r[i], g[i], b[i], 0.0]
+            })
+            .collect();
         Ok(FrameLighting {
             lighting,
+            light4,
             base_corner,
             columns,
         })
@@ -160,9 +174,8 @@ impl Relighter {
     }
 
     pub(crate) fn diffuse_kernel<'a>(&self, frame: &'a FrameLighting) -> DiffuseKernel<'a> {
-        let rgb = &frame.lighting.rgb;
         DiffuseKernel {
-            light: [&rgb[0], &rgb[1], &rgb[2]],
+            light4: &frame.light4,
             order: self.order,
         }
     }
@@ -175,7 +188,7 @@ impl Relighter {
             return Err(RelightError::MissingProducts);
         };
         Ok(SpecularKernel::new(
-            [&corner[0], &corner[1], &corner[2]],
+            corner,
             cols,
             &self.column_offsets,
             self.order,
