@@ -442,35 +442,32 @@ impl Relighter {
         let t0 = Instant::now();
         let mut accs = filter_pass(points, terms, bases, b, top, filter, seen_together);
         let pass_seconds = t0.elapsed().as_secs_f64();
-        // What the display test adds to each term in refinement: the other term, as in the
-        // filtering pass (the diffuse base for specular, the specular value for diffuse).
-        let diffuse_base: Option<Vec<[f32; 3]>> = seen_together.then(|| {
-            accs[0]
-                .iter()
-                .map(|a| [0, 1, 2].map(|c| a.scale[c] * a.base[c]))
-                .collect()
-        });
         let sequence = if seen_together { [1, 0] } else { [0, 1] };
         for k in sequence {
             let Some(eval) = terms[k] else { continue };
             let t0 = Instant::now();
             let mut acc = std::mem::take(&mut accs[k]);
-            let offsets: Option<&[[f32; 3]]> = match (seen_together, k) {
-                (false, _) => None,
-                (true, 1) => diffuse_base.as_deref(),
-                (true, _) => Some(&radiance[1]),
-            };
-            let significant =
-                |a: &Accum| !a.inactive && a.complete(top) && a.is_significant(threshold, measure);
             let mut st = TermStats::default();
-            let any_truncated = acc.par_iter().any(|a| !a.complete(top));
+            // One parallel pass: radiance, ROI flags and counts.
+            let (mut out, mut roi_k, mut tally) = tally(&acc, top, threshold, measure);
+            let any_truncated = tally.truncated > 0;
             let refine = params.refine && any_truncated;
-            let initial_roi = if refine {
-                Some(acc.par_iter().filter(|a| significant(a)).count())
-            } else {
-                None
-            };
+            let initial_roi = tally.roi;
             if refine {
+                // What the display test adds to this term in refinement: the other term, as in
+                // the filtering pass (the diffuse base for specular, which is shaded first, the
+                // specular value for diffuse).
+                let diffuse_base: Option<Vec<[f32; 3]>> = (seen_together && k == 1).then(|| {
+                    accs[0]
+                        .iter()
+                        .map(|a| [0, 1, 2].map(|c| a.scale[c] * a.base[c]))
+                        .collect()
+                });
+                let offsets: Option<&[[f32; 3]]> = match (seen_together, k) {
+                    (false, _) => None,
+                    (true, 1) => diffuse_base.as_deref(),
+                    (true, _) => Some(&radiance[1]),
+                };
                 // Tested neighbours go on to the top level, or until they converge.
                 let (rounds, tested) = refine_roi(
                     input.adjacency,
@@ -486,43 +483,24 @@ impl Relighter {
                 );
                 st.refinement_rounds = rounds;
                 st.refined_points = tested;
+                (out, roi_k, tally) = self::tally(&acc, top, threshold, measure);
             }
-            roi[k] = acc.par_iter().map(significant).collect();
-            // One pass for the counts: per level, points that evaluated it.
-            let mut at_level = vec![0usize; top + 1];
-            let (mut active, mut full, mut converged, mut bands, mut products) =
-                (0usize, 0usize, 0usize, 0u64, 0u64);
-            for a in &acc {
-                products += a.products;
-                if a.inactive {
-                    continue;
-                }
-                active += 1;
-                at_level[a.last_level as usize] += 1;
-                bands += u64::from(a.last_level) + 1;
-                if a.last_level as usize == top {
-                    full += 1;
-                } else if a.converged {
-                    converged += 1;
-                }
-            }
-            st.active_points = active;
-            let denom = active.max(1) as f64;
+            roi[k] = roi_k;
+            st.active_points = tally.active;
+            let denom = tally.active.max(1) as f64;
             let mut reached = 0usize;
             let mut level_fraction = vec![0.0; top + 1];
             for l in (0..=top).rev() {
-                reached += at_level[l];
+                reached += tally.at_level[l];
                 level_fraction[l] = reached as f64 / denom;
             }
             st.level_fraction = level_fraction;
-            let final_roi = roi[k].iter().filter(|r| **r).count();
-            st.initial_roi_fraction = initial_roi.unwrap_or(final_roi) as f64 / denom;
-            st.roi_fraction = final_roi as f64 / denom;
-            st.full_order_fraction = full as f64 / denom;
-            st.converged_fraction = converged as f64 / denom;
+            st.initial_roi_fraction = initial_roi as f64 / denom;
+            st.roi_fraction = tally.roi as f64 / denom;
+            st.full_order_fraction = tally.full as f64 / denom;
+            st.converged_fraction = tally.converged as f64 / denom;
             st.filtered_out_fraction = 1.0 - st.full_order_fraction;
-            st.mean_order = bands as f64 / denom;
-            let mut out: Vec<[f32; 3]> = acc.par_iter().map(Accum::radiance).collect();
+            st.mean_order = tally.bands as f64 / denom;
             if params.smooth && any_truncated {
                 let (corrections, tiers) = smooth_boundary(input.adjacency, &acc, top);
                 for (v, c) in corrections {
@@ -531,7 +509,7 @@ impl Relighter {
                 }
                 st.smoothed_points = tiers;
             }
-            st.products = products;
+            st.products = tally.products;
             let full_each = if k == 0 { full_d } else { full_s };
             st.full_order_products = full_each * st.active_points as u64;
             // The shared filtering pass is split between the terms by their products.
@@ -559,6 +537,91 @@ impl Relighter {
             },
         })
     }
+}
+
+/// Counts of one term's points after shading (see [`tally`]).
+#[derive(Clone, Debug, Default)]
+struct Tally {
+    /// `[l]`: active points whose last level is `l`.
+    at_level: Vec<usize>,
+    active: usize,
+    /// Active points shaded to the top level.
+    full: usize,
+    /// Active points converged below the top level.
+    converged: usize,
+    /// Points truncated by significance (neither complete nor inactive).
+    truncated: usize,
+    /// Points in the ROI: significant and complete.
+    roi: usize,
+    /// Bands shaded, summed over active points.
+    bands: u64,
+    /// Coefficient products, all points.
+    products: u64,
+}
+
+impl Tally {
+    fn merge(mut self, other: Self) -> Self {
+        if self.at_level.len() < other.at_level.len() {
+            self.at_level.resize(other.at_level.len(), 0);
+        }
+        for (a, b) in self.at_level.iter_mut().zip(&other.at_level) {
+            *a += b;
+        }
+        self.active += other.active;
+        self.full += other.full;
+        self.converged += other.converged;
+        self.truncated += other.truncated;
+        self.roi += other.roi;
+        self.bands += other.bands;
+        self.products += other.products;
+        self
+    }
+}
+
+/// One parallel pass over a term's sums: each point's radiance, whether it is in the ROI
+/// (significant and complete: shaded to the top level or converged) and the counts of the
+/// frame statistics. Integer counts merged in any order give the same totals, so the result
+/// does not depend on the thread count.
+fn tally(
+    acc: &[Accum],
+    top: usize,
+    threshold: f32,
+    measure: Measure,
+) -> (Vec<[f32; 3]>, Vec<bool>, Tally) {
+    let mut out = vec![[0.0f32; 3]; acc.len()];
+    let mut roi = vec![false; acc.len()];
+    let tally = out
+        .par_chunks_mut(CHUNK)
+        .zip(roi.par_chunks_mut(CHUNK))
+        .zip(acc.par_chunks(CHUNK))
+        .map(|((out, roi), acc)| {
+            let mut t = Tally {
+                at_level: vec![0; top + 1],
+                ..Tally::default()
+            };
+            for ((o, r), a) in out.iter_mut().zip(roi.iter_mut()).zip(acc) {
+                *o = a.radiance();
+                t.products += a.products;
+                if a.inactive {
+                    continue;
+                }
+                t.active += 1;
+                t.at_level[a.last_level as usize] += 1;
+                t.bands += u64::from(a.last_level) + 1;
+                if a.last_level as usize == top {
+                    t.full += 1;
+                } else if a.converged {
+                    t.converged += 1;
+                } else {
+                    t.truncated += 1;
+                }
+                *r = a.complete(top) && a.is_significant(threshold, measure);
+                t.roi += usize::from(*r);
+            }
+            t
+        })
+        .reduce(Tally::default, Tally::merge);
+    (out, roi, tally)
 }
 
 /// The filtering pass over both terms, block by block (each block's transfers are read once,
