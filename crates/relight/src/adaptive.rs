@@ -5,7 +5,7 @@
 use crate::adjacency::Adjacency;
 use crate::error::RelightError;
 use crate::input::{DiffuseParams, SpecularInput, TransferView};
-use crate::kernel::{prefetch, Accum, Measure, Stop, BLOCK, CHUNK};
+use crate::kernel::{prefetch, rgb, Accum, Measure, Stop, BLOCK, CHUNK};
 use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -460,7 +460,7 @@ impl Relighter {
                 let diffuse_base: Option<Vec<[f32; 3]>> = (seen_together && k == 1).then(|| {
                     accs[0]
                         .iter()
-                        .map(|a| [0, 1, 2].map(|c| a.scale[c] * a.base[c]))
+                        .map(|a| rgb(|c| a.scale[c] * a.base[c]))
                         .collect()
                 });
                 let offsets: Option<&[[f32; 3]]> = match (seen_together, k) {
@@ -505,7 +505,7 @@ impl Relighter {
                 let (corrections, tiers) = smooth_boundary(input.adjacency, &acc, top);
                 for (v, c) in corrections {
                     let a = &acc[v];
-                    out[v] = [0, 1, 2].map(|ch| a.scale[ch] * a.base[ch] + c[ch]);
+                    out[v] = rgb(|ch| a.scale[ch] * a.base[ch] + c[ch]);
                 }
                 st.smoothed_points = tiers;
             }
@@ -675,11 +675,9 @@ fn filter_pass(
                 let mut spec_value: Option<Vec<[f32; 3]>> = None;
                 if let (Some(eval), Some(sb)) = (terms[1], sb) {
                     let base: Option<Vec<[f32; 3]>> = match (&db, seen_together) {
-                        (Some(db), true) => Some(
-                            db.iter()
-                                .map(|a| [0, 1, 2].map(|c| a.scale[c] * a.base[c]))
-                                .collect(),
-                        ),
+                        (Some(db), true) => {
+                            Some(db.iter().map(|a| rgb(|c| a.scale[c] * a.base[c])).collect())
+                        }
                         _ => None,
                     };
                     eval(&pts, sb, fresh[1], top, filter, base.as_deref(), scratch);
@@ -815,11 +813,11 @@ pub(crate) fn smooth_boundary(
         .map(|v| {
             let own = acc[v].correction();
             if let Some(bar) = tier1[v] {
-                Some((0, [0, 1, 2].map(|c| (2.0 * bar[c] + own[c]) / 3.0)))
+                Some((0, rgb(|c| (2.0 * bar[c] + own[c]) / 3.0)))
             } else if truncated(&acc[v]) {
                 let nb = adjacency.neighbours(v);
                 mean_of(&mut nb.iter().filter_map(|&u| tier1[u as usize]))
-                    .map(|bar| (1, [0, 1, 2].map(|c| (bar[c] + 2.0 * own[c]) / 3.0)))
+                    .map(|bar| (1, rgb(|c| (bar[c] + 2.0 * own[c]) / 3.0)))
             } else {
                 None
             }

@@ -21,6 +21,13 @@ pub(crate) const CHUNK: usize = 256;
 /// transfers stay in cache between the diffuse base, the specular term and the diffuse levels).
 pub(crate) const BLOCK: usize = 32;
 
+/// `[f(0), f(1), f(2)]`, always inlined (`rgb(f)` is left as an out-of-line call in
+/// the hot paths).
+#[inline(always)]
+pub(crate) fn rgb<T>(mut f: impl FnMut(usize) -> T) -> [T; 3] {
+    [f(0), f(1), f(2)]
+}
+
 /// Asks the CPU to bring the cache lines of `row[..floats]` toward L1 (a hint: no effect on
 /// results, never faults). The adaptive path knows which points go on past the low bands only
 /// after their first levels, and their full rows are scattered through memory: without the
@@ -155,7 +162,7 @@ fn level_in<const NL: usize>(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [
             }
         }
     }
-    [0, 1, 2].map(|c| band_sum(l, &p[c], &q[c], v, w))
+    rgb(|c| band_sum(l, &p[c], &q[c], v, w))
 }
 
 /// `Σ_r w_{l²+r} p_r + v_{l²+r} q_r` over band `l`'s `2l + 1` rows.
@@ -231,13 +238,13 @@ impl Accum {
     /// `scale · (base + high)`.
     #[inline]
     pub fn radiance(&self) -> [f32; 3] {
-        [0, 1, 2].map(|c| self.scale[c] * (self.base[c] + self.high[c]))
+        rgb(|c| self.scale[c] * (self.base[c] + self.high[c]))
     }
 
     /// The accumulated high-order difference in radiance units, `scale · high`.
     #[inline]
     pub fn correction(&self) -> [f32; 3] {
-        [0, 1, 2].map(|c| self.scale[c] * self.high[c])
+        rgb(|c| self.scale[c] * self.high[c])
     }
 
     /// `max_c |scale_c · high_c|`, the significance tested against the threshold.
@@ -279,13 +286,14 @@ impl Accum {
     #[inline]
     pub fn is_significant(&self, threshold: f32, measure: Measure) -> bool {
         if let Measure::Display { scale } = measure {
+            let table = &*SRGB_TABLE;
             let x = self.radiance();
             let d = self.correction();
             let bound = (0..3)
                 .map(|c| {
                     let y = scale * (x[c] + self.offset[c]);
                     let step = scale * d[c];
-                    step.abs() * slope_from(y.min(y - step))
+                    step.abs() * slope_from(table, y.min(y - step))
                 })
                 .fold(0.0, f32::max);
             if bound + DISPLAY_ROUNDING < threshold {
@@ -308,7 +316,7 @@ impl Accum {
                     return 0.0;
                 }
                 let x = self.radiance();
-                let y = [0, 1, 2].map(|c| scale * (x[c] + self.offset[c]));
+                let y = rgb(|c| scale * (x[c] + self.offset[c]));
                 // Shown white whatever the change: nothing moves on the display.
                 if (0..3).all(|c| y[c] - scale * m[c] >= 1.0) {
                     return 0.0;
@@ -324,12 +332,15 @@ impl Accum {
     /// suffice (the same answer as the exact test, which is evaluated only when they do not).
     #[inline]
     fn spread_below(&self, m: [f32; 3], measure: Measure, th: f32) -> bool {
-        let largest = m[0].max(m[1]).max(m[2]);
+        // (`m` is finite and ≥ 0: plain comparisons instead of the NaN-aware `f32::max`.)
+        let larger = |a: f32, b: f32| if b > a { b } else { a };
+        let largest = larger(larger(m[0], m[1]), m[2]);
         match measure {
             Measure::Radiance => largest < th,
             Measure::Display { scale } => {
+                let table = &*SRGB_TABLE;
                 // The steepest slope anywhere, then the steepest over each channel's span.
-                if largest * scale * SRGB_TABLE.slope[0] + DISPLAY_ROUNDING < th {
+                if largest * scale * table.slope[0] + DISPLAY_ROUNDING < th {
                     return true;
                 }
                 // Upper and lower bounds of each channel's spread from the slopes over its span
@@ -339,9 +350,9 @@ impl Accum {
                 for c in 0..3 {
                     let y = scale * (x[c] + self.offset[c]);
                     let h = scale * m[c];
-                    upper = upper.max(h * slope_from(y - h));
+                    upper = larger(upper, h * slope_from(table, y - h));
                     if y - h >= 0.0 {
-                        lower = lower.max(h * least_to(y + h));
+                        lower = larger(lower, h * least_to(table, y + h));
                     }
                 }
                 if upper + DISPLAY_ROUNDING < th {
@@ -362,14 +373,16 @@ impl Accum {
         // Convergence: the last two levels together moved the value by less than the
         // threshold. Two levels, because one band alone can vanish while the next does not
         // (the clamped cosine has no odd bands ≥ 3); so it needs two levels above the base.
-        let moved =
-            [0, 1, 2].map(|c| self.scale[c].abs() * (delta[c].abs() + self.last_delta[c].abs()));
+        let last = self.last_delta;
         self.last_delta = delta;
         self.last_level = l as u16;
         if let Some(th) = stop.converged {
-            if l > BASE_ORDER && self.spread_below(moved, stop.measure, th) {
-                self.converged = true;
-                return true;
+            if l > BASE_ORDER {
+                let moved = rgb(|c| self.scale[c].abs() * (delta[c].abs() + last[c].abs()));
+                if self.spread_below(moved, stop.measure, th) {
+                    self.converged = true;
+                    return true;
+                }
             }
         }
         matches!(stop.insignificant, Some(th) if !self.is_significant(th, stop.measure))
@@ -465,8 +478,8 @@ pub(crate) fn display(y: f32) -> f32 {
 /// clamps): for `0 ≤ x ≤ y ≤ b`, `display(y) − display(x) ≥ least_to(b) (y − x)` (up to
 /// [`DISPLAY_ROUNDING`]).
 #[inline]
-fn least_to(b: f32) -> f32 {
-    let t = &SRGB_TABLE.least;
+fn least_to(table: &DisplayTable, b: f32) -> f32 {
+    let t = &table.least;
     if b.is_nan() || b >= 1.0 {
         return 0.0;
     }
@@ -481,8 +494,8 @@ fn least_to(b: f32) -> f32 {
 /// A bound on the slope of [`display`] over `[a, ∞)`: for `a ≤ x ≤ y`,
 /// `display(y) − display(x) ≤ slope_from(a) (y − x)` (up to [`DISPLAY_ROUNDING`]).
 #[inline]
-fn slope_from(a: f32) -> f32 {
-    let t = &SRGB_TABLE.slope;
+fn slope_from(table: &DisplayTable, a: f32) -> f32 {
+    let t = &table.slope;
     // NaN and a ≤ 0: the steepest slope (the first interval's).
     if a.is_nan() || a <= 0.0 {
         return t[0];
@@ -563,7 +576,7 @@ fn band_dot<const CH: usize>(
             ak[c] += x[c] * y[c];
         }
     }
-    [0, 1, 2].map(|c| (a[0][c] + a[1][c]) + (a[2][c] + a[3][c]))
+    rgb(|c| (a[0][c] + a[1][c]) + (a[2][c] + a[3][c]))
 }
 
 impl DiffuseKernel<'_> {
@@ -715,7 +728,7 @@ impl SpecularKernel<'_> {
             return level3_any(l, block, v, w);
         }
         let e = (l + 1) * (l + 1);
-        [0, 1, 2].map(|c| {
+        rgb(|c| {
             let cols = &block[c * e * nl..(c + 1) * e * nl];
             #[cfg(target_arch = "x86_64")]
             if self.avx2 {
@@ -746,7 +759,7 @@ impl SpecularKernel<'_> {
             }
         }
         let u: [f32; 3 * BASE_LANES] = flatten_lanes(u);
-        let base = [0, 1, 2].map(|c| {
+        let base = rgb(|c| {
             let mut sum = 0.0f32;
             for (wr, ur) in w[..bb].iter().zip(&u[c * BASE_LANES..]) {
                 sum += wr * ur;
@@ -880,7 +893,10 @@ mod tests {
                 "{a} {b}"
             );
             if a >= 0.0 {
-                assert!(diff >= least_to(b) * (b - a) - DISPLAY_ROUNDING, "{a} {b}");
+                assert!(
+                    diff >= least_to(&SRGB_TABLE, b) * (b - a) - DISPLAY_ROUNDING,
+                    "{a} {b}"
+                );
             }
         }
     }
