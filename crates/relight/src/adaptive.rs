@@ -440,17 +440,36 @@ impl Relighter {
         let seen_together = display && both;
         // The filtering pass (Algorithms 1–3): both terms block by block in one sweep.
         let t0 = Instant::now();
-        let mut accs = filter_pass(points, terms, bases, b, top, filter, seen_together);
+        // Every point's sums are kept only if the filtering rule can truncate points, for
+        // refinement and smoothing to work on.
+        let keep = filter.insignificant.is_some() && (params.refine || params.smooth);
+        let mut filtered = filter_pass(
+            points,
+            terms,
+            bases,
+            b,
+            top,
+            filter,
+            seen_together,
+            keep,
+            threshold,
+        );
         let pass_seconds = t0.elapsed().as_secs_f64();
         let sequence = if seen_together { [1, 0] } else { [0, 1] };
         for k in sequence {
-            let Some(eval) = terms[k] else { continue };
+            let (Some(eval), Some(f)) = (terms[k], filtered[k].take()) else {
+                continue;
+            };
             let t0 = Instant::now();
-            let mut acc = std::mem::take(&mut accs[k]);
+            let Filtered {
+                mut acc,
+                radiance: mut out,
+                roi: mut roi_k,
+                mut tally,
+            } = f;
             let mut st = TermStats::default();
-            // One parallel pass: radiance, ROI flags and counts.
-            let (mut out, mut roi_k, mut tally) = tally(&acc, top, threshold, measure);
             let any_truncated = tally.truncated > 0;
+            debug_assert!(!any_truncated || keep, "truncated points need their sums");
             let refine = params.refine && any_truncated;
             let initial_roi = tally.roi;
             if refine {
@@ -458,8 +477,9 @@ impl Relighter {
                 // the filtering pass (the diffuse base for specular, which is shaded first, the
                 // specular value for diffuse).
                 let diffuse_base: Option<Vec<[f32; 3]>> = (seen_together && k == 1).then(|| {
-                    accs[0]
+                    filtered[0]
                         .iter()
+                        .flat_map(|f| &f.acc)
                         .map(|a| rgb(|c| a.scale[c] * a.base[c]))
                         .collect()
                 });
@@ -560,6 +580,13 @@ struct Tally {
 }
 
 impl Tally {
+    fn new(top: usize) -> Self {
+        Self {
+            at_level: vec![0; top + 1],
+            ..Self::default()
+        }
+    }
+
     fn merge(mut self, other: Self) -> Self {
         if self.at_level.len() < other.at_level.len() {
             self.at_level.resize(other.at_level.len(), 0);
@@ -575,6 +602,38 @@ impl Tally {
         self.bands += other.bands;
         self.products += other.products;
         self
+    }
+}
+
+/// Radiance, ROI flag and counts of a run of points (see [`tally`]).
+fn tally_into(
+    acc: &[Accum],
+    out: &mut [[f32; 3]],
+    roi: &mut [bool],
+    t: &mut Tally,
+    top: usize,
+    threshold: f32,
+    measure: Measure,
+) {
+    for ((o, r), a) in out.iter_mut().zip(roi.iter_mut()).zip(acc) {
+        *o = a.radiance();
+        t.products += a.products;
+        if a.inactive {
+            *r = false;
+            continue;
+        }
+        t.active += 1;
+        t.at_level[a.last_level as usize] += 1;
+        t.bands += u64::from(a.last_level) + 1;
+        if a.last_level as usize == top {
+            t.full += 1;
+        } else if a.converged {
+            t.converged += 1;
+        } else {
+            t.truncated += 1;
+        }
+        *r = a.complete(top) && a.is_significant(threshold, measure);
+        t.roi += usize::from(*r);
     }
 }
 
@@ -595,39 +654,34 @@ fn tally(
         .zip(roi.par_chunks_mut(CHUNK))
         .zip(acc.par_chunks(CHUNK))
         .map(|((out, roi), acc)| {
-            let mut t = Tally {
-                at_level: vec![0; top + 1],
-                ..Tally::default()
-            };
-            for ((o, r), a) in out.iter_mut().zip(roi.iter_mut()).zip(acc) {
-                *o = a.radiance();
-                t.products += a.products;
-                if a.inactive {
-                    continue;
-                }
-                t.active += 1;
-                t.at_level[a.last_level as usize] += 1;
-                t.bands += u64::from(a.last_level) + 1;
-                if a.last_level as usize == top {
-                    t.full += 1;
-                } else if a.converged {
-                    t.converged += 1;
-                } else {
-                    t.truncated += 1;
-                }
-                *r = a.complete(top) && a.is_significant(threshold, measure);
-                t.roi += usize::from(*r);
-            }
+            let mut t = Tally::new(top);
+            tally_into(acc, out, roi, &mut t, top, threshold, measure);
             t
         })
-        .reduce(Tally::default, Tally::merge);
+        .reduce(|| Tally::new(top), Tally::merge);
     (out, roi, tally)
+}
+
+/// What the filtering pass leaves per term.
+struct Filtered {
+    /// Every point's sums, if kept for refinement (empty otherwise).
+    acc: Vec<Accum>,
+    /// Radiance per point.
+    radiance: Vec<[f32; 3]>,
+    /// ROI flag per point.
+    roi: Vec<bool>,
+    /// Counts.
+    tally: Tally,
 }
 
 /// The filtering pass over both terms, block by block (each block's transfers are read once,
 /// while in cache): the diffuse base, the specular term (on the display against the diffuse
-/// base), then the diffuse levels (on the display against the specular value). `bases` are
-/// precomputed bases (relative threshold), else the bases are computed here.
+/// base), then the diffuse levels (on the display against the specular value); then each
+/// block's radiance, ROI flags and counts while its sums are in cache. `bases` are precomputed
+/// bases (relative threshold), else the bases are computed here. The sums of every point are
+/// kept only with `keep` (refinement and smoothing need them); otherwise they live one block at
+/// a time on the stack.
+#[allow(clippy::too_many_arguments)]
 fn filter_pass(
     points: usize,
     terms: [Option<&Eval<'_>>; 2],
@@ -636,62 +690,124 @@ fn filter_pass(
     top: usize,
     filter: Stop,
     seen_together: bool,
-) -> [Vec<Accum>; 2] {
+    keep: bool,
+    threshold: f32,
+) -> [Option<Filtered>; 2] {
     let fresh = [bases[0].is_none(), bases[1].is_none()];
-    let mut acc: [Vec<Accum>; 2] = [0, 1].map(|k| match terms[k] {
-        Some(_) => bases[k]
-            .take()
-            .unwrap_or_else(|| vec![Accum::default(); points]),
+    let present = [terms[0].is_some(), terms[1].is_some()];
+    let sized = |k: usize, n: usize| if present[k] { n } else { 0 };
+    let mut acc: [Vec<Accum>; 2] = [0, 1].map(|k| match bases[k].take() {
+        Some(v) => v,
+        None if keep => vec![Accum::default(); sized(k, points)],
         None => Vec::new(),
     });
+    let mut radiance: [Vec<[f32; 3]>; 2] = [0, 1].map(|k| vec![[0.0f32; 3]; sized(k, points)]);
+    let mut roi: [Vec<bool>; 2] = [0, 1].map(|k| vec![false; sized(k, points)]);
     let chunks = points.div_ceil(CHUNK);
-    fn split(v: &mut [Accum], chunks: usize) -> Vec<Option<&mut [Accum]>> {
+    fn split<T>(v: &mut [T], chunks: usize) -> Vec<Option<&mut [T]>> {
         if v.is_empty() {
             (0..chunks).map(|_| None).collect()
         } else {
             v.chunks_mut(CHUNK).map(Some).collect()
         }
     }
+    let measure = filter.measure;
     let [ad, asp] = &mut acc;
-    let (dc, sc) = (split(ad, chunks), split(asp, chunks));
-    dc.into_par_iter().zip(sc).enumerate().for_each_init(
-        Vec::new,
-        |scratch, (ci, (mut d, mut s))| {
-            let len = d
-                .as_ref()
-                .map(|x| x.len())
-                .or(s.as_ref().map(|x| x.len()))
-                .unwrap_or(0);
+    let [rd, rs] = &mut radiance;
+    let [od, os] = &mut roi;
+    let work: Vec<_> = split(ad, chunks)
+        .into_iter()
+        .zip(split(asp, chunks))
+        .zip(split(rd, chunks).into_iter().zip(split(rs, chunks)))
+        .zip(split(od, chunks).into_iter().zip(split(os, chunks)))
+        .collect();
+    let tallies = work
+        .into_par_iter()
+        .enumerate()
+        .map_init(Vec::new, |scratch, (ci, ((kept, rad), flags))| {
+            let mut kept = [kept.0, kept.1];
+            let mut rad = [rad.0, rad.1];
+            let mut flags = [flags.0, flags.1];
+            let mut tallies = [Tally::new(top), Tally::new(top)];
+            let first = ci * CHUNK;
+            let len = CHUNK.min(points - first);
+            let mut local = [[Accum::default(); BLOCK]; 2];
             for lo in (0..len).step_by(BLOCK) {
                 let hi = (lo + BLOCK).min(len);
-                let pts: Vec<usize> = (ci * CHUNK + lo..ci * CHUNK + hi).collect();
-                let mut db = d.as_deref_mut().map(|x| &mut x[lo..hi]);
-                let sb = s.as_deref_mut().map(|x| &mut x[lo..hi]);
+                let n = hi - lo;
+                let pts: [usize; BLOCK] = std::array::from_fn(|i| first + lo + i);
+                let pts = &pts[..n];
+                let [kd, ks] = &mut kept;
+                let [ld, ls] = &mut local;
+                let mut db: Option<&mut [Accum]> = present[0].then_some(match kd {
+                    Some(x) => &mut x[lo..hi],
+                    None => &mut ld[..n],
+                });
+                let sb: Option<&mut [Accum]> = present[1].then_some(match ks {
+                    Some(x) => &mut x[lo..hi],
+                    None => &mut ls[..n],
+                });
                 if let (Some(eval), Some(db)) = (terms[0], db.as_deref_mut()) {
                     if fresh[0] {
-                        eval(&pts, db, true, b - 1, Stop::NEVER, None, scratch);
+                        eval(pts, db, true, b - 1, Stop::NEVER, None, scratch);
                     }
                 }
-                let mut spec_value: Option<Vec<[f32; 3]>> = None;
+                let mut spec_value = [[0.0f32; 3]; BLOCK];
                 if let (Some(eval), Some(sb)) = (terms[1], sb) {
-                    let base: Option<Vec<[f32; 3]>> = match (&db, seen_together) {
+                    let mut base = [[0.0f32; 3]; BLOCK];
+                    let offsets = match (&db, seen_together) {
                         (Some(db), true) => {
-                            Some(db.iter().map(|a| rgb(|c| a.scale[c] * a.base[c])).collect())
+                            for (o, a) in base.iter_mut().zip(db.iter()) {
+                                *o = rgb(|c| a.scale[c] * a.base[c]);
+                            }
+                            Some(&base[..n])
                         }
                         _ => None,
                     };
-                    eval(&pts, sb, fresh[1], top, filter, base.as_deref(), scratch);
+                    eval(pts, sb, fresh[1], top, filter, offsets, scratch);
                     if seen_together {
-                        spec_value = Some(sb.iter().map(Accum::radiance).collect());
+                        for (o, a) in spec_value.iter_mut().zip(sb.iter()) {
+                            *o = a.radiance();
+                        }
+                    }
+                    if let (Some(r), Some(f)) = (rad[1].as_deref_mut(), flags[1].as_deref_mut()) {
+                        let (r, f) = (&mut r[lo..hi], &mut f[lo..hi]);
+                        tally_into(sb, r, f, &mut tallies[1], top, threshold, measure);
                     }
                 }
                 if let (Some(eval), Some(db)) = (terms[0], db) {
-                    eval(&pts, db, false, top, filter, spec_value.as_deref(), scratch);
+                    let offsets = seen_together.then_some(&spec_value[..n]);
+                    eval(pts, db, false, top, filter, offsets, scratch);
+                    if let (Some(r), Some(f)) = (rad[0].as_deref_mut(), flags[0].as_deref_mut()) {
+                        let (r, f) = (&mut r[lo..hi], &mut f[lo..hi]);
+                        tally_into(db, r, f, &mut tallies[0], top, threshold, measure);
+                    }
                 }
             }
-        },
-    );
-    acc
+            tallies
+        })
+        .reduce(
+            || [Tally::new(top), Tally::new(top)],
+            |[a0, a1], [b0, b1]| [a0.merge(b0), a1.merge(b1)],
+        );
+    let [t0, t1] = tallies;
+    let [a0, a1] = acc;
+    let [r0, r1] = radiance;
+    let [o0, o1] = roi;
+    [(a0, r0, o0, t0), (a1, r1, o1, t1)]
+        .into_iter()
+        .enumerate()
+        .map(|(k, (acc, radiance, roi, tally))| {
+            present[k].then_some(Filtered {
+                acc,
+                radiance,
+                roi,
+                tally,
+            })
+        })
+        .collect::<Vec<_>>()
+        .try_into()
+        .unwrap_or_else(|_| unreachable!("two terms"))
 }
 
 /// Runs `f(points, sums, scratch)` over every point in parallel blocks of [`BLOCK`] points,

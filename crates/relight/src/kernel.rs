@@ -289,13 +289,13 @@ impl Accum {
             let table = &*SRGB_TABLE;
             let x = self.radiance();
             let d = self.correction();
-            let bound = (0..3)
-                .map(|c| {
-                    let y = scale * (x[c] + self.offset[c]);
-                    let step = scale * d[c];
-                    step.abs() * slope_from(table, y.min(y - step))
-                })
-                .fold(0.0, f32::max);
+            let mut bound = 0.0f32;
+            for c in 0..3 {
+                let y = scale * (x[c] + self.offset[c]);
+                let step = scale * d[c];
+                let b = step.abs() * slope_from(table, y.min(y - step));
+                bound = if b > bound { b } else { bound };
+            }
             if bound + DISPLAY_ROUNDING < threshold {
                 return false;
             }
@@ -339,21 +339,17 @@ impl Accum {
             Measure::Radiance => largest < th,
             Measure::Display { scale } => {
                 let table = &*SRGB_TABLE;
-                // The steepest slope anywhere, then the steepest over each channel's span.
-                if largest * scale * table.slope[0] + DISPLAY_ROUNDING < th {
-                    return true;
-                }
                 // Upper and lower bounds of each channel's spread from the slopes over its span
-                // `[y − m, y + m]`: the exact curve is evaluated only if they straddle `th`.
+                // `[y − m, y + m]` (computed without branches); the exact curve is evaluated
+                // only if they straddle `th`.
                 let x = self.radiance();
                 let (mut upper, mut lower) = (0.0f32, 0.0f32);
                 for c in 0..3 {
                     let y = scale * (x[c] + self.offset[c]);
                     let h = scale * m[c];
                     upper = larger(upper, h * slope_from(table, y - h));
-                    if y - h >= 0.0 {
-                        lower = larger(lower, h * least_to(table, y + h));
-                    }
+                    let low = h * least_to(table, y + h);
+                    lower = larger(lower, if y - h >= 0.0 { low } else { 0.0 });
                 }
                 if upper + DISPLAY_ROUNDING < th {
                     return true;
@@ -408,12 +404,11 @@ pub(crate) enum Measure {
 struct DisplayTable {
     /// `f(i / 4096)`, the sRGB curve.
     value: Vec<f32>,
-    /// `slope[i] ≥` every chord slope of the interpolated table on `[i/4096, 1]` (the curve is
-    /// concave above its linear toe, so its chord slopes never increase): for `i/4096 ≤ a ≤ b`,
-    /// `|display(b) − display(a)| ≤ slope[i] (b − a)`.
+    /// `slope[i] ≥` every chord slope of the interpolated table on `[i/256, 1]`: for
+    /// `i/256 ≤ a ≤ b`, `|display(b) − display(a)| ≤ slope[i] (b − a)`; `slope[256] = 0`.
     slope: Vec<f32>,
-    /// `least[i] ≤` every chord slope on `[0, (i+1)/4096]`: for `a ≤ b ≤ (i+1)/4096` (and
-    /// `a ≥ 0`), `display(b) − display(a) ≥ least[i] (b − a)`.
+    /// `least[i] ≤` every chord slope on `[0, (i+1)/256]`: for `0 ≤ a ≤ b ≤ (i+1)/256`,
+    /// `display(b) − display(a) ≥ least[i] (b − a)`; `least[256] = 0`.
     least: Vec<f32>,
 }
 
@@ -429,20 +424,24 @@ static SRGB_TABLE: std::sync::LazyLock<DisplayTable> = std::sync::LazyLock::new(
             v as f32
         })
         .collect();
-    // Running maximum of the chord slopes from the right, computed in f64 from the f32 table
-    // (so it bounds the interpolation actually evaluated), rounded up by a relative 1e-6.
-    let mut slope = vec![0.0f32; SRGB_STEPS + 1];
+    // Chord slopes of the f32 table in f64 (so the bounds hold for the interpolation actually
+    // evaluated); per coarse interval `i` (of `SLOPE_STEPS`), the largest chord slope on
+    // `[i/256, 1]` (a running maximum from the right) and the smallest on `[0, (i+1)/256]` (a
+    // running minimum from the left), rounded outward by a relative 1e-6. Coarse, so the two
+    // bound tables stay in L1 (2 KiB) while the tested values land anywhere on [0, 1].
+    let chord = |j: usize| (f64::from(value[j + 1]) - f64::from(value[j])) * SRGB_STEPS as f64;
+    let per = SRGB_STEPS / SLOPE_STEPS;
+    let mut slope = vec![0.0f32; SLOPE_STEPS + 1];
     let mut max = 0.0f64;
-    for i in (0..SRGB_STEPS).rev() {
-        let chord = (f64::from(value[i + 1]) - f64::from(value[i])) * SRGB_STEPS as f64;
-        max = max.max(chord);
+    for i in (0..SLOPE_STEPS).rev() {
+        max = (i * per..(i + 1) * per).map(chord).fold(max, f64::max);
         slope[i] = (max * (1.0 + 1e-6)) as f32;
     }
-    let mut least = vec![0.0f32; SRGB_STEPS];
+    // Entry 256 (b ≥ 1, where the display clamps) is 0.
+    let mut least = vec![0.0f32; SLOPE_STEPS + 1];
     let mut min = f64::INFINITY;
-    for i in 0..SRGB_STEPS {
-        let chord = (f64::from(value[i + 1]) - f64::from(value[i])) * SRGB_STEPS as f64;
-        min = min.min(chord);
+    for i in 0..SLOPE_STEPS {
+        min = (i * per..(i + 1) * per).map(chord).fold(min, f64::min);
         least[i] = (min * (1.0 - 1e-6)) as f32;
     }
     DisplayTable {
@@ -452,6 +451,8 @@ static SRGB_TABLE: std::sync::LazyLock<DisplayTable> = std::sync::LazyLock::new(
     }
 });
 const SRGB_STEPS: usize = 4096;
+/// Intervals of the slope-bound tables.
+const SLOPE_STEPS: usize = 256;
 
 /// Absolute allowance for the f32 rounding of [`display`] differences (a few ulps of 1) in the
 /// slope bounds, so a bound below a threshold always implies the exact difference is too.
@@ -479,31 +480,18 @@ pub(crate) fn display(y: f32) -> f32 {
 /// [`DISPLAY_ROUNDING`]).
 #[inline]
 fn least_to(table: &DisplayTable, b: f32) -> f32 {
-    let t = &table.least;
-    if b.is_nan() || b >= 1.0 {
-        return 0.0;
-    }
-    let i = if b <= 0.0 {
-        0
-    } else {
-        ((b * SRGB_STEPS as f32) as usize).min(SRGB_STEPS - 1)
-    };
-    t[i]
+    // Branch-free: the float-to-integer cast saturates (negative and NaN give interval 0),
+    // and entry 256 (b ≥ 1) is 0.
+    table.least[((b * SLOPE_STEPS as f32) as usize).min(SLOPE_STEPS)]
 }
 
 /// A bound on the slope of [`display`] over `[a, ∞)`: for `a ≤ x ≤ y`,
 /// `display(y) − display(x) ≤ slope_from(a) (y − x)` (up to [`DISPLAY_ROUNDING`]).
 #[inline]
 fn slope_from(table: &DisplayTable, a: f32) -> f32 {
-    let t = &table.slope;
-    // NaN and a ≤ 0: the steepest slope (the first interval's).
-    if a.is_nan() || a <= 0.0 {
-        return t[0];
-    }
-    if a >= 1.0 {
-        return 0.0;
-    }
-    t[((a * SRGB_STEPS as f32) as usize).min(SRGB_STEPS - 1)]
+    // Branch-free as `least_to`: a ≤ 0 and NaN give the steepest (first) interval's slope,
+    // a ≥ 1 entry 256, 0.
+    table.slope[((a * SLOPE_STEPS as f32) as usize).min(SLOPE_STEPS)]
 }
 
 /// When a point stops adding levels.
@@ -889,7 +877,7 @@ mod tests {
             let (a, b) = (p.min(q), p.max(q));
             let diff = display(b) - display(a);
             assert!(
-                diff <= slope_from(a) * (b - a) + DISPLAY_ROUNDING,
+                diff <= slope_from(&SRGB_TABLE, a) * (b - a) + DISPLAY_ROUNDING,
                 "{a} {b}"
             );
             if a >= 0.0 {
