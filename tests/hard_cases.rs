@@ -195,6 +195,7 @@ fn order_30_bakes_and_relights_finitely_and_agrees_with_order_20_on_a_smooth_sky
     let opt = |order| prt_report::RelightOptions {
         order: Some(order),
         timing_frames: 1,
+        warmup_frames: 0,
         ..Default::default()
     };
     let r30 = prt_report::relight(&scene, &accel, &bake30, &opt(30)).unwrap();

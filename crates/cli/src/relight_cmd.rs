@@ -121,6 +121,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         adaptive,
         rotate_y_deg: args.rotate_y,
         timing_frames: 5,
+        warmup_frames: 2,
         rotate_y_step_deg: 0.0,
     };
     let relit = prt_report::relight(&scene, &accel, &bake, &opt)?;

@@ -576,11 +576,11 @@ impl DiffuseKernel<'_> {
     /// `Σ_{i∈s..e} T_c,i L_c,i` per channel for point row `t` (`channels · n²` floats).
     #[inline(always)]
     fn range(&self, t: &[f32], channels: usize, s: usize, e: usize) -> [f32; 3] {
-        let n2 = t.len() / channels;
+        // (Division by the constant 3, not by `channels`: this runs per level.)
         if channels == 3 {
-            band_dot::<3>(self.light4, t, n2, s, e)
+            band_dot::<3>(self.light4, t, t.len() / 3, s, e)
         } else {
-            band_dot::<1>(self.light4, t, n2, s, e)
+            band_dot::<1>(self.light4, t, t.len(), s, e)
         }
     }
 

@@ -369,6 +369,7 @@ pub fn run_report(
             adaptive: None,
             rotate_y_deg: 0.0,
             timing_frames: s.timing_frames,
+            warmup_frames: 2,
             rotate_y_step_deg: 0.0,
         };
         let full = relight(scene, &accel, &bake, &full_opt)?;

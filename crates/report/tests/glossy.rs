@@ -68,6 +68,7 @@ fn ward_specular_from_the_brdf_table_matches_the_integral() {
         &prt_report::RelightOptions {
             order: Some(order),
             timing_frames: 1,
+            warmup_frames: 0,
             ..Default::default()
         },
     )

@@ -168,6 +168,7 @@ fn image(scene: &Scene, accel: &Accel, bake: &prt_bakefile::Bake, order: usize) 
     let opt = RelightOptions {
         order: Some(order),
         timing_frames: 1,
+        warmup_frames: 0,
         ..RelightOptions::default()
     };
     let relit = relight(scene, accel, bake, &opt).expect("relight");
