@@ -389,8 +389,34 @@ impl Relighter {
                             if let Some(&(next, _)) = go_on[..n].get(i + PREFETCH_DISTANCE) {
                                 hint(next);
                             }
-                            self.weights(&lobe, reflection, w);
-                            kernel.extend(&mut accs[k], s.visibility.point(pts[k]), w, to, stop);
+                            let (acc, row) = (&mut accs[k], s.visibility.point(pts[k]));
+                            // The weights band by band, only as far as the point goes (most
+                            // stop within a few levels of the low ones).
+                            match prt_sh::BandCursor::new(self.basis(), reflection) {
+                                Ok(mut cursor) => {
+                                    // (`w` is the block's scratch: the bands shaded so far
+                                    // are this point's again first.)
+                                    let mut fill = |l: usize, w: &mut [f32]| {
+                                        let band = &mut w[l * l..(l + 1) * (l + 1)];
+                                        cursor.next_band_f32(band);
+                                        band.iter_mut().for_each(|x| *x *= lobe[l]);
+                                    };
+                                    for l in 0..=acc.last_level as usize {
+                                        fill(l, w);
+                                    }
+                                    for l in (acc.last_level as usize + 1)..=to {
+                                        fill(l, w);
+                                        if kernel.extend(acc, row, w, l, stop) {
+                                            break;
+                                        }
+                                    }
+                                }
+                                // (Orders above the cursor's limit have no specular anyway.)
+                                Err(_) => {
+                                    self.weights(&lobe, reflection, w);
+                                    kernel.extend(acc, row, w, to, stop);
+                                }
+                            }
                         }
                     },
                 )

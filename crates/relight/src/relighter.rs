@@ -274,6 +274,11 @@ impl Relighter {
         )
     }
 
+    /// The basis of the relighter's order.
+    pub(crate) fn basis(&self) -> &Basis {
+        &self.basis
+    }
+
     /// Fills `w_i = A_l y_i(r)`.
     #[inline]
     pub(crate) fn weights(&self, lobe: &[f32], reflection: Vec3, w: &mut [f32]) {

@@ -147,6 +147,95 @@ impl Basis {
     }
 }
 
+/// Highest order a [`BandCursor`] evaluates (its state lives in fixed-size arrays).
+pub const BAND_CURSOR_MAX_ORDER: usize = 32;
+
+/// Band-by-band evaluation at one direction: each call of [`BandCursor::next_band_f32`] gives
+/// the next band's `2l + 1` values, so a caller that needs only the first bands of a point
+/// (the adaptive relighting, which stops each point at its own level) pays only for those.
+///
+/// At band `l` every column `m < l − 1` takes its recurrence step `Q_l^m = a (z Q_{l−1}^m −
+/// b Q_{l−2}^m)`, then `Q_l^{l−1} = sqrt(2l+1) z Q_{l−1}^{l−1}` and the seed `Q_l^l`: the same
+/// arithmetic per value as [`Basis::eval_into`] (which runs column by column), so the values
+/// are identical to the last bit (tested).
+#[derive(Clone, Debug)]
+pub struct BandCursor<'a> {
+    basis: &'a Basis,
+    z: f64,
+    /// `sin^m θ cos mφ`, `sin^m θ sin mφ`.
+    cm: [f64; BAND_CURSOR_MAX_ORDER],
+    sm: [f64; BAND_CURSOR_MAX_ORDER],
+    /// `Q_{l−1}^m` and `Q_{l−2}^m` for the next band `l`.
+    q1: [f64; BAND_CURSOR_MAX_ORDER],
+    q2: [f64; BAND_CURSOR_MAX_ORDER],
+    next: usize,
+}
+
+impl<'a> BandCursor<'a> {
+    /// A cursor at band 0 of `basis` (order ≤ [`BAND_CURSOR_MAX_ORDER`]) at `dir` (need not be
+    /// normalised).
+    pub fn new(basis: &'a Basis, dir: Vec3) -> Result<Self, ShError> {
+        check_order(basis.order, BAND_CURSOR_MAX_ORDER)?;
+        let d = dir.as_dvec3().normalize_or(DVec3::Z);
+        let mut cursor = Self {
+            basis,
+            z: d.z,
+            cm: [0.0; BAND_CURSOR_MAX_ORDER],
+            sm: [0.0; BAND_CURSOR_MAX_ORDER],
+            q1: [0.0; BAND_CURSOR_MAX_ORDER],
+            q2: [0.0; BAND_CURSOR_MAX_ORDER],
+            next: 0,
+        };
+        // The azimuthal factors, advanced as in `Basis::eval_with`.
+        let (mut c, mut s) = (1.0f64, 0.0f64);
+        for m in 0..basis.order {
+            if m > 0 {
+                let c_next = d.x * c - d.y * s;
+                s = d.x * s + d.y * c;
+                c = c_next;
+            }
+            cursor.cm[m] = c;
+            cursor.sm[m] = s;
+        }
+        Ok(cursor)
+    }
+
+    /// The band the next call evaluates.
+    #[must_use]
+    pub fn next_band(&self) -> usize {
+        self.next
+    }
+
+    /// Writes band `l = self.next_band()`'s values (`m = −l..=l`) into `out[..2l + 1]` and
+    /// returns `l`; `None` (and nothing written) past the basis' order or if `out` is shorter.
+    pub fn next_band_f32(&mut self, out: &mut [f32]) -> Option<usize> {
+        let l = self.next;
+        if l >= self.basis.order || out.len() < 2 * l + 1 {
+            return None;
+        }
+        let t = &self.basis.table;
+        let mut q = [0.0f64; BAND_CURSOR_MAX_ORDER];
+        for (m, qm) in q.iter_mut().enumerate().take((l + 1).saturating_sub(2)) {
+            let (a, b) = t.ab(l, m);
+            *qm = a * (self.z * self.q1[m] - b * self.q2[m]);
+        }
+        if l >= 1 {
+            q[l - 1] = ((2 * (l - 1) + 3) as f64).sqrt() * self.z * self.q1[l - 1];
+        }
+        q[l] = t.diag(l);
+        let row = &mut out[..2 * l + 1];
+        row[l] = q[0] as f32;
+        for m in 1..=l {
+            row[l + m] = (q[m] * self.cm[m]) as f32;
+            row[l - m] = (q[m] * self.sm[m]) as f32;
+        }
+        self.q2[..=l].copy_from_slice(&self.q1[..=l]);
+        self.q1[..=l].copy_from_slice(&q[..=l]);
+        self.next += 1;
+        Some(l)
+    }
+}
+
 /// Convenience: all basis functions of `order` at `dir` (allocates).
 pub fn eval_basis(order: usize, dir: DVec3) -> Result<Vec<f64>, ShError> {
     Ok(Basis::new(order)?.eval(dir))
@@ -157,4 +246,52 @@ pub fn reconstruct(coeffs: &[f64], order: usize, dir: DVec3) -> Result<f64, ShEr
     check_len(order, coeffs.len())?;
     let y = eval_basis(order, dir)?;
     Ok(coeffs.iter().zip(&y).map(|(c, y)| c * y).sum())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn band_cursor_gives_the_basis_values_bit_for_bit() {
+        // Directions over the sphere, the poles and unnormalised ones included.
+        let mut dirs = vec![Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.0, 0.0, 3.0)];
+        for i in 0..200 {
+            let t = i as f32 * 0.731;
+            dirs.push(Vec3::new(
+                t.sin() * (1.3 * t).cos(),
+                t.cos(),
+                (0.7 * t).sin() - 0.2,
+            ));
+        }
+        for order in [1usize, 2, 3, 5, 11, 14, 32] {
+            let basis = Basis::new(order).unwrap();
+            let mut want = vec![0.0f32; order * order];
+            let mut band = vec![0.0f32; 2 * order - 1];
+            for &d in &dirs {
+                basis.eval_f32_unchecked(d, &mut want);
+                let mut cursor = BandCursor::new(&basis, d).unwrap();
+                for l in 0..order {
+                    assert_eq!(cursor.next_band(), l);
+                    assert_eq!(cursor.next_band_f32(&mut band), Some(l));
+                    let got = &band[..2 * l + 1];
+                    let exp = &want[l * l..(l + 1) * (l + 1)];
+                    assert_eq!(
+                        got.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                        exp.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                        "order {order}, band {l}, direction {d:?}"
+                    );
+                }
+                assert_eq!(cursor.next_band_f32(&mut band), None);
+            }
+        }
+        assert!(BandCursor::new(&Basis::new(33).unwrap(), Vec3::Z).is_err());
+        // A buffer too short for the band: nothing written, the cursor stays.
+        let basis = Basis::new(4).unwrap();
+        let mut cursor = BandCursor::new(&basis, Vec3::Y).unwrap();
+        let mut one = [0.0f32; 1];
+        assert_eq!(cursor.next_band_f32(&mut one), Some(0));
+        assert_eq!(cursor.next_band_f32(&mut one), None);
+        assert_eq!(cursor.next_band(), 1);
+    }
 }

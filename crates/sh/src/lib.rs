@@ -41,7 +41,7 @@ mod rotate;
 pub mod window;
 pub mod zonal;
 
-pub use eval::{eval_basis, reconstruct, Basis};
+pub use eval::{eval_basis, reconstruct, BandCursor, Basis, BAND_CURSOR_MAX_ORDER};
 pub use gaunt::{azimuthal_triple, GauntTensor, MAX_GAUNT_ORDER};
 pub use index::{check_order, coefficient_count, degree_and_order, index, ShError, MAX_ORDER};
 pub use legendre::LegendreTable;
