@@ -197,6 +197,100 @@ fn level_channel<const NL: usize>(l: usize, cols: &[f32], v: &[f32], w: &[f32]) 
     band_sum(l, &p, &q, v, w)
 }
 
+/// Levels 3 and 4 of the specular kernel in one sweep (every specular point evaluates both
+/// before its first convergence test): the rows of bands 3 and 4 (`9..25`, 16 of them, one pair
+/// of AVX registers without padding) against the columns `j < 25`. Band 3's rows take `v_j`
+/// only for `j < 16` and `w_j` only for `j < 9`, band 4's `v_j` for `j < 25` and `w_j` for
+/// `j < 16` (Algorithm 3's ranges), so the block holds, per column `j` and channel, 16 lanes
+/// (band 3's 7 rows, then band 4's 9) with band 3's lanes zero for `j ≥ 16`, and for
+/// `9 ≤ j < 16` a second copy with band 3's lanes zero for the `w` sweep. The same sums as
+/// [`SpecularKernel::level`] at levels 3 and 4, in the same order per row (the zero lanes add
+/// exact zeros).
+pub(crate) const PAIR_TOP: usize = 4;
+const PAIR_LANES: usize = 16;
+/// Floats of the pair block: 25 columns, then the 7 `w`-sweep copies, × 3 channels × 16 lanes.
+pub(crate) const PAIR_FLOATS: usize = (25 + 7) * 3 * PAIR_LANES;
+
+/// Fills channel `c` of the pair block (see [`PAIR_TOP`]) from `m(i, j) = L̂_c[i][j]`.
+pub(crate) fn fill_pair_block(block: &mut [f32], c: usize, m: impl Fn(usize, usize) -> f32) {
+    let lane = |i: usize| if i < 16 { i - 9 } else { 7 + (i - 16) };
+    for j in 0..25 {
+        for i in 9..25 {
+            let on = i >= 16 || j < 16;
+            block[(3 * j + c) * PAIR_LANES + lane(i)] = if on { m(i, j) } else { 0.0 };
+        }
+    }
+    for j in 9..16 {
+        for i in 9..25 {
+            let on = i >= 16;
+            block[(3 * (25 + j - 9) + c) * PAIR_LANES + lane(i)] = if on { m(i, j) } else { 0.0 };
+        }
+    }
+}
+
+/// Levels 3 and 4, three channels, baseline instruction set.
+fn pair_any(block: &[f32], v: &[f32], w: &[f32]) -> [[f32; 3]; 2] {
+    pair_in(block, v, w)
+}
+
+/// [`pair_any`] compiled for AVX2; bit-identical as [`level3_avx2`].
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(unsafe_code)] // Runtime feature dispatch, as `level3_avx2`.
+unsafe fn pair_avx2(block: &[f32], v: &[f32], w: &[f32]) -> [[f32; 3]; 2] {
+    pair_in(block, v, w)
+}
+
+#[inline(always)]
+fn pair_in(block: &[f32], v: &[f32], w: &[f32]) -> [[f32; 3]; 2] {
+    const NL: usize = PAIR_LANES;
+    let (v, w) = (&v[..25], &w[..25]);
+    let (main, wcopy) = block.split_at(25 * 3 * NL);
+    let mut p = [[0.0f32; NL]; 3];
+    let mut q = [[0.0f32; NL]; 3];
+    let (cols, _) = main.as_chunks::<{ 3 * NL }>();
+    let (zcols, _) = wcopy.as_chunks::<{ 3 * NL }>();
+    for (cols, (vj, wj)) in cols[..9].iter().zip(v[..9].iter().zip(&w[..9])) {
+        for c in 0..3 {
+            for k in 0..NL {
+                p[c][k] += vj * cols[c * NL + k];
+                q[c][k] += wj * cols[c * NL + k];
+            }
+        }
+    }
+    for ((cols, zcols), (vj, wj)) in cols[9..16]
+        .iter()
+        .zip(zcols)
+        .zip(v[9..16].iter().zip(&w[9..16]))
+    {
+        for c in 0..3 {
+            for k in 0..NL {
+                p[c][k] += vj * cols[c * NL + k];
+                q[c][k] += wj * zcols[c * NL + k];
+            }
+        }
+    }
+    for (cols, vj) in cols[16..25].iter().zip(&v[16..25]) {
+        for c in 0..3 {
+            for k in 0..NL {
+                p[c][k] += vj * cols[c * NL + k];
+            }
+        }
+    }
+    // Band sums as `band_sum`: rows in order, `w_i p_i + v_i q_i`.
+    let sum = |c: usize, first: usize, lane0: usize, rows: usize| {
+        let mut s = 0.0f32;
+        for r in 0..rows {
+            s += w[first + r] * p[c][lane0 + r] + v[first + r] * q[c][lane0 + r];
+        }
+        s
+    };
+    [rgb(|c| sum(c, 9, 0, 7)), rgb(|c| sum(c, 16, 7, 9))]
+}
+
 /// Index of row `l² + r` of band `l`, column `j`, channel `c` in band `l`'s block of the column
 /// layout: channels side by side per column up to 16 lanes, channel-major above.
 #[inline]
@@ -767,7 +861,37 @@ impl SpecularKernel<'_> {
     /// whether a rule stopped the point.
     #[inline]
     pub fn extend(&self, acc: &mut Accum, v: &[f32], w: &[f32], to: usize, stop: Stop) -> bool {
-        for l in (acc.last_level as usize + 1)..=to {
+        let mut first = acc.last_level as usize + 1;
+        // Levels 3 and 4 together when both are due (see `PAIR_TOP`).
+        let pair = first == PAIR_TOP - 1 && to >= PAIR_TOP && self.order > PAIR_TOP;
+        let mut pair_deltas = None;
+        if pair {
+            let block = &self.columns[self.column_offsets[self.order]..];
+            #[cfg(target_arch = "x86_64")]
+            if self.avx2 {
+                // SAFETY: `avx2` is set only when the CPU reports AVX2 (`Self::new`).
+                #[allow(unsafe_code)]
+                let d = unsafe { pair_avx2(block, v, w) };
+                pair_deltas = Some(d);
+            }
+            if pair_deltas.is_none() {
+                pair_deltas = Some(pair_any(block, v, w));
+            }
+        }
+        if let Some(deltas) = pair_deltas {
+            for (k, delta) in deltas.into_iter().enumerate() {
+                let l = PAIR_TOP - 1 + k;
+                for c in 0..3 {
+                    acc.high[c] += delta[c];
+                }
+                acc.products += Self::products_of_level(l);
+                if acc.step(l, delta, stop) {
+                    return true;
+                }
+            }
+            first = PAIR_TOP + 1;
+        }
+        for l in first..=to {
             let delta = self.level(l, v, w);
             for c in 0..3 {
                 acc.high[c] += delta[c];
@@ -1019,6 +1143,61 @@ mod tests {
                     (f64::from(a[c]) - exact).abs() <= tol,
                     "band {l}, channel {c}: {} vs {exact}",
                     a[c]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn paired_levels_3_and_4_equal_the_single_levels() {
+        // A random symmetric 25×25 block of L̂ per channel, laid out both ways.
+        let mut next = numbers(17);
+        let m: Vec<Vec<f32>> = (0..3)
+            .map(|_| {
+                let mut a = vec![0.0f32; 625];
+                for i in 0..25 {
+                    for j in 0..=i {
+                        let x = next();
+                        a[i * 25 + j] = x;
+                        a[j * 25 + i] = x;
+                    }
+                }
+                a
+            })
+            .collect();
+        let mut singles = Vec::new();
+        for l in 3..5usize {
+            let (s, e, nl) = (l * l, (l + 1) * (l + 1), lanes(l));
+            let mut block = vec![0.0f32; 3 * e * nl];
+            for (c, mc) in m.iter().enumerate() {
+                for j in 0..e {
+                    for r in 0..2 * l + 1 {
+                        block[column_index(l, j, c, r)] = mc[(s + r) * 25 + j];
+                    }
+                }
+            }
+            singles.push(block);
+        }
+        let mut pair = vec![0.0f32; PAIR_FLOATS];
+        for (c, mc) in m.iter().enumerate() {
+            fill_pair_block(&mut pair, c, |i, j| mc[i * 25 + j]);
+        }
+        for _ in 0..50 {
+            let v: Vec<f32> = (0..25).map(|_| next()).collect();
+            let w: Vec<f32> = (0..25).map(|_| next()).collect();
+            let want = [
+                level3_any(3, &singles[0], &v, &w),
+                level3_any(4, &singles[1], &v, &w),
+            ];
+            assert_eq!(pair_any(&pair, &v, &w), want);
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 checked.
+                #[allow(unsafe_code)]
+                let got = unsafe { pair_avx2(&pair, &v, &w) };
+                assert_eq!(
+                    got.map(|d| d.map(f32::to_bits)),
+                    want.map(|d| d.map(f32::to_bits))
                 );
             }
         }

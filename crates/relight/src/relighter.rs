@@ -107,7 +107,12 @@ impl Relighter {
             let bb = crate::BASE_ORDER.min(self.order).pow(2);
             let lanes = crate::kernel::BASE_LANES;
             let mut corner = vec![0.0f32; bb * 3 * lanes];
-            let mut cols = vec![0.0f32; self.column_offsets[self.order]];
+            let pair = if self.order > crate::kernel::PAIR_TOP {
+                crate::kernel::PAIR_FLOATS
+            } else {
+                0
+            };
+            let mut cols = vec![0.0f32; self.column_offsets[self.order] + pair];
             for c in 0..3 {
                 let l64: Vec<f64> = lighting.rgb[c].iter().map(|v| f64::from(*v)).collect();
                 let dense = gaunt.product_matrix(&l64)?;
@@ -125,6 +130,10 @@ impl Relighter {
                                 dense[(s + r) * n2 + j] as f32;
                         }
                     }
+                }
+                if pair > 0 {
+                    let block = &mut cols[self.column_offsets[self.order]..];
+                    crate::kernel::fill_pair_block(block, c, |i, j| dense[i * n2 + j] as f32);
                 }
             }
             (Some(corner), Some(cols))
