@@ -168,10 +168,16 @@ fn level_in<const NL: usize>(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [
 /// `Σ_r w_{l²+r} p_r + v_{l²+r} q_r` over band `l`'s `2l + 1` rows.
 #[inline(always)]
 fn band_sum(l: usize, p: &[f32], q: &[f32], v: &[f32], w: &[f32]) -> f32 {
-    let s = l * l;
+    // The terms lane-wise (vectorised), then summed in row order.
+    let (s, n) = (l * l, 2 * l + 1);
+    let (w, v, p, q) = (&w[s..s + n], &v[s..s + n], &p[..n], &q[..n]);
+    let mut t = [0.0f32; 64];
+    for r in 0..n {
+        t[r] = w[r] * p[r] + v[r] * q[r];
+    }
     let mut sum = 0.0f32;
-    for r in 0..2 * l + 1 {
-        sum += w[s + r] * p[r] + v[s + r] * q[r];
+    for x in &t[..n] {
+        sum += x;
     }
     sum
 }
@@ -280,15 +286,26 @@ fn pair_in(block: &[f32], v: &[f32], w: &[f32]) -> [[f32; 3]; 2] {
             }
         }
     }
-    // Band sums as `band_sum`: rows in order, `w_i p_i + v_i q_i`.
-    let sum = |c: usize, first: usize, lane0: usize, rows: usize| {
-        let mut s = 0.0f32;
-        for r in 0..rows {
-            s += w[first + r] * p[c][lane0 + r] + v[first + r] * q[c][lane0 + r];
+    // Band sums as `band_sum`: the terms `w_i p_i + v_i q_i` lane-wise (lane k is row 9 + k),
+    // then each band's rows summed in order.
+    let (w16, v16) = (&w[9..25], &v[9..25]);
+    let mut out = [[0.0f32; 3]; 2];
+    for c in 0..3 {
+        let mut t = [0.0f32; NL];
+        for k in 0..NL {
+            t[k] = w16[k] * p[c][k] + v16[k] * q[c][k];
         }
-        s
-    };
-    [rgb(|c| sum(c, 9, 0, 7)), rgb(|c| sum(c, 16, 7, 9))]
+        let (mut s3, mut s4) = (0.0f32, 0.0f32);
+        for x in &t[..7] {
+            s3 += x;
+        }
+        for x in &t[7..] {
+            s4 += x;
+        }
+        out[0][c] = s3;
+        out[1][c] = s4;
+    }
+    out
 }
 
 /// Index of row `l² + r` of band `l`, column `j`, channel `c` in band `l`'s block of the column
