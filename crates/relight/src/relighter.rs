@@ -374,7 +374,8 @@ pub(crate) fn specular_point(input: &SpecularInput<'_>, p: usize) -> SpecularPoi
     let e = input.phong.exponent;
     let k = (e + 2.0) / (e + 1.0) * cos_o;
     SpecularPoint {
-        reflection: (2.0 * cos_o * n - wo).normalize_or_zero(),
+        // Unit up to rounding (n and ω_o are); the basis evaluation normalises it (in f64).
+        reflection: 2.0 * cos_o * n - wo,
         scale: input.phong.specular.map(|s| s * k),
         active: true,
     }
