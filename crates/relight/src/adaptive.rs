@@ -773,8 +773,10 @@ fn filter_pass(
                     Some(x) => &mut x[lo..hi],
                     None => &mut ls[..n],
                 });
+                // The diffuse base first only when the specular test needs it (seen together on
+                // the display); otherwise the diffuse term goes in one call below.
                 if let (Some(eval), Some(db)) = (terms[0], db.as_deref_mut()) {
-                    if fresh[0] {
+                    if fresh[0] && seen_together {
                         eval(pts, db, true, b - 1, Stop::NEVER, None, scratch);
                     }
                 }
@@ -803,7 +805,8 @@ fn filter_pass(
                 }
                 if let (Some(eval), Some(db)) = (terms[0], db) {
                     let offsets = seen_together.then_some(&spec_value[..n]);
-                    eval(pts, db, false, top, filter, offsets, scratch);
+                    let start = fresh[0] && !seen_together;
+                    eval(pts, db, start, top, filter, offsets, scratch);
                     if let (Some(r), Some(f)) = (rad[0].as_deref_mut(), flags[0].as_deref_mut()) {
                         let (r, f) = (&mut r[lo..hi], &mut f[lo..hi]);
                         tally_into(db, r, f, &mut tallies[0], top, threshold, measure);
