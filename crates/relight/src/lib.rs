@@ -43,18 +43,22 @@
 //! from the lobe.
 //!
 //! # Layout and determinism
-//! The diffuse kernel is f32 dot products with 8 independent lanes. The specular kernel keeps
-//! each band's rows of `L̂` by column (rows zero-padded to a multiple of 4 lanes), so a level is
-//! two sums of columns scaled by `v_j` and `w_j` and one dot product — no per-row reductions;
-//! bands of ≤ 16 lanes do the three colour channels in one sweep. It runs an AVX2 instance when
-//! the CPU has AVX2 (detected at run time; the only `unsafe` of the crate) and a baseline one
-//! otherwise; both do the same element-wise multiplies and adds in the same order (no FMA
-//! contraction), so they agree bit for bit (tested). Work is parallel over chunks of 256 points
-//! with rayon; every point's sums are formed in a fixed order, so results do not depend on the
-//! thread count or the CPU, and the adaptive path with threshold 0 equals the full-order path
-//! bit for bit (both go through the same band-by-band kernels). The adaptive path reads bands
-//! `0..5` from compact copies ([`TransferView::with_low_bands`]) and a point's whole row only
-//! if it goes on.
+//! The diffuse kernel reads the light interleaved by coefficient (`[L_r, L_g, L_b, 0]`), so a
+//! band is one 4-lane multiply–add per coefficient for all three channels. The specular kernel
+//! keeps each band's rows of `L̂` by column (rows zero-padded to a multiple of 4 lanes), so a
+//! level is two sums of columns scaled by `v_j` and `w_j` and one dot product — no per-row
+//! reductions; bands of ≤ 16 lanes do the three colour channels in one sweep, and levels 3 and 4
+//! (which every point evaluates) go together through one 16-lane sweep. It runs an AVX2 instance
+//! when the CPU has AVX2 (detected at run time; with the prefetch hints, the only `unsafe` of
+//! the crate) and a baseline one otherwise; both do the same element-wise multiplies and adds in
+//! the same order (no FMA contraction), so they agree bit for bit (tested). Work is parallel
+//! over chunks of 256 points with rayon; every point's sums are formed in a fixed order, so
+//! results do not depend on the thread count or the CPU, and the adaptive path with threshold
+//! 0 equals the full-order path bit for bit (both go through the same band-by-band kernels).
+//! The adaptive path reads bands `0..5` from compact copies ([`TransferView::with_low_bands`]),
+//! then, for the points of a block that go on, their full rows (hinted into cache a few points
+//! ahead: they are scattered, and the stalls cost more than the arithmetic) and their basis
+//! values band by band ([`prt_sh::BandCursor`]) only as far as each goes.
 //!
 //! ```
 //! use prt_relight::{DiffuseParams, Lighting, Relighter, TransferView};
