@@ -397,9 +397,8 @@ impl Relighter {
                                     // (`w` is the block's scratch: the bands shaded so far
                                     // are this point's again first.)
                                     let mut fill = |l: usize, w: &mut [f32]| {
-                                        let band = &mut w[l * l..(l + 1) * (l + 1)];
-                                        cursor.next_band_f32(band);
-                                        band.iter_mut().for_each(|x| *x *= lobe[l]);
+                                        // `y_i(r) A_l`, as `weights` forms it.
+                                        cursor.next_band_f32_scaled(&mut w[l * l..], lobe[l]);
                                     };
                                     for l in 0..=acc.last_level as usize {
                                         fill(l, w);

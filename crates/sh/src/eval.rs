@@ -161,8 +161,11 @@ pub const BAND_CURSOR_MAX_ORDER: usize = 32;
 #[derive(Clone, Debug)]
 pub struct BandCursor<'a> {
     basis: &'a Basis,
+    x: f64,
+    y: f64,
     z: f64,
-    /// `sin^m θ cos mφ`, `sin^m θ sin mφ`.
+    /// `sin^m θ cos mφ`, `sin^m θ sin mφ` for `m` below the next band (advanced one `m` per
+    /// band, as `Basis::eval_with` advances them one per column).
     cm: [f64; BAND_CURSOR_MAX_ORDER],
     sm: [f64; BAND_CURSOR_MAX_ORDER],
     /// `Q_{l−1}^m` and `Q_{l−2}^m` for the next band `l`.
@@ -177,27 +180,19 @@ impl<'a> BandCursor<'a> {
     pub fn new(basis: &'a Basis, dir: Vec3) -> Result<Self, ShError> {
         check_order(basis.order, BAND_CURSOR_MAX_ORDER)?;
         let d = dir.as_dvec3().normalize_or(DVec3::Z);
-        let mut cursor = Self {
+        let mut cm = [0.0; BAND_CURSOR_MAX_ORDER];
+        cm[0] = 1.0;
+        Ok(Self {
             basis,
+            x: d.x,
+            y: d.y,
             z: d.z,
-            cm: [0.0; BAND_CURSOR_MAX_ORDER],
+            cm,
             sm: [0.0; BAND_CURSOR_MAX_ORDER],
             q1: [0.0; BAND_CURSOR_MAX_ORDER],
             q2: [0.0; BAND_CURSOR_MAX_ORDER],
             next: 0,
-        };
-        // The azimuthal factors, advanced as in `Basis::eval_with`.
-        let (mut c, mut s) = (1.0f64, 0.0f64);
-        for m in 0..basis.order {
-            if m > 0 {
-                let c_next = d.x * c - d.y * s;
-                s = d.x * s + d.y * c;
-                c = c_next;
-            }
-            cursor.cm[m] = c;
-            cursor.sm[m] = s;
-        }
-        Ok(cursor)
+        })
     }
 
     /// The band the next call evaluates.
@@ -209,9 +204,21 @@ impl<'a> BandCursor<'a> {
     /// Writes band `l = self.next_band()`'s values (`m = −l..=l`) into `out[..2l + 1]` and
     /// returns `l`; `None` (and nothing written) past the basis' order or if `out` is shorter.
     pub fn next_band_f32(&mut self, out: &mut [f32]) -> Option<usize> {
+        self.next_band_f32_scaled(out, 1.0)
+    }
+
+    /// [`Self::next_band_f32`] with every value multiplied by `factor` in f32 after rounding
+    /// (`(y as f32) * factor`, as scaling the output of [`Basis::eval_f32_unchecked`] gives).
+    pub fn next_band_f32_scaled(&mut self, out: &mut [f32], factor: f32) -> Option<usize> {
         let l = self.next;
         if l >= self.basis.order || out.len() < 2 * l + 1 {
             return None;
+        }
+        if l > 0 {
+            // The azimuthal factor of the new column m = l.
+            let (c, s) = (self.cm[l - 1], self.sm[l - 1]);
+            self.cm[l] = self.x * c - self.y * s;
+            self.sm[l] = self.x * s + self.y * c;
         }
         let t = &self.basis.table;
         let mut q = [0.0f64; BAND_CURSOR_MAX_ORDER];
@@ -224,10 +231,10 @@ impl<'a> BandCursor<'a> {
         }
         q[l] = t.diag(l);
         let row = &mut out[..2 * l + 1];
-        row[l] = q[0] as f32;
+        row[l] = (q[0] as f32) * factor;
         for m in 1..=l {
-            row[l + m] = (q[m] * self.cm[m]) as f32;
-            row[l - m] = (q[m] * self.sm[m]) as f32;
+            row[l + m] = ((q[m] * self.cm[m]) as f32) * factor;
+            row[l - m] = ((q[m] * self.sm[m]) as f32) * factor;
         }
         self.q2[..=l].copy_from_slice(&self.q1[..=l]);
         self.q1[..=l].copy_from_slice(&q[..=l]);
@@ -283,6 +290,15 @@ mod tests {
                     );
                 }
                 assert_eq!(cursor.next_band_f32(&mut band), None);
+                // Scaled: each value rounded to f32, then multiplied in f32.
+                let mut scaled = BandCursor::new(&basis, d).unwrap();
+                for l in 0..order {
+                    let f = 0.37 + l as f32;
+                    scaled.next_band_f32_scaled(&mut band, f).unwrap();
+                    for (k, x) in band[..2 * l + 1].iter().enumerate() {
+                        assert_eq!(x.to_bits(), (want[l * l + k] * f).to_bits());
+                    }
+                }
             }
         }
         assert!(BandCursor::new(&Basis::new(33).unwrap(), Vec3::Z).is_err());
