@@ -168,9 +168,9 @@ pub struct BandCursor<'a> {
     /// band, as `Basis::eval_with` advances them one per column).
     cm: [f64; BAND_CURSOR_MAX_ORDER],
     sm: [f64; BAND_CURSOR_MAX_ORDER],
-    /// `Q_{l−1}^m` and `Q_{l−2}^m` for the next band `l`.
-    q1: [f64; BAND_CURSOR_MAX_ORDER],
-    q2: [f64; BAND_CURSOR_MAX_ORDER],
+    /// Legendre columns of the last two bands: `qs[l % 2][m] = Q_l^m` (band `l` overwrites
+    /// band `l − 2`'s values in place, reading each before writing it).
+    qs: [[f64; BAND_CURSOR_MAX_ORDER]; 2],
     next: usize,
 }
 
@@ -189,8 +189,7 @@ impl<'a> BandCursor<'a> {
             z: d.z,
             cm,
             sm: [0.0; BAND_CURSOR_MAX_ORDER],
-            q1: [0.0; BAND_CURSOR_MAX_ORDER],
-            q2: [0.0; BAND_CURSOR_MAX_ORDER],
+            qs: [[0.0; BAND_CURSOR_MAX_ORDER]; 2],
             next: 0,
         })
     }
@@ -221,13 +220,16 @@ impl<'a> BandCursor<'a> {
             self.sm[l] = self.x * s + self.y * c;
         }
         let t = &self.basis.table;
-        let mut q = [0.0f64; BAND_CURSOR_MAX_ORDER];
-        for (m, qm) in q.iter_mut().enumerate().take((l + 1).saturating_sub(2)) {
+        let z = self.z;
+        let [even, odd] = &mut self.qs;
+        let (q, q1) = if l % 2 == 0 { (even, &*odd) } else { (odd, &*even) };
+        // `q` holds band l − 2 and becomes band l.
+        for m in 0..(l + 1).saturating_sub(2) {
             let (a, b) = t.ab(l, m);
-            *qm = a * (self.z * self.q1[m] - b * self.q2[m]);
+            q[m] = a * (z * q1[m] - b * q[m]);
         }
         if l >= 1 {
-            q[l - 1] = ((2 * (l - 1) + 3) as f64).sqrt() * self.z * self.q1[l - 1];
+            q[l - 1] = ((2 * (l - 1) + 3) as f64).sqrt() * z * q1[l - 1];
         }
         q[l] = t.diag(l);
         let row = &mut out[..2 * l + 1];
@@ -236,8 +238,6 @@ impl<'a> BandCursor<'a> {
             row[l + m] = ((q[m] * self.cm[m]) as f32) * factor;
             row[l - m] = ((q[m] * self.sm[m]) as f32) * factor;
         }
-        self.q2[..=l].copy_from_slice(&self.q1[..=l]);
-        self.q1[..=l].copy_from_slice(&q[..=l]);
         self.next += 1;
         Some(l)
     }
