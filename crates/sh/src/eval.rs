@@ -222,7 +222,11 @@ impl<'a> BandCursor<'a> {
         let t = &self.basis.table;
         let z = self.z;
         let [even, odd] = &mut self.qs;
-        let (q, q1) = if l % 2 == 0 { (even, &*odd) } else { (odd, &*even) };
+        let (q, q1) = if l % 2 == 0 {
+            (even, &*odd)
+        } else {
+            (odd, &*even)
+        };
         // `q` holds band l − 2 and becomes band l.
         for m in 0..(l + 1).saturating_sub(2) {
             let (a, b) = t.ab(l, m);
