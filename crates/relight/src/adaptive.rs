@@ -385,6 +385,10 @@ impl Relighter {
                             .iter()
                             .take(PREFETCH_DISTANCE)
                             .for_each(|&(k, _)| hint(k));
+                        // One cursor for the block's points, restarted per point.
+                        let mut cursor = (n > 0)
+                            .then(|| prt_sh::BandCursor::new(self.basis(), glam::Vec3::Z).ok())
+                            .flatten();
                         for (i, &(k, reflection)) in go_on[..n].iter().enumerate() {
                             if let Some(&(next, _)) = go_on[..n].get(i + PREFETCH_DISTANCE) {
                                 hint(next);
@@ -392,8 +396,9 @@ impl Relighter {
                             let (acc, row) = (&mut accs[k], s.visibility.point(pts[k]));
                             // The weights band by band, only as far as the point goes (most
                             // stop within a few levels of the low ones).
-                            match prt_sh::BandCursor::new(self.basis(), reflection) {
-                                Ok(mut cursor) => {
+                            match cursor.as_mut() {
+                                Some(cursor) => {
+                                    cursor.reset(reflection);
                                     // (`w` is the block's scratch: the bands shaded so far
                                     // are this point's again first.)
                                     let mut fill = |l: usize, w: &mut [f32]| {
@@ -411,7 +416,7 @@ impl Relighter {
                                     }
                                 }
                                 // (Orders above the cursor's limit have no specular anyway.)
-                                Err(_) => {
+                                None => {
                                     self.weights(&lobe, reflection, w);
                                     kernel.extend(acc, row, w, to, stop);
                                 }

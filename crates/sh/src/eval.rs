@@ -177,6 +177,7 @@ pub struct BandCursor<'a> {
 impl<'a> BandCursor<'a> {
     /// A cursor at band 0 of `basis` (order ≤ [`BAND_CURSOR_MAX_ORDER`]) at `dir` (need not be
     /// normalised).
+    #[inline]
     pub fn new(basis: &'a Basis, dir: Vec3) -> Result<Self, ShError> {
         check_order(basis.order, BAND_CURSOR_MAX_ORDER)?;
         let d = dir.as_dvec3().normalize_or(DVec3::Z);
@@ -194,6 +195,15 @@ impl<'a> BandCursor<'a> {
         })
     }
 
+    /// Restarts the cursor at band 0 for direction `dir`, reusing its state arrays (no
+    /// re-initialisation: each band reads only values written by the bands before it).
+    #[inline]
+    pub fn reset(&mut self, dir: Vec3) {
+        let d = dir.as_dvec3().normalize_or(DVec3::Z);
+        (self.x, self.y, self.z) = (d.x, d.y, d.z);
+        self.next = 0;
+    }
+
     /// The band the next call evaluates.
     #[must_use]
     pub fn next_band(&self) -> usize {
@@ -202,12 +212,14 @@ impl<'a> BandCursor<'a> {
 
     /// Writes band `l = self.next_band()`'s values (`m = −l..=l`) into `out[..2l + 1]` and
     /// returns `l`; `None` (and nothing written) past the basis' order or if `out` is shorter.
+    #[inline]
     pub fn next_band_f32(&mut self, out: &mut [f32]) -> Option<usize> {
         self.next_band_f32_scaled(out, 1.0)
     }
 
     /// [`Self::next_band_f32`] with every value multiplied by `factor` in f32 after rounding
     /// (`(y as f32) * factor`, as scaling the output of [`Basis::eval_f32_unchecked`] gives).
+    #[inline]
     pub fn next_band_f32_scaled(&mut self, out: &mut [f32], factor: f32) -> Option<usize> {
         let l = self.next;
         if l >= self.basis.order || out.len() < 2 * l + 1 {
@@ -294,8 +306,11 @@ mod tests {
                     );
                 }
                 assert_eq!(cursor.next_band_f32(&mut band), None);
-                // Scaled: each value rounded to f32, then multiplied in f32.
-                let mut scaled = BandCursor::new(&basis, d).unwrap();
+                // Scaled: each value rounded to f32, then multiplied in f32; on a cursor reused
+                // from another direction (`reset`).
+                let mut scaled = BandCursor::new(&basis, Vec3::new(0.3, -0.9, 0.1)).unwrap();
+                while scaled.next_band_f32(&mut band).is_some() {}
+                scaled.reset(d);
                 for l in 0..order {
                     let f = 0.37 + l as f32;
                     scaled.next_band_f32_scaled(&mut band, f).unwrap();
