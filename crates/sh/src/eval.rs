@@ -234,7 +234,7 @@ impl<'a> BandCursor<'a> {
         let t = &self.basis.table;
         let z = self.z;
         let [even, odd] = &mut self.qs;
-        let (q, q1) = if l % 2 == 0 {
+        let (q, q1) = if l.is_multiple_of(2) {
             (even, &*odd)
         } else {
             (odd, &*even)
