@@ -167,11 +167,12 @@ fn level_in<const NL: usize>(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [
 
 /// `Σ_r w_{l²+r} p_r + v_{l²+r} q_r` over band `l`'s `2l + 1` rows.
 #[inline(always)]
-fn band_sum(l: usize, p: &[f32], q: &[f32], v: &[f32], w: &[f32]) -> f32 {
-    // The terms lane-wise (vectorised), then summed in row order.
+fn band_sum<const NL: usize>(l: usize, p: &[f32; NL], q: &[f32; NL], v: &[f32], w: &[f32]) -> f32 {
+    // The terms lane-wise (vectorised), then summed in row order; `t` has the band's lane
+    // count (zeroing a larger scratch per call cost more than the sum).
     let (s, n) = (l * l, 2 * l + 1);
     let (w, v, p, q) = (&w[s..s + n], &v[s..s + n], &p[..n], &q[..n]);
-    let mut t = [0.0f32; 64];
+    let mut t = [0.0f32; NL];
     for r in 0..n {
         t[r] = w[r] * p[r] + v[r] * q[r];
     }
