@@ -21,8 +21,8 @@ pub(crate) const CHUNK: usize = 256;
 /// transfers stay in cache between the diffuse base, the specular term and the diffuse levels).
 pub(crate) const BLOCK: usize = 32;
 
-/// `[f(0), f(1), f(2)]`, always inlined (`rgb(f)` is left as an out-of-line call in
-/// the hot paths).
+/// `[f(0), f(1), f(2)]`, always inlined (`[0, 1, 2].map(f)` was left as an out-of-line call
+/// in the hot paths).
 #[inline(always)]
 pub(crate) fn rgb<T>(mut f: impl FnMut(usize) -> T) -> [T; 3] {
     [f(0), f(1), f(2)]
