@@ -357,19 +357,28 @@ impl Relighter {
 /// View direction, reflection and scale of point `p`: `ω_o` toward the viewer, `r = 2(n·ω_o)n − ω_o`,
 /// scale `specular · (e+2)/(e+1) · n·ω_o`; inactive (zero) if `n·ω_o ≤ 0` or degenerate.
 pub(crate) fn specular_point(input: &SpecularInput<'_>, p: usize) -> SpecularPoint {
-    let n = Vec3::from_array(input.surface.normals[p]).normalize_or_zero();
-    let wo = match input.viewer {
-        Viewer::Eye(eye) => (Vec3::from_array(eye) - Vec3::from_array(input.surface.positions[p]))
-            .normalize_or_zero(),
-        Viewer::Directions(d) => Vec3::from_array(d[p]).normalize_or_zero(),
+    let inactive = SpecularPoint {
+        reflection: Vec3::ZERO,
+        scale: [0.0; 3],
+        active: false,
     };
+    let n_raw = Vec3::from_array(input.surface.normals[p]);
+    let wo_raw = match input.viewer {
+        Viewer::Eye(eye) => Vec3::from_array(eye) - Vec3::from_array(input.surface.positions[p]),
+        Viewer::Directions(d) => Vec3::from_array(d[p]),
+    };
+    // Clearly facing away (the cosine below −1e-5, far beyond what the rounding of the
+    // normalisations below could move it): inactive without square roots. About half the
+    // points of a closed mesh.
+    let d = n_raw.dot(wo_raw);
+    if d < 0.0 && d * d > 1e-10 * n_raw.length_squared() * wo_raw.length_squared() {
+        return inactive;
+    }
+    let n = n_raw.normalize_or_zero();
+    let wo = wo_raw.normalize_or_zero();
     let cos_o = n.dot(wo);
     if cos_o.is_nan() || cos_o <= 0.0 {
-        return SpecularPoint {
-            reflection: n,
-            scale: [0.0; 3],
-            active: false,
-        };
+        return inactive;
     }
     let e = input.phong.exponent;
     let k = (e + 2.0) / (e + 1.0) * cos_o;
