@@ -701,11 +701,17 @@ impl DiffuseKernel<'_> {
     pub fn base(&self, t: &[f32], channels: usize, scale: [f32; 3]) -> Accum {
         // `t` is a full row or a low-band copy: its coefficients per channel.
         let b = BASE_ORDER.min(self.order);
+        // (The usual case with constant bounds, so the compiler unrolls it.)
+        let base = if b == BASE_ORDER {
+            self.range(t, channels, 0, BASE_ORDER * BASE_ORDER)
+        } else {
+            self.range(t, channels, 0, b * b)
+        };
         Accum {
             scale,
             last_level: (b - 1) as u16,
             products: Self::products_through(b - 1),
-            base: self.range(t, channels, 0, b * b),
+            base,
             ..Accum::default()
         }
     }
@@ -722,7 +728,27 @@ impl DiffuseKernel<'_> {
         stop: Stop,
     ) -> bool {
         // `t` is a full row or a low-band copy: its coefficients per channel.
-        for l in (acc.last_level as usize + 1)..=to {
+        let mut first = acc.last_level as usize + 1;
+        // Levels 3 and 4, which every point evaluates before its first convergence test, with
+        // constant bounds (unrolled); the same sums as the loop below.
+        if first == PAIR_TOP - 1 && to >= PAIR_TOP && self.order > PAIR_TOP {
+            let deltas = [
+                self.range(t, channels, 9, 16),
+                self.range(t, channels, 16, 25),
+            ];
+            for (k, delta) in deltas.into_iter().enumerate() {
+                let l = PAIR_TOP - 1 + k;
+                for c in 0..3 {
+                    acc.high[c] += delta[c];
+                }
+                acc.products += 3 * (2 * l + 1) as u64;
+                if acc.step(l, delta, stop) {
+                    return true;
+                }
+            }
+            first = PAIR_TOP + 1;
+        }
+        for l in first..=to {
             let (s, e) = (l * l, (l + 1) * (l + 1));
             let delta = self.range(t, channels, s, e);
             for c in 0..3 {
