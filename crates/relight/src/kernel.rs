@@ -474,6 +474,17 @@ impl Accum {
         }
     }
 
+    /// Adds level `l`'s contribution `delta` (per channel, before `scale`), which cost
+    /// `products` multiply–adds, and applies the stopping rules; returns whether to stop.
+    #[inline]
+    fn add_level(&mut self, l: usize, delta: [f32; 3], products: u64, stop: Stop) -> bool {
+        for c in 0..3 {
+            self.high[c] += delta[c];
+        }
+        self.products += products;
+        self.step(l, delta, stop)
+    }
+
     /// Records the contribution `delta` (per channel, before `scale`) of level `l` and applies
     /// the stopping rules; returns whether to stop.
     #[inline]
@@ -738,11 +749,7 @@ impl DiffuseKernel<'_> {
             ];
             for (k, delta) in deltas.into_iter().enumerate() {
                 let l = PAIR_TOP - 1 + k;
-                for c in 0..3 {
-                    acc.high[c] += delta[c];
-                }
-                acc.products += 3 * (2 * l + 1) as u64;
-                if acc.step(l, delta, stop) {
+                if acc.add_level(l, delta, 3 * (2 * l + 1) as u64, stop) {
                     return true;
                 }
             }
@@ -751,11 +758,7 @@ impl DiffuseKernel<'_> {
         for l in first..=to {
             let (s, e) = (l * l, (l + 1) * (l + 1));
             let delta = self.range(t, channels, s, e);
-            for c in 0..3 {
-                acc.high[c] += delta[c];
-            }
-            acc.products += 3 * (e - s) as u64;
-            if acc.step(l, delta, stop) {
+            if acc.add_level(l, delta, 3 * (e - s) as u64, stop) {
                 return true;
             }
         }
@@ -925,11 +928,7 @@ impl SpecularKernel<'_> {
         if let Some(deltas) = pair_deltas {
             for (k, delta) in deltas.into_iter().enumerate() {
                 let l = PAIR_TOP - 1 + k;
-                for c in 0..3 {
-                    acc.high[c] += delta[c];
-                }
-                acc.products += Self::products_of_level(l);
-                if acc.step(l, delta, stop) {
+                if acc.add_level(l, delta, Self::products_of_level(l), stop) {
                     return true;
                 }
             }
@@ -937,11 +936,7 @@ impl SpecularKernel<'_> {
         }
         for l in first..=to {
             let delta = self.level(l, v, w);
-            for c in 0..3 {
-                acc.high[c] += delta[c];
-            }
-            acc.products += Self::products_of_level(l);
-            if acc.step(l, delta, stop) {
+            if acc.add_level(l, delta, Self::products_of_level(l), stop) {
                 return true;
             }
         }
