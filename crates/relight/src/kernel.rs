@@ -89,7 +89,7 @@ fn level1_any(l: usize, cols: &[f32], v: &[f32], w: &[f32]) -> f32 {
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-#[allow(unsafe_code)] // Runtime feature dispatch (with `prefetch_line`, the crate's only unsafe code).
+#[allow(unsafe_code)] // Runtime feature dispatch (this and `prefetch_line` are the crate's only kinds of unsafe code).
 unsafe fn level3_avx2(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [f32; 3] {
     level3_lanes(l, block, v, w)
 }
@@ -100,7 +100,7 @@ unsafe fn level3_avx2(l: usize, block: &[f32], v: &[f32], w: &[f32]) -> [f32; 3]
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-#[allow(unsafe_code)] // Runtime feature dispatch (with `prefetch_line`, the crate's only unsafe code).
+#[allow(unsafe_code)] // Runtime feature dispatch (this and `prefetch_line` are the crate's only kinds of unsafe code).
 unsafe fn level1_avx2(l: usize, cols: &[f32], v: &[f32], w: &[f32]) -> f32 {
     level1_lanes(l, cols, v, w)
 }
@@ -1137,13 +1137,7 @@ mod tests {
             return;
         }
         // Pseudo-random band blocks and vectors, every band up to 31.
-        let mut x = 0x9e37_79b9_u32;
-        let mut next = || {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            (x as f32 / u32::MAX as f32) * 2.0 - 1.0
-        };
+        let mut next = numbers(0x9e37_79b9);
         for l in 0..32usize {
             let e = (l + 1) * (l + 1);
             let nl = lanes(l);
