@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use prt_bakefile::SampleKind;
-use prt_relight::{AdaptiveParams, StopRule, Threshold};
+use prt_relight::{AdaptiveParams, StopRule, Threshold, MAX_COST_EXPONENT};
 use prt_report::{RelightOptions, RelightStats};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -42,6 +42,12 @@ pub struct RelightArgs {
     /// where its accumulated difference from the base is below T; `either`: whichever first.
     #[arg(long, value_enum, default_value_t = StopArg::Convergence)]
     pub stop: StopArg,
+    /// Adaptive, convergence stop: how the threshold grows with the price of the next level.
+    /// After level l the change of the last two levels is compared with T·(c(l+1)/c(5))^A,
+    /// c(k) being the products of the term's level k: 1 (the default) asks each level for a
+    /// change in proportion to its price, 0.5 for the square of it, 0 for T at every level.
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub cost_exponent: f32,
     /// Rotate the environment about +Y by this many degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub rotate_y: f64,
@@ -90,6 +96,9 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
         bail!("--exposure must be a finite number of stops within ±64");
     }
+    if !(0.0..=MAX_COST_EXPONENT).contains(&args.cost_exponent) {
+        bail!("--cost-exponent must be a number within [0, {MAX_COST_EXPONENT}]");
+    }
     if args.display_threshold && !args.adaptive {
         bail!("--display-threshold needs --adaptive");
     }
@@ -107,6 +116,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             StopArg::Significance => StopRule::Significance,
             StopArg::Either => StopRule::Either,
         },
+        cost_exponent: args.cost_exponent,
         ..AdaptiveParams::new(if args.relative_threshold {
             Threshold::RelativeToMean(args.threshold)
         } else if args.display_threshold {
@@ -192,6 +202,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             "work_fraction": s.products.zip(s.full_order_products).map(|(p, f)| p as f64 / f.max(1) as f64),
             "stop": args.adaptive.then(|| format!("{:?}", args.stop).to_lowercase()),
             "threshold_kind": args.adaptive.then_some(threshold_kind),
+            "cost_exponent": args.adaptive.then_some(args.cost_exponent),
             "points": s.points,
             "frames": args.frames,
             "fps": fps,

@@ -217,6 +217,18 @@ fn relight_json_bake_check_exactness_roi_and_frames() {
             "--relative-threshold",
         ),
         (vec!["--exposure", "nan"], "--exposure"),
+        (
+            vec!["--adaptive", "--cost-exponent", "-1"],
+            "--cost-exponent",
+        ),
+        (
+            vec!["--adaptive", "--cost-exponent", "nan"],
+            "--cost-exponent",
+        ),
+        (
+            vec!["--adaptive", "--cost-exponent", "9"],
+            "--cost-exponent",
+        ),
         (vec!["--order", "0"], "order"),
         (vec!["--order", "x"], "--order"),
         (vec!["--bogus"], "--bogus"),

@@ -5,7 +5,7 @@
 use crate::adjacency::Adjacency;
 use crate::error::RelightError;
 use crate::input::{DiffuseParams, SpecularInput, TransferView};
-use crate::kernel::{prefetch, rgb, Accum, Measure, Stop, BLOCK, CHUNK};
+use crate::kernel::{level_costs, prefetch, rgb, Accum, Measure, Stop, Term, BLOCK, CHUNK};
 use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -49,6 +49,9 @@ impl Threshold {
     }
 }
 
+/// The largest accepted [`AdaptiveParams::cost_exponent`].
+pub const MAX_COST_EXPONENT: f32 = 4.0;
+
 /// Parameters of the adaptive path.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct AdaptiveParams {
@@ -60,6 +63,16 @@ pub struct AdaptiveParams {
     pub smooth: bool,
     /// When a point stops adding levels.
     pub stop: StopRule,
+    /// How the convergence threshold grows with the price of the next level, `α ≥ 0`: the test
+    /// after level `l` compares the change of the last two levels with
+    /// `T · (c(l + 1) / c(5))^α`, `c(k)` being the term's coefficient products of level `k`
+    /// (diffuse `3(2k + 1)`, specular `3(2k + 1)((k + 1)² + k²)`). The first test (after level
+    /// 4) is against `T` itself; a later level is paid for only by a change that grows with
+    /// its price — a specular level 9 costs 5.1× level 5. `α = 1` (recommended): change per
+    /// product, the marginal rule for absolute error; `α = 1/2`: squared change per product,
+    /// the marginal rule for squared error; `α = 0`: the same `T` at every level. Only the
+    /// convergence test is scaled (not the significance test of Algorithm 1).
+    pub cost_exponent: f32,
 }
 
 /// When a point stops adding levels (each test is made after every level above the base).
@@ -82,18 +95,20 @@ pub enum StopRule {
 
 impl StopRule {
     /// The kernel's stopping rules for threshold `t` in the filtering pass and in refinement.
-    pub(crate) fn rules(self, t: f32, measure: Measure) -> (Stop, Stop) {
+    pub(crate) fn rules(self, t: f32, measure: Measure) -> (Stop<'static>, Stop<'static>) {
         let converged = matches!(self, Self::Convergence | Self::Either).then_some(t);
         let insignificant = matches!(self, Self::Significance | Self::Either).then_some(t);
         (
             Stop {
                 insignificant,
                 converged,
+                level_scale: &[],
                 measure,
             },
             Stop {
                 insignificant: None,
                 converged,
+                level_scale: &[],
                 measure,
             },
         )
@@ -112,6 +127,7 @@ impl AdaptiveParams {
             refine: true,
             smooth: true,
             stop: StopRule::Convergence,
+            cost_exponent: 1.0,
         }
     }
 
@@ -124,6 +140,7 @@ impl AdaptiveParams {
             refine: true,
             smooth: true,
             stop: StopRule::Significance,
+            cost_exponent: 0.0,
         }
     }
 
@@ -135,6 +152,7 @@ impl AdaptiveParams {
             refine: true,
             smooth: true,
             stop: StopRule::Either,
+            cost_exponent: 0.0,
         }
     }
 }
@@ -226,7 +244,7 @@ const AHEAD_FLOATS: usize = 64;
 /// offsets, scratch)`; with `fresh` the sums are started from the base, otherwise continued;
 /// `offsets[k]` (if given) is what the display shows besides this term at point `k` of the
 /// block.
-type Eval<'a> = dyn Fn(&[usize], &mut [Accum], bool, usize, Stop, Option<&[[f32; 3]]>, &mut Vec<f32>)
+type Eval<'a> = dyn Fn(&[usize], &mut [Accum], bool, usize, Stop<'_>, Option<&[[f32; 3]]>, &mut Vec<f32>)
     + Sync
     + 'a;
 
@@ -278,6 +296,12 @@ impl Relighter {
                 )));
             }
         }
+        let alpha = params.cost_exponent;
+        if !(0.0..=MAX_COST_EXPONENT).contains(&alpha) {
+            return Err(RelightError::InvalidParameter(format!(
+                "cost exponent {alpha} must be within [0, {MAX_COST_EXPONENT}]"
+            )));
+        }
         let measure = params.threshold.measure();
         let display = matches!(measure, Measure::Display { .. });
 
@@ -286,13 +310,15 @@ impl Relighter {
         let diffuse_eval = input.diffuse.as_ref().map(|(t, p)| {
             let kernel = self.diffuse_kernel(frame);
             let (t, scale) = (*t, p.albedo_over_pi);
+            let costs = level_costs(Term::Diffuse, self.order(), alpha);
             move |pts: &[usize],
                   accs: &mut [Accum],
                   fresh: bool,
                   to: usize,
-                  stop: Stop,
+                  stop: Stop<'_>,
                   offsets: Option<&[[f32; 3]]>,
                   _: &mut Vec<f32>| {
+                let stop = stop.with_level_scale(&costs);
                 // Two passes: the low bands of every point from the compact copy, then the
                 // points that go on from their full rows, each row hinted into cache a few
                 // points ahead (see `kernel::prefetch`).
@@ -340,14 +366,16 @@ impl Relighter {
                 let kernel = self.specular_kernel(frame)?;
                 let lobe = self.lobe(&s.phong)?;
                 let s = *s;
+                let costs = level_costs(Term::Specular, self.order(), alpha);
                 Some(
                     move |pts: &[usize],
                           accs: &mut [Accum],
                           fresh: bool,
                           to: usize,
-                          stop: Stop,
+                          stop: Stop<'_>,
                           offsets: Option<&[[f32; 3]]>,
                           w: &mut Vec<f32>| {
+                        let stop = stop.with_level_scale(&costs);
                         w.resize(n2, 0.0);
                         // Two passes as for diffuse: the low bands (weights and visibility) of
                         // every point, then the points that go on, rows hinted ahead.
@@ -718,7 +746,7 @@ fn filter_pass(
     mut bases: [Option<Vec<Accum>>; 2],
     b: usize,
     top: usize,
-    filter: Stop,
+    filter: Stop<'_>,
     seen_together: bool,
     keep: bool,
     threshold: f32,

@@ -477,7 +477,7 @@ impl Accum {
     /// Adds level `l`'s contribution `delta` (per channel, before `scale`), which cost
     /// `products` multiply–adds, and applies the stopping rules; returns whether to stop.
     #[inline]
-    fn add_level(&mut self, l: usize, delta: [f32; 3], products: u64, stop: Stop) -> bool {
+    fn add_level(&mut self, l: usize, delta: [f32; 3], products: u64, stop: Stop<'_>) -> bool {
         for c in 0..3 {
             self.high[c] += delta[c];
         }
@@ -488,7 +488,7 @@ impl Accum {
     /// Records the contribution `delta` (per channel, before `scale`) of level `l` and applies
     /// the stopping rules; returns whether to stop.
     #[inline]
-    fn step(&mut self, l: usize, delta: [f32; 3], stop: Stop) -> bool {
+    fn step(&mut self, l: usize, delta: [f32; 3], stop: Stop<'_>) -> bool {
         // Convergence: the last two levels together moved the value by less than the
         // threshold. Two levels, because one band alone can vanish while the next does not
         // (the clamped cosine has no odd bands ≥ 3); so it needs two levels above the base.
@@ -497,6 +497,7 @@ impl Accum {
         self.last_level = l as u16;
         if let Some(th) = stop.converged {
             if l > BASE_ORDER {
+                let th = th * stop.level_scale.get(l).copied().unwrap_or(1.0);
                 let moved = rgb(|c| self.scale[c].abs() * (delta[c].abs() + last[c].abs()));
                 if self.spread_below(moved, stop.measure, th) {
                     self.converged = true;
@@ -619,24 +620,72 @@ fn slope_from(table: &DisplayTable, a: f32) -> f32 {
 
 /// When a point stops adding levels.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub(crate) struct Stop {
+pub(crate) struct Stop<'a> {
     /// Lee & Kim's Algorithm 1: stop after the first level where the accumulated high-order
     /// difference `max_c |D_c|` is below this (the point leaves the ROI, truncated).
     pub insignificant: Option<f32>,
     /// Stop once the last two levels together changed `max_c` of the value by less than this
-    /// (the point's value has converged; it keeps its ROI status).
+    /// times `level_scale[l]` (the point's value has converged; it keeps its ROI status).
     pub converged: Option<f32>,
+    /// Factor of the convergence threshold at level `l` (the term's cost growth, see
+    /// [`level_costs`]); 1 beyond its end (empty: 1 everywhere).
+    pub level_scale: &'a [f32],
     /// How both tests measure.
     pub measure: Measure,
 }
 
-impl Stop {
+impl<'a> Stop<'a> {
     /// Never stop: every level up to the requested one.
-    pub const NEVER: Stop = Stop {
+    pub const NEVER: Stop<'static> = Stop {
         insignificant: None,
         converged: None,
+        level_scale: &[],
         measure: Measure::Radiance,
     };
+
+    /// The same rules with the convergence threshold scaled per level by `level_scale`.
+    #[must_use]
+    pub fn with_level_scale(self, level_scale: &'a [f32]) -> Stop<'a> {
+        Stop {
+            level_scale,
+            ..self
+        }
+    }
+}
+
+/// Which term's levels [`level_costs`] prices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Term {
+    /// `3 (2l + 1)` products per level ([`DiffuseKernel`]).
+    Diffuse,
+    /// `3 (2l + 1) ((l + 1)² + l²)` products per level ([`SpecularKernel`]).
+    Specular,
+}
+
+/// The convergence threshold's factor per level `l < order` for cost exponent `alpha`:
+/// `(c(l + 1) / c(BASE_ORDER + 2))^alpha`, with `c(k)` the coefficient products of the term's
+/// level `k`. The test after level `l` decides whether to pay for level `l + 1`; the first test
+/// (after level `BASE_ORDER + 1`) keeps factor 1, so `T` keeps its meaning there, and each
+/// later level must be bought by a change that grows with its price (`alpha = 1`: change per
+/// product; `alpha = 1/2`: squared change per product). `alpha = 0`: 1 everywhere.
+pub(crate) fn level_costs(term: Term, order: usize, alpha: f32) -> Vec<f32> {
+    let cost = |l: usize| -> f64 {
+        let l = l as f64;
+        match term {
+            Term::Diffuse => 2.0 * l + 1.0,
+            Term::Specular => (2.0 * l + 1.0) * ((l + 1.0) * (l + 1.0) + l * l),
+        }
+    };
+    let reference = cost(BASE_ORDER + 2);
+    (0..order)
+        .map(|l| {
+            if l <= BASE_ORDER || alpha == 0.0 {
+                1.0
+            } else {
+                (cost(l + 1) / reference).powf(f64::from(alpha)) as f32
+            }
+        })
+        .collect()
 }
 
 /// Diffuse kernel: `base_c = L_c[..b²]·T_c[..b²]`, then band by band `high_c += L_c[band]·T_c[band]`
@@ -736,7 +785,7 @@ impl DiffuseKernel<'_> {
         t: &[f32],
         channels: usize,
         to: usize,
-        stop: Stop,
+        stop: Stop<'_>,
     ) -> bool {
         // `t` is a full row or a low-band copy: its coefficients per channel.
         let mut first = acc.last_level as usize + 1;
@@ -907,7 +956,7 @@ impl SpecularKernel<'_> {
     /// Adds levels `acc.last_level + 1 ..= to`, stopping early by the rules of `stop`; returns
     /// whether a rule stopped the point.
     #[inline]
-    pub fn extend(&self, acc: &mut Accum, v: &[f32], w: &[f32], to: usize, stop: Stop) -> bool {
+    pub fn extend(&self, acc: &mut Accum, v: &[f32], w: &[f32], to: usize, stop: Stop<'_>) -> bool {
         let mut first = acc.last_level as usize + 1;
         // Levels 3 and 4 together when both are due (see `PAIR_TOP`).
         let pair = first == PAIR_TOP - 1 && to >= PAIR_TOP && self.order > PAIR_TOP;
@@ -1234,6 +1283,42 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn level_costs_price_levels_by_the_kernels_product_counts() {
+        // The factor after level l is (products of level l + 1 / products of level 5)^α, as
+        // the kernels count them (`products_of_level`, `products_through` differences); 1
+        // up to the first test (level 4) and for α = 0.
+        let diffuse_level = |l: usize| {
+            (DiffuseKernel::products_through(l) - DiffuseKernel::products_through(l - 1)) as f64
+        };
+        let specular_level = |l: usize| SpecularKernel::products_of_level(l) as f64;
+        for (term, cost) in [
+            (Term::Diffuse, &diffuse_level as &dyn Fn(usize) -> f64),
+            (Term::Specular, &specular_level),
+        ] {
+            for alpha in [0.0f32, 0.5, 1.0, 2.0] {
+                let f = level_costs(term, 14, alpha);
+                assert_eq!(f.len(), 14);
+                for (l, &x) in f.iter().enumerate() {
+                    let want = if l <= BASE_ORDER {
+                        1.0
+                    } else {
+                        (cost(l + 1) / cost(BASE_ORDER + 2)).powf(f64::from(alpha))
+                    };
+                    assert!(
+                        (f64::from(x) - want).abs() <= 1e-6 * want,
+                        "{term:?} α {alpha} level {l}: {x} vs {want}"
+                    );
+                    // Levels only get dearer: the factor never falls below 1 or with l.
+                    assert!(x >= 1.0 && (l == 0 || x >= f[l - 1]));
+                }
+            }
+        }
+        // A specular level 9 costs 5.1× level 5 (the figure the docs quote): 19·181 / 11·61.
+        let f = level_costs(Term::Specular, 10, 1.0);
+        assert!((f[8] - 19.0 * 181.0 / (11.0 * 61.0)).abs() < 1e-5);
     }
 
     #[test]

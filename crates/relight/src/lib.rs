@@ -90,6 +90,7 @@ mod relighter;
 
 pub use adaptive::{
     AdaptiveFrame, AdaptiveInput, AdaptiveParams, FrameStats, StopRule, TermStats, Threshold,
+    MAX_COST_EXPONENT,
 };
 pub use adjacency::Adjacency;
 pub use error::RelightError;

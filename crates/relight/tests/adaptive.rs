@@ -5,8 +5,9 @@ mod common;
 
 use glam::DVec3;
 use prt_relight::{
-    AdaptiveInput, AdaptiveParams, Adjacency, DiffuseParams, FrameLighting, Lighting, PhongParams,
-    RelightError, Relighter, SpecularInput, StopRule, Surface, Threshold, TransferView, Viewer,
+    AdaptiveFrame, AdaptiveInput, AdaptiveParams, Adjacency, DiffuseParams, FrameLighting,
+    Lighting, PhongParams, RelightError, Relighter, SpecularInput, StopRule, Surface, Threshold,
+    TransferView, Viewer,
 };
 
 struct Scene {
@@ -89,7 +90,8 @@ fn rms(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
     (s / (3 * a.len()) as f64).sqrt()
 }
 
-/// Every stopping rule, with the threshold measured in radiance and on the display.
+/// Every stopping rule, with the threshold measured in radiance and on the display, with and
+/// without the cost growth of the convergence threshold.
 fn all_params(t: f32) -> Vec<AdaptiveParams> {
     let mut out = Vec::new();
     for stop in [
@@ -104,10 +106,13 @@ fn all_params(t: f32) -> Vec<AdaptiveParams> {
                 exposure_ev: -1.0,
             },
         ] {
-            out.push(AdaptiveParams {
-                stop,
-                ..AdaptiveParams::new(threshold)
-            });
+            for cost_exponent in [0.0, 1.0] {
+                out.push(AdaptiveParams {
+                    stop,
+                    cost_exponent,
+                    ..AdaptiveParams::new(threshold)
+                });
+            }
         }
     }
     out
@@ -265,6 +270,7 @@ fn test02_error_grows_and_work_falls_with_the_threshold() {
                 refine,
                 smooth,
                 stop: StopRule::Significance,
+                cost_exponent: 0.0,
             };
             let out = s.relighter.adaptive(&s.input(), &s.frame, &p).unwrap();
             let (d, sp) = (out.stats.diffuse.unwrap(), out.stats.specular.unwrap());
@@ -388,11 +394,26 @@ fn test04_bad_inputs_are_errors() {
         refine: false,
         smooth: false,
         stop: StopRule::Either,
+        cost_exponent: 0.0,
     };
     assert!(matches!(
         s.relighter.adaptive(&s.input(), &s.frame, &p),
         Err(RelightError::InvalidParameter(_))
     ));
+    // A cost exponent that is negative, not a number or absurdly large.
+    for alpha in [-0.5, f32::NAN, f32::INFINITY, 100.0] {
+        let p = AdaptiveParams {
+            cost_exponent: alpha,
+            ..AdaptiveParams::new(Threshold::Absolute(0.01))
+        };
+        assert!(
+            matches!(
+                s.relighter.adaptive(&s.input(), &s.frame, &p),
+                Err(RelightError::InvalidParameter(_))
+            ),
+            "cost exponent {alpha}"
+        );
+    }
 }
 
 #[test]
@@ -461,6 +482,77 @@ fn test09_low_band_copies_change_nothing_but_what_is_read() {
         t_view(&s).with_low_bands(&dlow[1..]),
         Err(RelightError::InvalidParameter(_))
     ));
+}
+
+#[test]
+fn test10_cost_exponent_raises_only_the_later_convergence_tests() {
+    // The convergence threshold after level l is T·(c(l+1)/c(5))^α with c growing in l: the
+    // first test (after level 4) is the same for every α, and each later one is at least as
+    // strict about continuing as with a smaller α. So the fraction of points reaching level 5
+    // does not depend on α, the fraction reaching any level does not grow with α, and neither
+    // does the work; at T = 0 every α is full order. On the display the diffuse term is tested
+    // against the final specular value, which α changes, so there only the specular term is
+    // held to this.
+    let s = scene(10, 3);
+    let (fd, fs) = s.full();
+    for display in [false, true] {
+        for t in [0.0f32, 0.003, 0.01, 0.03] {
+            let threshold = if display {
+                Threshold::Display {
+                    t,
+                    exposure_ev: -1.0,
+                }
+            } else {
+                Threshold::Absolute(t)
+            };
+            let mut last: Option<AdaptiveFrame> = None;
+            for cost_exponent in [0.0f32, 0.5, 1.0, 2.0] {
+                let p = AdaptiveParams {
+                    cost_exponent,
+                    ..AdaptiveParams::new(threshold)
+                };
+                let out = s.relighter.adaptive(&s.input(), &s.frame, &p).unwrap();
+                if t == 0.0 {
+                    assert_eq!(out.diffuse, fd, "{p:?}");
+                    assert_eq!(out.specular, fs, "{p:?}");
+                }
+                if let Some(prev) = &last {
+                    let terms = [
+                        (&out.stats.specular, &prev.stats.specular),
+                        (&out.stats.diffuse, &prev.stats.diffuse),
+                    ];
+                    for (a, b) in terms.into_iter().take(if display { 1 } else { 2 }) {
+                        let (a, b) = (a.as_ref().unwrap(), b.as_ref().unwrap());
+                        assert_eq!(a.level_fraction[5], b.level_fraction[5], "{p:?}");
+                        for (l, (x, y)) in
+                            a.level_fraction.iter().zip(&b.level_fraction).enumerate()
+                        {
+                            assert!(x <= y, "{p:?}: level {l} reached by {x} > {y}");
+                        }
+                        assert!(a.products <= b.products, "{p:?}");
+                    }
+                }
+                last = Some(out);
+            }
+            // With a positive T the steepest growth saves work on this sphere.
+            if t > 0.0 {
+                let plain = s
+                    .relighter
+                    .adaptive(
+                        &s.input(),
+                        &s.frame,
+                        &AdaptiveParams {
+                            cost_exponent: 0.0,
+                            ..AdaptiveParams::new(threshold)
+                        },
+                    )
+                    .unwrap();
+                let steep = last.unwrap();
+                let work = |f: &AdaptiveFrame| f.stats.specular.as_ref().unwrap().products;
+                assert!(work(&steep) < work(&plain), "display {display}, T {t}");
+            }
+        }
+    }
 }
 
 fn t_view(s: &Scene) -> TransferView<'_> {

@@ -1,7 +1,7 @@
 //! In-process timing of adaptive against full-order relighting, for comparing builds.
 //!
 //! `cargo run --release -p prt-report --example relight_timing -- SCENE BAKE ORDER T [--display]
-//! [--reps N] [--frames K] [--warmup W] [--adaptive-only]`
+//! [--reps N] [--frames K] [--warmup W] [--cost-exponent A] [--adaptive-only]`
 //!
 //! Loads the scene and bake once, then `N` times (default 3) relights `K` timed frames (default
 //! 9, after `W` untimed warm-up frames, default 2) adaptively (convergence stop, threshold `T` in
@@ -29,6 +29,7 @@ fn run() -> Result<(), String> {
     let mut positional = Vec::new();
     let (mut reps, mut frames, mut warmup) = (3usize, 9usize, 2usize);
     let (mut display, mut adaptive_only) = (false, false);
+    let mut cost_exponent = AdaptiveParams::new(Threshold::Absolute(0.0)).cost_exponent;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut value = |name: &str| -> Result<usize, String> {
@@ -42,11 +43,17 @@ fn run() -> Result<(), String> {
             "--reps" => reps = value("--reps")?.max(1),
             "--frames" => frames = value("--frames")?.max(1),
             "--warmup" => warmup = value("--warmup")?,
+            "--cost-exponent" => {
+                cost_exponent = it
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .ok_or("--cost-exponent needs a number")?;
+            }
             _ => positional.push(a.clone()),
         }
     }
     let [scene_path, bake_path, order, t] = positional.as_slice() else {
-        return Err("usage: SCENE BAKE ORDER T [--display] [--reps N] [--frames K] [--warmup W] [--adaptive-only]".into());
+        return Err("usage: SCENE BAKE ORDER T [--display] [--reps N] [--frames K] [--warmup W] [--cost-exponent A] [--adaptive-only]".into());
     };
     let order: usize = order
         .parse()
@@ -70,10 +77,11 @@ fn run() -> Result<(), String> {
     };
     let mut best = [f64::INFINITY; 2];
     for _ in 0..reps {
-        for (k, adaptive) in [Some(AdaptiveParams::new(threshold)), None]
-            .into_iter()
-            .enumerate()
-        {
+        let params = AdaptiveParams {
+            cost_exponent,
+            ..AdaptiveParams::new(threshold)
+        };
+        for (k, adaptive) in [Some(params), None].into_iter().enumerate() {
             if k == 1 && adaptive_only {
                 continue;
             }

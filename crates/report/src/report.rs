@@ -627,7 +627,8 @@ pub fn run_report(
         machine: machine(),
         settings: serde_json::json!({
             "orders": s.orders, "reference_spp": s.reference_spp, "rays": s.rays, "bounces": s.bounces,
-            "threshold": s.threshold, "threshold_kind": if s.display_threshold { "display (8-bit view, exposure 0)" } else { "absolute (output radiance)" }, "seed": s.seed,
+            "threshold": s.threshold, "threshold_kind": if s.display_threshold { "display (8-bit view, exposure 0)" } else { "absolute (output radiance)" },
+            "cost_exponent": AdaptiveParams::new(Threshold::Absolute(s.threshold)).cost_exponent, "seed": s.seed,
             "timing_frames": s.timing_frames, "image": format!("{w}x{h}"),
         }),
         reference_seconds: reference_out.seconds,
