@@ -426,14 +426,20 @@ impl Relighter {
                             // stop within a few levels of the low ones).
                             match cursor.as_mut() {
                                 Some(cursor) => {
-                                    cursor.reset(reflection);
                                     // (`w` is the block's scratch: the bands shaded so far
-                                    // are this point's again first.)
+                                    // are this point's again first.) The low bands in closed
+                                    // form, as `weights_low` gave them in the first pass (the
+                                    // cursor steps over them), then the rest from the cursor.
+                                    self.weights_low(&lobe, reflection, w);
+                                    cursor.reset(reflection);
+                                    for _ in 0..=low_top {
+                                        cursor.skip_band();
+                                    }
                                     let mut fill = |l: usize, w: &mut [f32]| {
                                         // `y_i(r) A_l`, as `weights` forms it.
                                         cursor.next_band_f32_scaled(&mut w[l * l..], lobe[l]);
                                     };
-                                    for l in 0..=acc.last_level as usize {
+                                    for l in (low_top + 1)..=acc.last_level as usize {
                                         fill(l, w);
                                     }
                                     for l in (acc.last_level as usize + 1)..=to {

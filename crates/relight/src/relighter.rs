@@ -13,10 +13,6 @@ use rayon::prelude::*;
 pub struct Relighter {
     order: usize,
     basis: Basis,
-    /// The basis of the first `min(order, LOW_ORDER)` bands, for the adaptive path's first
-    /// levels (its values are those of the first bands of `basis`, bit for bit: the
-    /// recurrences do not depend on the order — tested).
-    basis_low: Basis,
     gaunt: Option<GauntTensor>,
     /// Band `l`'s column block of the level kernel's layout is
     /// `column_offsets[l]..column_offsets[l+1]` (`(l+1)²` columns of `lanes(l)` floats).
@@ -63,7 +59,6 @@ impl Relighter {
     /// beyond it only diffuse shading is available.
     pub fn new(order: usize) -> Result<Self, RelightError> {
         let basis = Basis::new(order)?;
-        let basis_low = Basis::new(crate::LOW_ORDER.min(order))?;
         let gaunt = if order <= MAX_GAUNT_ORDER {
             Some(GauntTensor::new(order)?)
         } else {
@@ -77,7 +72,6 @@ impl Relighter {
         Ok(Self {
             order,
             basis,
-            basis_low,
             gaunt,
             column_offsets,
         })
@@ -288,25 +282,33 @@ impl Relighter {
         &self.basis
     }
 
-    /// Fills `w_i = A_l y_i(r)`.
+    /// Fills `w_i = A_l y_i(r)`: the first `min(order, LOW_ORDER)` bands as
+    /// [`Self::weights_low`], the others from the recurrences (the values a
+    /// [`prt_sh::BandCursor`] gives past its skipped low bands, as the adaptive path takes them).
     #[inline]
     pub(crate) fn weights(&self, lobe: &[f32], reflection: Vec3, w: &mut [f32]) {
         self.basis.eval_f32_unchecked(reflection, w);
-        for (l, a) in lobe.iter().enumerate() {
+        let low = crate::LOW_ORDER.min(self.order);
+        for (l, a) in lobe.iter().enumerate().skip(low) {
             for v in &mut w[l * l..(l + 1) * (l + 1)] {
                 *v *= a;
             }
         }
+        self.weights_low(lobe, reflection, w);
     }
 
-    /// Fills the first `min(order, LOW_ORDER)²` weights only (the rest of `w` is untouched).
+    /// Fills the first `min(order, LOW_ORDER)²` weights only (the rest of `w` is untouched),
+    /// from the closed-form f32 basis of the low bands ([`prt_sh::eval_low_f32`]).
     #[inline]
     pub(crate) fn weights_low(&self, lobe: &[f32], reflection: Vec3, w: &mut [f32]) {
-        let k = self.basis_low.len();
-        self.basis_low.eval_f32_unchecked(reflection, &mut w[..k]);
-        for (l, a) in lobe.iter().enumerate().take(self.basis_low.order()) {
-            for v in &mut w[l * l..(l + 1) * (l + 1)] {
-                *v *= a;
+        const { assert!(crate::LOW_ORDER <= prt_sh::LOW_BANDS) };
+        let low = crate::LOW_ORDER.min(self.order);
+        let mut y = [0.0f32; 25];
+        prt_sh::eval_low_f32(reflection, &mut y);
+        for (l, a) in lobe.iter().enumerate().take(low) {
+            let band = l * l..(l + 1) * (l + 1);
+            for (v, y) in w[band.clone()].iter_mut().zip(&y[band]) {
+                *v = y * a;
             }
         }
     }

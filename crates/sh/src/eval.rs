@@ -221,12 +221,31 @@ impl<'a> BandCursor<'a> {
     /// (`(y as f32) * factor`, as scaling the output of [`Basis::eval_f32_unchecked`] gives).
     #[inline]
     pub fn next_band_f32_scaled(&mut self, out: &mut [f32], factor: f32) -> Option<usize> {
+        if out.len() < 2 * self.next + 1 {
+            return None;
+        }
+        let l = self.skip_band()?;
+        let q = &self.qs[l % 2];
+        let row = &mut out[..2 * l + 1];
+        row[l] = (q[0] as f32) * factor;
+        for m in 1..=l {
+            row[l + m] = ((q[m] * self.cm[m]) as f32) * factor;
+            row[l - m] = ((q[m] * self.sm[m]) as f32) * factor;
+        }
+        Some(l)
+    }
+
+    /// Advances past band `l = self.next_band()` without writing its values (the recurrence
+    /// state is updated exactly as [`Self::next_band_f32`] updates it, so the bands after it are
+    /// the same to the last bit); returns `l`, or `None` past the basis' order. For callers
+    /// that take the first bands from elsewhere ([`eval_low_f32`]) and the rest from the cursor.
+    #[inline]
+    pub fn skip_band(&mut self) -> Option<usize> {
         let l = self.next;
-        if l >= self.basis.order || out.len() < 2 * l + 1 {
+        if l >= self.basis.order {
             return None;
         }
         if l > 0 {
-            // The azimuthal factor of the new column m = l.
             let (c, s) = (self.cm[l - 1], self.sm[l - 1]);
             self.cm[l] = self.x * c - self.y * s;
             self.sm[l] = self.x * s + self.y * c;
@@ -239,7 +258,6 @@ impl<'a> BandCursor<'a> {
         } else {
             (odd, &*even)
         };
-        // `q` holds band l − 2 and becomes band l.
         for m in 0..(l + 1).saturating_sub(2) {
             let (a, b) = t.ab(l, m);
             q[m] = a * (z * q1[m] - b * q[m]);
@@ -248,15 +266,85 @@ impl<'a> BandCursor<'a> {
             q[l - 1] = ((2 * (l - 1) + 3) as f64).sqrt() * z * q1[l - 1];
         }
         q[l] = t.diag(l);
-        let row = &mut out[..2 * l + 1];
-        row[l] = (q[0] as f32) * factor;
-        for m in 1..=l {
-            row[l + m] = ((q[m] * self.cm[m]) as f32) * factor;
-            row[l - m] = ((q[m] * self.sm[m]) as f32) * factor;
-        }
         self.next += 1;
         Some(l)
     }
+}
+
+/// Bands of [`eval_low_f32`]: `0..LOW_BANDS` (`LOW_BANDS²` = 25 values).
+pub const LOW_BANDS: usize = 5;
+
+/// `√((2l+1)/4π · (l−m)!/(l+m)!)`, times `√2 (−1)^m` for `m > 0` (the Condon–Shortley phase of
+/// CONVENTIONS), for `l < LOW_BANDS`, `0 ≤ m ≤ l`, at `l(l+1)/2 + m`.
+fn low_norms() -> &'static [f32; 15] {
+    static NORMS: std::sync::OnceLock<[f32; 15]> = std::sync::OnceLock::new();
+    NORMS.get_or_init(|| {
+        let fact = |n: usize| (1..=n).map(|k| k as f64).product::<f64>();
+        let mut out = [0.0f32; 15];
+        for l in 0..LOW_BANDS {
+            for m in 0..=l {
+                let k = ((2 * l + 1) as f64 / (4.0 * std::f64::consts::PI) * fact(l - m)
+                    / fact(l + m))
+                .sqrt();
+                let sign = if m % 2 == 1 { -1.0 } else { 1.0 };
+                let f = if m == 0 {
+                    1.0
+                } else {
+                    std::f64::consts::SQRT_2 * sign
+                };
+                out[l * (l + 1) / 2 + m] = (k * f) as f32;
+            }
+        }
+        out
+    })
+}
+
+/// The first [`LOW_BANDS`] bands (25 values, flat index `l(l+1)+m` as everywhere) at `dir`
+/// (normalised here, in f32; a zero or non-finite direction gives +Z), in closed form in f32:
+/// `y_l^m = N_l^m Q_l^m(z) Re/Im (x + iy)^|m|` with `Q_l^m = d^m P_l / dz^m` the Legendre
+/// polynomials' derivatives (`P_2 = (3z² − 1)/2`, `P_3 = (5z³ − 3z)/2`,
+/// `P_4 = (35z⁴ − 30z² + 3)/8`) and `N_l^m` the normalisation and phase. A few times faster than
+/// the f64 recurrences of [`Basis`] for these bands (no table, no f64); agrees with them to
+/// f32 rounding (tested: within 2e-6).
+#[inline]
+pub fn eval_low_f32(dir: Vec3, out: &mut [f32; 25]) {
+    let d = dir.normalize_or(Vec3::Z);
+    let (x, y, z) = (d.x, d.y, d.z);
+    let n = low_norms();
+    let z2 = z * z;
+    // Re and Im of (x + iy)^m.
+    let (c1, s1) = (x, y);
+    let (c2, s2) = (x * c1 - y * s1, x * s1 + y * c1);
+    let (c3, s3) = (x * c2 - y * s2, x * s2 + y * c2);
+    let (c4, s4) = (x * c3 - y * s3, x * s3 + y * c3);
+    // Q_l^m(z) per band.
+    let q1 = [z, 1.0];
+    let q2 = [1.5 * z2 - 0.5, 3.0 * z, 3.0];
+    let q3 = [z * (2.5 * z2 - 1.5), 7.5 * z2 - 1.5, 15.0 * z, 15.0];
+    let q4 = [
+        (35.0 * z2 * z2 - 30.0 * z2 + 3.0) * 0.125,
+        z * (17.5 * z2 - 7.5),
+        52.5 * z2 - 7.5,
+        105.0 * z,
+        105.0,
+    ];
+    let cs = [(c1, s1), (c2, s2), (c3, s3), (c4, s4)];
+    out[0] = n[0];
+    let mut band = |l: usize, q: &[f32]| {
+        let c = l * (l + 1);
+        let b = l * (l + 1) / 2;
+        out[c] = n[b] * q[0];
+        for m in 1..=l {
+            let v = n[b + m] * q[m];
+            let (cm, sm) = cs[m - 1];
+            out[c + m] = v * cm;
+            out[c - m] = v * sm;
+        }
+    };
+    band(1, &q1);
+    band(2, &q2);
+    band(3, &q3);
+    band(4, &q4);
 }
 
 /// Convenience: all basis functions of `order` at `dir` (allocates).
@@ -274,6 +362,75 @@ pub fn reconstruct(coeffs: &[f64], order: usize, dir: DVec3) -> Result<f64, ShEr
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn closed_form_low_bands_match_the_recurrences() {
+        // f32 closed form against the f64 recurrences: values are at most ~1.2 in magnitude
+        // (|y_4^0| ≤ 1.06) and each is a product of a few f32 roundings (relative 6e-8 each)
+        // of terms up to 35·K (the cancelling P_4 polynomial, K_4^0 = 0.11: 3.7 in magnitude), so
+        // the error is a few 1e-7; 2e-6 leaves a factor of about 5.
+        let basis = Basis::new(LOW_BANDS).unwrap();
+        let mut dirs = vec![
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            -Vec3::Y,
+            Vec3::new(0.0, 0.0, 3.0),
+            Vec3::new(1e-7, 0.0, 1.0),
+        ];
+        for i in 0..500 {
+            let t = i as f32 * 0.377;
+            dirs.push(Vec3::new(
+                (2.1 * t).sin() * (1.3 * t).cos(),
+                t.cos() * 2.0,
+                (0.7 * t).sin() - 0.3,
+            ));
+        }
+        let mut got = [0.0f32; 25];
+        let mut worst = 0.0f64;
+        for &d in &dirs {
+            eval_low_f32(d, &mut got);
+            let want = basis.eval(d.as_dvec3());
+            for (g, w) in got.iter().zip(&want) {
+                worst = worst.max((f64::from(*g) - w).abs());
+            }
+        }
+        assert!(worst < 2e-6, "worst difference {worst:e}");
+        // Degenerate directions are +Z, as for the recurrences.
+        eval_low_f32(Vec3::ZERO, &mut got);
+        let z = basis.eval(glam::DVec3::Z);
+        assert!(got
+            .iter()
+            .zip(&z)
+            .all(|(g, w)| (f64::from(*g) - w).abs() < 2e-6));
+    }
+
+    #[test]
+    fn skipped_bands_leave_the_later_bands_bit_identical() {
+        for order in [1usize, 5, 7, 14] {
+            let basis = Basis::new(order).unwrap();
+            let mut want = vec![0.0f32; order * order];
+            let mut band = vec![0.0f32; 2 * order - 1];
+            for i in 0..50 {
+                let t = i as f32 * 0.9;
+                let d = Vec3::new(t.sin(), (1.7 * t).cos(), 0.4 - (0.3 * t).cos());
+                basis.eval_f32_unchecked(d, &mut want);
+                for skip in [0usize, 1, 5] {
+                    let mut cursor = BandCursor::new(&basis, d).unwrap();
+                    for l in 0..skip.min(order) {
+                        assert_eq!(cursor.skip_band(), Some(l));
+                    }
+                    for l in skip.min(order)..order {
+                        cursor.next_band_f32(&mut band).unwrap();
+                        for (k, x) in band[..2 * l + 1].iter().enumerate() {
+                            assert_eq!(x.to_bits(), want[l * l + k].to_bits());
+                        }
+                    }
+                    assert_eq!(cursor.skip_band(), None);
+                }
+            }
+        }
+    }
 
     #[test]
     fn band_cursor_gives_the_basis_values_bit_for_bit() {

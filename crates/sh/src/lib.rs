@@ -41,7 +41,9 @@ mod rotate;
 pub mod window;
 pub mod zonal;
 
-pub use eval::{eval_basis, reconstruct, BandCursor, Basis, BAND_CURSOR_MAX_ORDER};
+pub use eval::{
+    eval_basis, eval_low_f32, reconstruct, BandCursor, Basis, BAND_CURSOR_MAX_ORDER, LOW_BANDS,
+};
 pub use gaunt::{azimuthal_triple, GauntTensor, MAX_GAUNT_ORDER};
 pub use index::{check_order, coefficient_count, degree_and_order, index, ShError, MAX_ORDER};
 pub use legendre::LegendreTable;
