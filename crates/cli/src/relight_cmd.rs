@@ -23,8 +23,8 @@ pub struct RelightArgs {
     #[arg(long)]
     pub adaptive: bool,
     /// ROI threshold T, in units of output radiance (the thesis: 0.02 on [0,1] display values;
-    /// crates/relight/README.md measures speed against error for others, e.g. 0.11: 3.4× at
-    /// 45.8 dB at order 11 on the bunny).
+    /// crates/relight/README.md measures speed against error for others, e.g. 0.09: 3.3× at
+    /// 45.4 dB at order 10 and 4.3× at order 11 on the bunny).
     #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
     pub threshold: f32,
     /// Read --threshold as a fraction of the frame's mean radiance instead.

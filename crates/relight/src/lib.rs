@@ -21,8 +21,9 @@
 //!   by breadth-first search over the mesh ([`Adjacency`], 5.2.1) and boundary smoothing over
 //!   two tiers (5.2.2) — [`StopRule::Significance`]. Our addition, the default
 //!   ([`StopRule::Convergence`]): a point also stops once its last two levels moved it by less
-//!   than the threshold, so points inside the ROI get their own order too; and
-//!   [`Threshold::Display`] measures every change on the 8-bit view (exposure, clamp, sRGB), as
+//!   than the threshold, so points inside the ROI get their own order too, with the threshold
+//!   of each later level raised in proportion to that level's price in products
+//!   ([`AdaptiveParams::cost_exponent`]); and [`Threshold::Display`] measures every change on the 8-bit view (exposure, clamp, sRGB), as
 //!   the thesis' "T = 0.02 on 8-bit normalised values" and `psnr_ldr` do. See
 //!   [`Relighter::adaptive`] and the crate README for what each buys on a real bake.
 //!
