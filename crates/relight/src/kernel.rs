@@ -841,16 +841,6 @@ pub(crate) struct SpecularKernel<'a> {
     base_columns: &'a [f32],
 }
 
-/// The lanes of nine 4-lane vectors in order.
-#[inline(always)]
-fn flatten_lanes(u: [Vec4; 9]) -> [f32; 36] {
-    let mut out = [0.0f32; 36];
-    for (g, ug) in u.iter().enumerate() {
-        out[4 * g..4 * g + 4].copy_from_slice(&ug.to_array());
-    }
-    out
-}
-
 /// Lanes of a column of the base corner: its `BASE_ORDER² = 9` rows padded to 12.
 pub(crate) const BASE_LANES: usize = 12;
 
@@ -936,13 +926,14 @@ impl SpecularKernel<'_> {
                 *ug += vj * Vec4::from_slice(&col[4 * g..4 * g + 4]);
             }
         }
-        let u: [f32; 3 * BASE_LANES] = flatten_lanes(u);
+        // `Σ_r w_r u_c,r` lane-wise (rows ≥ b² are zero in `u`, and in this copy of `w`), then
+        // the lanes summed.
+        let mut wl = [0.0f32; BASE_LANES];
+        wl[..bb].copy_from_slice(&w[..bb]);
+        let wv = [0, 1, 2].map(|g| Vec4::from_slice(&wl[4 * g..4 * g + 4]));
         let base = rgb(|c| {
-            let mut sum = 0.0f32;
-            for (wr, ur) in w[..bb].iter().zip(&u[c * BASE_LANES..]) {
-                sum += wr * ur;
-            }
-            sum
+            let g = 3 * c;
+            (wv[0] * u[g] + wv[1] * u[g + 1] + wv[2] * u[g + 2]).element_sum()
         });
         Accum {
             scale,

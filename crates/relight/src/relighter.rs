@@ -48,6 +48,7 @@ impl FrameLighting {
 /// Per-point specular geometry: `w_i = A_l y_i(r)` is formed from `reflection`.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SpecularPoint {
+    /// The reflection of the view direction, not normalised (the basis evaluations normalise).
     pub reflection: Vec3,
     /// `specular_c · (e+2)/(e+1) · cos θ_o`, zero when the point faces away.
     pub scale: [f32; 3],
@@ -369,24 +370,24 @@ pub(crate) fn specular_point(input: &SpecularInput<'_>, p: usize) -> SpecularPoi
         Viewer::Eye(eye) => Vec3::from_array(eye) - Vec3::from_array(input.surface.positions[p]),
         Viewer::Directions(d) => Vec3::from_array(d[p]),
     };
-    // Clearly facing away (the cosine below −1e-5, far beyond what the rounding of the
-    // normalisations below could move it): inactive without square roots. About half the
-    // points of a closed mesh.
+    // Facing away (or degenerate: zero or non-finite vectors): inactive before any square
+    // root. About half the points of a closed mesh.
     let d = n_raw.dot(wo_raw);
-    if d < 0.0 && d * d > 1e-10 * n_raw.length_squared() * wo_raw.length_squared() {
+    if d.is_nan() || d <= 0.0 {
         return inactive;
     }
-    let n = n_raw.normalize_or_zero();
-    let wo = wo_raw.normalize_or_zero();
-    let cos_o = n.dot(wo);
+    // Without normalising either vector: cos θ_o = n·ω / (|n| |ω|) (the two square roots are
+    // independent), and the reflection `2 (n·ω)/(n·n) n − ω` is `|ω| r`, the same direction
+    // (the basis evaluations normalise it).
+    let nn = n_raw.length_squared();
+    let cos_o = d / (nn.sqrt() * wo_raw.length_squared().sqrt());
     if cos_o.is_nan() || cos_o <= 0.0 {
         return inactive;
     }
     let e = input.phong.exponent;
-    let k = (e + 2.0) / (e + 1.0) * cos_o;
+    let k = (e + 2.0) / (e + 1.0) * cos_o.min(1.0);
     SpecularPoint {
-        // Unit up to rounding (n and ω_o are); the basis evaluation normalises it (in f64).
-        reflection: 2.0 * cos_o * n - wo,
+        reflection: (2.0 * d / nn) * n_raw - wo_raw,
         scale: input.phong.specular.map(|s| s * k),
         active: true,
     }
