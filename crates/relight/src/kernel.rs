@@ -669,12 +669,14 @@ pub(crate) enum Term {
 /// later level must be bought by a change that grows with its price (`alpha = 1`: change per
 /// product; `alpha = 1/2`: squared change per product). `alpha = 0`: 1 everywhere.
 pub(crate) fn level_costs(term: Term, order: usize, alpha: f32) -> Vec<f32> {
+    // The kernels' own counts of the products of level `l`.
     let cost = |l: usize| -> f64 {
-        let l = l as f64;
-        match term {
-            Term::Diffuse => 2.0 * l + 1.0,
-            Term::Specular => (2.0 * l + 1.0) * ((l + 1.0) * (l + 1.0) + l * l),
-        }
+        (match term {
+            Term::Diffuse => {
+                DiffuseKernel::products_through(l) - DiffuseKernel::products_through(l - 1)
+            }
+            Term::Specular => SpecularKernel::products_of_level(l),
+        }) as f64
     };
     let reference = cost(BASE_ORDER + 2);
     (0..order)
@@ -1277,14 +1279,12 @@ mod tests {
     }
 
     #[test]
-    fn level_costs_price_levels_by_the_kernels_product_counts() {
-        // The factor after level l is (products of level l + 1 / products of level 5)^α, as
-        // the kernels count them (`products_of_level`, `products_through` differences); 1
-        // up to the first test (level 4) and for α = 0.
-        let diffuse_level = |l: usize| {
-            (DiffuseKernel::products_through(l) - DiffuseKernel::products_through(l - 1)) as f64
-        };
-        let specular_level = |l: usize| SpecularKernel::products_of_level(l) as f64;
+    fn level_costs_price_levels_by_their_products() {
+        // The factor after level l is (products of level l + 1 / products of level 5)^α with
+        // the closed forms of the two kernels' level costs (Algorithm 3 for specular):
+        // 3(2l+1) and 3(2l+1)((l+1)² + l²); 1 up to the first test (level 4) and for α = 0.
+        let diffuse_level = |l: usize| (3 * (2 * l + 1)) as f64;
+        let specular_level = |l: usize| (3 * (2 * l + 1) * ((l + 1) * (l + 1) + l * l)) as f64;
         for (term, cost) in [
             (Term::Diffuse, &diffuse_level as &dyn Fn(usize) -> f64),
             (Term::Specular, &specular_level),
