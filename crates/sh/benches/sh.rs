@@ -3,7 +3,9 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::{DMat3, DQuat, DVec3};
-use prt_sh::{project_env, Basis, EnvMapping, GauntTensor, ImageRef, Rotation};
+use prt_sh::{
+    eval_low_f32, project_env, Basis, EnvMapping, GauntTensor, ImageRef, Rotation, LOW_BANDS,
+};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use std::hint::black_box;
@@ -42,6 +44,25 @@ fn bench_eval(c: &mut Criterion) {
             })
         });
     }
+    // The first five bands: the f32 closed form against the recurrences.
+    let basis5 = Basis::new(LOW_BANDS).unwrap();
+    let mut out25 = [0.0f32; 25];
+    g.bench_function("low_bands_recurrence_f32", |b| {
+        let mut k = 0;
+        b.iter(|| {
+            k = (k + 1) & 255;
+            basis5.eval_f32_unchecked(black_box(dirs[k].as_vec3()), &mut out25);
+            black_box(&out25);
+        })
+    });
+    g.bench_function("low_bands_closed_form_f32", |b| {
+        let mut k = 0;
+        b.iter(|| {
+            k = (k + 1) & 255;
+            eval_low_f32(black_box(dirs[k].as_vec3()), &mut out25);
+            black_box(&out25);
+        })
+    });
     g.finish();
 }
 
