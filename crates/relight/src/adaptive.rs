@@ -381,6 +381,9 @@ impl Relighter {
                         // Two passes as for diffuse: the low bands (weights and visibility) of
                         // every point, then the points that go on, rows hinted ahead.
                         let mut go_on = [(0usize, glam::Vec3::ZERO); BLOCK];
+                        // The low weights of the points that go on, for their second pass.
+                        let low_len = (low_top + 1) * (low_top + 1);
+                        let mut low_w = [[0.0f32; 25]; BLOCK];
                         let mut n = 0;
                         for (k, (&v, acc)) in pts.iter().zip(accs.iter_mut()).enumerate() {
                             let g = specular_point(&s, v);
@@ -406,6 +409,7 @@ impl Relighter {
                             }
                             if !stopped && to > acc.last_level as usize {
                                 go_on[n] = (k, g.reflection);
+                                low_w[n][..low_len].copy_from_slice(&w[..low_len]);
                                 n += 1;
                             }
                         }
@@ -428,10 +432,10 @@ impl Relighter {
                             match cursor.as_mut() {
                                 Some(cursor) => {
                                     // (`w` is the block's scratch: the bands shaded so far
-                                    // are this point's again first.) The low bands in closed
-                                    // form, as `weights_low` gave them in the first pass (the
-                                    // cursor steps over them), then the rest from the cursor.
-                                    self.weights_low(&lobe, reflection, w);
+                                    // are this point's again first.) The low bands as the first
+                                    // pass formed them (the cursor steps over them), then the
+                                    // rest from the cursor.
+                                    w[..low_len].copy_from_slice(&low_w[i][..low_len]);
                                     cursor.reset(reflection);
                                     for _ in 0..=low_top {
                                         cursor.skip_band();
