@@ -31,7 +31,7 @@ mod settings;
 pub mod transfer;
 
 pub use error::BakeError;
-pub use settings::{BakeSettings, PointKind};
+pub use settings::{BakeSettings, PointKind, DEFAULT_PIXEL_SAMPLES, MAX_PIXEL_SAMPLES};
 
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -415,91 +415,106 @@ pub fn bake(
             width: w,
             height: h,
         };
-        let pixels = points::pixel_points(scene, accel)?;
-        let (first, count) = shard_range(pixels.len() as u64, settings.shard);
+        let k = settings.pixel_samples;
+        let footprints = points::pixel_footprints(scene, accel, settings.seed, k)?;
+        let (first, count) = shard_range(footprints.pixel_count() as u64, settings.shard);
+        let channels = if bounces > 0 { 3 } else { 1 };
         let bar = progress(settings, count, "pixels");
-        let results: Vec<Option<(usize, DirectResult, Vec<f64>)>> = (first as usize
-            ..(first + count) as usize)
+        // Per pixel: the footprint-averaged transfer of every object its samples hit.
+        let results: Vec<Vec<PixelTransfer>> = (first as usize..(first + count) as usize)
             .into_par_iter()
-            .with_min_len(16)
+            .with_min_len(4)
             .map(|px| {
-                let r = pixels[px].map(|(mesh, p)| {
+                let mut objects: Vec<PixelTransfer> = Vec::new();
+                for (j, sample) in footprints.pixel(px).iter().enumerate() {
+                    let Some((mesh, p)) = sample.hit else {
+                        continue;
+                    };
                     let plan = &plans[mesh];
+                    let n2 = plan.order * plan.order;
+                    // The pixel's R rays are shared out over its K samples.
+                    let rays = settings.rays / k + u32::from((j as u32) < settings.rays % k);
                     let opt = DirectOptions {
-                        rays: settings.rays,
+                        rays,
                         record_hits: bounces > 0,
                         visibility: plan.needs_visibility,
                         seed: settings.seed,
                         object: plan.mesh as u64 | (1 << 32),
                         basis: &bases[mesh],
                     };
-                    let d = direct(accel, &p, px as u64, &opt);
-                    let n2 = plan.order * plan.order;
-                    let mut total: Vec<f64> =
-                        d.shadowed.iter().cycle().take(3 * n2).copied().collect();
-                    for b in 1..=bounces {
-                        let g = gather(&d.hits, settings.rays, &chain[b - 1], &gs, plan.order);
-                        total.iter_mut().zip(&g).for_each(|(t, v)| *t += v);
+                    let d = direct(accel, &p, px as u64 * u64::from(k) + j as u64, &opt);
+                    let entry = match objects.iter().position(|t| t.mesh == mesh) {
+                        Some(i) => &mut objects[i],
+                        None => {
+                            objects.push(PixelTransfer::new(
+                                mesh,
+                                channels * n2,
+                                plan.needs_visibility.then_some(n2),
+                                settings.unshadowed.then_some(n2),
+                            ));
+                            objects.last_mut().expect("just pushed")
+                        }
+                    };
+                    let weight = 1.0 / f64::from(k);
+                    for c in 0..channels {
+                        add_scaled(
+                            &mut entry.diffuse[c * n2..(c + 1) * n2],
+                            &d.shadowed,
+                            weight,
+                        );
                     }
-                    (mesh, d, total)
-                });
+                    for b in 1..=bounces {
+                        let g = gather(&d.hits, rays, &chain[b - 1], &gs, plan.order);
+                        add_scaled(&mut entry.diffuse, &g, weight);
+                    }
+                    if let (Some(v), Some(src)) = (entry.visibility.as_mut(), &d.visibility) {
+                        add_scaled(v, src, weight);
+                    }
+                    if let Some(u) = entry.unshadowed.as_mut() {
+                        add_scaled(u, &transfer::unshadowed(plan.order, p.normal), weight);
+                    }
+                    entry.rays += u64::from(rays);
+                    entry.hits += u64::from(d.hit_count);
+                    entry.backface_hits += u64::from(d.backface_hits);
+                }
                 bar.inc(1);
-                r
+                objects
             })
             .collect();
         bar.finish_and_clear();
         for (o, plan) in plans.iter().enumerate() {
             let mesh = &scene.meshes[plan.mesh];
             let n2 = plan.order * plan.order;
-            let channels = if bounces > 0 { 3 } else { 1 };
-            let mut diffuse = vec![0.0f32; count as usize * channels * n2];
+            let stride = channels * n2;
+            let mut diffuse = vec![0.0f32; count as usize * stride];
             let mut vis = plan
                 .needs_visibility
-                .then(|| vec![0.0f32; count as usize * channels * n2]);
+                .then(|| vec![0.0f32; count as usize * stride]);
             let mut unsh = settings
                 .unshadowed
-                .then(|| vec![0.0f32; count as usize * channels * n2]);
-            let (mut npts, mut hits, mut back) = (0u64, 0u64, 0u64);
-            for (k, r) in results.iter().enumerate() {
-                let Some((m, d, total)) = r else { continue };
-                if *m != o {
+                .then(|| vec![0.0f32; count as usize * stride]);
+            let (mut npts, mut rays, mut hits, mut back) = (0u64, 0u64, 0u64, 0u64);
+            for (px, objs) in results.iter().enumerate() {
+                let Some(t) = objs.iter().find(|t| t.mesh == o) else {
                     continue;
-                }
+                };
                 npts += 1;
-                hits += u64::from(d.hit_count);
-                back += u64::from(d.backface_hits);
-                let base = k * channels * n2;
-                if channels == 3 {
-                    diffuse[base..base + 3 * n2]
-                        .iter_mut()
-                        .zip(total)
-                        .for_each(|(a, b)| *a = *b as f32);
-                } else {
-                    diffuse[base..base + n2]
-                        .iter_mut()
-                        .zip(&d.shadowed)
-                        .for_each(|(a, b)| *a = *b as f32);
-                }
-                let normal = pixels[(first as usize) + k]
-                    .map(|(_, p)| p.normal)
-                    .unwrap_or(Vec3::Y);
+                rays += t.rays;
+                hits += t.hits;
+                back += t.backface_hits;
+                let base = px * stride;
+                store(&mut diffuse[base..base + stride], &t.diffuse);
                 for c in 0..channels {
-                    if let (Some(v), Some(src)) = (vis.as_mut(), d.visibility.as_ref()) {
-                        v[base + c * n2..base + (c + 1) * n2]
-                            .iter_mut()
-                            .zip(src)
-                            .for_each(|(a, b)| *a = *b as f32);
+                    let dst = base + c * n2..base + (c + 1) * n2;
+                    if let (Some(v), Some(src)) = (vis.as_mut(), &t.visibility) {
+                        store(&mut v[dst.clone()], src);
                     }
-                    if let Some(u) = unsh.as_mut() {
-                        let t = transfer::unshadowed(plan.order, normal);
-                        u[base + c * n2..base + (c + 1) * n2]
-                            .iter_mut()
-                            .zip(&t)
-                            .for_each(|(a, b)| *a = *b as f32);
+                    if let (Some(u), Some(src)) = (unsh.as_mut(), &t.unshadowed) {
+                        store(&mut u[dst], src);
                     }
                 }
             }
-            rays_traced += npts * u64::from(settings.rays) * (1 + u64::from(plan.needs_visibility));
+            rays_traced += rays * (1 + u64::from(plan.needs_visibility));
             let kind = if bounces > 0 {
                 TransferKind::InterreflectedDiffuse {
                     bounces: settings.bounces,
@@ -524,7 +539,7 @@ pub fn bake(
                 });
             }
             blocks.sort_by_key(|b| b.kind);
-            let denom = (npts * u64::from(settings.rays)).max(1) as f64;
+            let denom = rays.max(1) as f64;
             reports.push(ObjectReport {
                 name: plan.name.clone(),
                 order: plan.order,
@@ -615,6 +630,10 @@ pub fn bake(
         "points": if vertex_mode { "vertex" } else { "pixel" },
         "unshadowed": settings.unshadowed,
     });
+    let mut settings_json = settings_json;
+    if !vertex_mode {
+        settings_json["pixel_samples"] = settings.pixel_samples.into();
+    }
     let meta = BakeMeta {
         sample_kind,
         rays_per_point: settings.rays,
@@ -650,6 +669,50 @@ pub fn bake(
             decisions,
         },
     })
+}
+
+/// The footprint-averaged transfer of one object in one pixel (`1/K` times the sum over the
+/// pixel's samples that hit the object; samples that hit another object or nothing add 0).
+struct PixelTransfer {
+    mesh: usize,
+    /// `channels × order²`.
+    diffuse: Vec<f64>,
+    /// `order²` (the same for every channel).
+    visibility: Option<Vec<f64>>,
+    /// `order²`.
+    unshadowed: Option<Vec<f64>>,
+    rays: u64,
+    hits: u64,
+    backface_hits: u64,
+}
+
+impl PixelTransfer {
+    fn new(
+        mesh: usize,
+        diffuse: usize,
+        visibility: Option<usize>,
+        unshadowed: Option<usize>,
+    ) -> Self {
+        Self {
+            mesh,
+            diffuse: vec![0.0; diffuse],
+            visibility: visibility.map(|n| vec![0.0; n]),
+            unshadowed: unshadowed.map(|n| vec![0.0; n]),
+            rays: 0,
+            hits: 0,
+            backface_hits: 0,
+        }
+    }
+}
+
+/// `dst += weight · src` element-wise.
+fn add_scaled(dst: &mut [f64], src: &[f64], weight: f64) {
+    dst.iter_mut().zip(src).for_each(|(d, s)| *d += weight * s);
+}
+
+/// `dst = src` rounded to f32.
+fn store(dst: &mut [f32], src: &[f64]) {
+    dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s as f32);
 }
 
 /// The geometry hash the bake file stores (FNV-1a of positions and indices, `prt_bakefile`).

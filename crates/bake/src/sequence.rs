@@ -13,6 +13,8 @@ pub enum SequencePurpose {
     Diffuse = 0x6261_6b65_6466_0001,
     /// Uniform-hemisphere directions for visibility.
     Visibility = 0x6261_6b65_7669_0002,
+    /// Sub-pixel positions of a per-pixel bake's footprint.
+    Footprint = 0x6261_6b65_6670_0003,
 }
 
 /// 1 / plastic number and its square: the R2 increments.

@@ -380,11 +380,13 @@ fn pixel_bake_has_one_point_per_pixel_and_furnace_value() {
         rays: 64,
         bounces: 0,
         points: PointKind::Pixel,
+        pixel_samples: 1,
         ..BakeSettings::final_quality()
     };
     let out = bake(&scene, &accel, &settings).unwrap();
     let obj = &out.bake.objects[0];
     assert_eq!(obj.point_count, 16 * 12);
+    assert_eq!(out.bake.meta.settings["pixel_samples"], 1);
     let radiance = relit(&out, 0, 1.0);
     let covered: Vec<f64> = radiance
         .iter()
@@ -413,6 +415,50 @@ fn pixel_bake_has_one_point_per_pixel_and_furnace_value() {
             "{v} (allowed deficit {allowed})"
         );
     }
+
+    // With a footprint of 16 samples (64 rays each) a pixel's transfer is the mean over its
+    // samples, 0 for those that see the background: relit value + background share (the
+    // furnace's background is 1 too) must again be 1, within the mean of the samples' own lune
+    // deficits, silhouettes included. A sample's α is the angle between its camera-facing
+    // shading normal and its camera-facing facet normal: near a silhouette the interpolated
+    // normal can face away from the camera, and turned towards it, it points into the surface
+    // (α > 90°, a deficit near 1: such a sample is dark in the path tracer too).
+    let k = 16;
+    let settings = BakeSettings {
+        rays: 64 * k,
+        pixel_samples: k,
+        ..settings
+    };
+    let out = bake(&scene, &accel, &settings).unwrap();
+    assert_eq!(out.bake.meta.settings["pixel_samples"], k);
+    let fp = prt_bake::points::pixel_footprints(&scene, &accel, settings.seed, k).unwrap();
+    let radiance = relit(&out, 0, 1.0);
+    let (mut partial, mut inward) = (0, 0);
+    for (px, c) in radiance.iter().enumerate() {
+        let hits: Vec<_> = fp.pixel(px).iter().filter_map(|s| s.hit).collect();
+        if hits.is_empty() {
+            assert_eq!(c[0], 0.0, "pixel {px} sees nothing but has transfer");
+            continue;
+        }
+        partial += usize::from(hits.len() < k as usize);
+        let deficit: f64 = hits
+            .iter()
+            .map(|(_, p)| {
+                let cos = f64::from(p.normal.dot(p.offset_normal).clamp(-1.0, 1.0));
+                inward += usize::from(cos < 0.0);
+                (1.0 - cos) / 2.0 + 2.0 / 64.0
+            })
+            .sum::<f64>()
+            / f64::from(k);
+        let v = c[0] + (k as usize - hits.len()) as f64 / f64::from(k);
+        assert!(
+            v <= 1.0 + 1e-5 && 1.0 - v <= deficit,
+            "pixel {px}: {v} with {}/{k} samples on the sphere (allowed deficit {deficit})",
+            hits.len()
+        );
+    }
+    eprintln!("{partial} silhouette pixels, {inward} samples with inward shading normals");
+    assert!(partial > 4, "{partial} silhouette pixels");
 }
 
 #[test]
@@ -435,6 +481,17 @@ fn bad_settings_are_errors() {
         BakeSettings {
             memory_limit: 1024,
             bounces: 1,
+            ..BakeSettings::preview()
+        },
+        BakeSettings {
+            points: PointKind::Pixel,
+            pixel_samples: 0,
+            ..BakeSettings::preview()
+        },
+        BakeSettings {
+            points: PointKind::Pixel,
+            rays: 8,
+            pixel_samples: 16,
             ..BakeSettings::preview()
         },
     ] {

@@ -29,6 +29,11 @@ pub struct BakeArgs {
     /// Bake the primary hit of every camera pixel instead of every vertex.
     #[arg(long)]
     pub per_pixel: bool,
+    /// Per-pixel bakes: sub-pixel samples per pixel, stratified over the pixel's box (the
+    /// footprint of `prt render`); the pixel's rays are shared out over them. 1 samples the
+    /// pixel centre only.
+    #[arg(long, requires = "per_pixel", default_value_t = prt_bake::DEFAULT_PIXEL_SAMPLES)]
+    pub pixel_samples: u32,
     /// Seed (default: the scene's `[render] seed`).
     #[arg(long)]
     pub seed: Option<u64>,
@@ -107,6 +112,7 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
         } else {
             PointKind::Vertex
         },
+        pixel_samples: args.pixel_samples,
         unshadowed: args.unshadowed,
         shard: args.shard.as_deref().map(parse_shard).transpose()?,
         progress: true,

@@ -2,7 +2,6 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use prt_bakefile::SampleKind;
 use prt_relight::{AdaptiveParams, StopRule, Threshold, MAX_COST_EXPONENT};
 use prt_report::{RelightOptions, RelightStats};
 use std::path::PathBuf;
@@ -108,7 +107,6 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     let scene = crate::common::load_scene(&args.scene)?;
     let bake = prt_bakefile::read_bake(&args.bake)?;
     prt_report::check_bake(&scene, &bake, &args.bake)?;
-    let per_pixel = matches!(bake.meta.sample_kind, SampleKind::Pixel { .. });
     let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
     let adaptive = args.adaptive.then(|| AdaptiveParams {
         stop: match args.stop {
@@ -147,7 +145,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         None
     };
     let t = Instant::now();
-    let image = prt_report::form_image(&scene, &accel, &relit, per_pixel, args.rotate_y)?;
+    let image = prt_report::form_image(&scene, &accel, &relit, args.rotate_y)?;
     let image_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut attrs = vec![
         ("kind", "relit".to_string()),

@@ -1,12 +1,14 @@
 //! Image formation for comparisons: the scene camera's rays hit the meshes and take the
 //! barycentric interpolation of per-vertex radiance (Gouraud), or, for per-pixel bakes, the
-//! pixel's own value; background pixels show the environment as the path tracer does
-//! (piecewise-constant lookup). Each pixel averages a fixed `k×k` grid of sub-pixel rays — the
-//! path tracer's box filter, without noise.
+//! pixel's own value (its transfer already averaged over the pixel's footprint); background
+//! shows the environment as the path tracer does (piecewise-constant lookup). Per-vertex
+//! images average a fixed `k×k` grid of sub-pixel rays per pixel — the path tracer's box
+//! filter, without noise.
 
 use crate::error::ReportError;
 use crate::relit::Relit;
 use glam::{DMat3, Vec3};
+use prt_bake::points::PixelFootprints;
 use prt_scene::Scene;
 use prt_tracer::{Accel, PinholeCamera};
 use rayon::prelude::*;
@@ -38,30 +40,37 @@ fn background(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
 /// A surface point as `(position, unit normal)`.
 pub type PointAndNormal = ([f32; 3], [f32; 3]);
 
-/// Positions and camera-facing normals of the primary hits of every pixel centre that lands on
-/// object `o` (other pixels get a placeholder facing away from the camera).
-pub fn pixel_surface(
-    scene: &Scene,
-    accel: &Accel,
-    o: usize,
-) -> Result<Vec<PointAndNormal>, ReportError> {
-    let pts = prt_bake::points::pixel_points(scene, accel)?;
+/// Per pixel, the position and camera-facing normal of object `o` that the specular term of a
+/// per-pixel bake is shaded at: the first of the pixel's footprint samples that hits `o` (the
+/// pixel centre when the bake sampled centres only). Pixels where no sample hits `o` get a
+/// placeholder facing away from the camera (their transfer for `o` is zero).
+#[must_use]
+pub fn pixel_surface(scene: &Scene, footprints: &PixelFootprints, o: usize) -> Vec<PointAndNormal> {
     let eye = scene.camera.eye.as_vec3();
-    Ok(pts
-        .into_iter()
-        .map(|p| match p {
-            Some((m, sp)) if m == o => (sp.position.to_array(), sp.normal.to_array()),
-            _ => ((eye + Vec3::Y).to_array(), Vec3::Y.to_array()),
+    (0..footprints.pixel_count())
+        .map(|px| {
+            footprints
+                .pixel(px)
+                .iter()
+                .find_map(|s| match s.hit {
+                    Some((m, sp)) if m == o => Some((sp.position.to_array(), sp.normal.to_array())),
+                    _ => None,
+                })
+                .unwrap_or(((eye + Vec3::Y).to_array(), Vec3::Y.to_array()))
         })
-        .collect())
+        .collect()
 }
 
-/// Forms the image of relit radiance (per-vertex: Gouraud; per-pixel: the pixel's value).
+/// Forms the image of relit radiance. Per-vertex bakes: each pixel averages a `k×k` grid of
+/// sub-pixel rays, each taking the barycentric (Gouraud) interpolation of its triangle's
+/// vertex radiance or the environment. Per-pixel bakes ([`Relit::footprints`] set): the sum
+/// over objects of the pixel's relit value (each object's transfer is already averaged over
+/// the pixel's footprint samples, with zeros where a sample sees something else), plus the
+/// environment seen by the samples that hit nothing, each weighted `1/K`.
 pub fn form_image(
     scene: &Scene,
     accel: &Accel,
     relit: &Relit,
-    per_pixel: bool,
     rotate_y_deg: f64,
 ) -> Result<RgbImage, ReportError> {
     let cam = PinholeCamera::new(&scene.camera)?;
@@ -72,12 +81,19 @@ pub fn form_image(
         .into_par_iter()
         .map(|i| {
             let (x, y) = (i % w, i / w);
-            if per_pixel {
-                let dir = cam.direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                return match accel.closest_hit(eye, dir, f32::INFINITY) {
-                    Some(hit) => relit.radiance[hit.mesh as usize][i as usize],
-                    None => background(scene, dir, rotate_y_deg),
-                };
+            if let Some(fp) = &relit.footprints {
+                let mut c = [0.0f32; 3];
+                for r in &relit.radiance {
+                    let v = r.get(i as usize).copied().unwrap_or([0.0; 3]);
+                    (0..3).for_each(|ch| c[ch] += v[ch]);
+                }
+                let samples = fp.pixel(i as usize);
+                let weight = 1.0 / samples.len() as f32;
+                for s in samples.iter().filter(|s| s.hit.is_none()) {
+                    let b = background(scene, s.dir, rotate_y_deg);
+                    (0..3).for_each(|ch| c[ch] += weight * b[ch]);
+                }
+                return c;
             }
             let mut sum = [0.0f32; 3];
             for sy in 0..k {
@@ -153,8 +169,9 @@ pub fn roi_image(scene: &Scene, accel: &Accel, relit: &Relit) -> Result<RgbImage
             .collect(),
         roi: relit.roi.clone(),
         stats: relit.stats.clone(),
+        footprints: None,
     };
-    let mut img = form_image(scene, accel, &colours, false, 0.0)?;
+    let mut img = form_image(scene, accel, &colours, 0.0)?;
     let mask = object_mask(scene, accel)?;
     for (p, m) in img.pixels.iter_mut().zip(mask) {
         if !m {

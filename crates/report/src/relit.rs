@@ -59,6 +59,10 @@ pub struct Relit {
     pub roi: Vec<Vec<bool>>,
     /// Figures of the run.
     pub stats: RelightStats,
+    /// Per-pixel bakes: the sub-pixel samples the bake averaged over (its seed and
+    /// `pixel_samples`), which image formation uses for the background share of each pixel.
+    /// `None` for per-vertex bakes.
+    pub footprints: Option<prt_bake::points::PixelFootprints>,
 }
 
 /// Figures of one relighting run.
@@ -200,6 +204,16 @@ pub fn relight(
     };
     let eye = scene.camera.eye.as_vec3().to_array();
     let per_pixel = matches!(bake.meta.sample_kind, SampleKind::Pixel { .. });
+    let footprints = if per_pixel {
+        Some(prt_bake::points::pixel_footprints(
+            scene,
+            accel,
+            bake.meta.seed,
+            pixel_samples(bake),
+        )?)
+    } else {
+        None
+    };
     let mut stats = RelightStats {
         adaptive: opt.adaptive.is_some(),
         ..RelightStats::default()
@@ -292,8 +306,12 @@ pub fn relight(
         };
         // Surface points: vertices, or pixel hits for per-pixel bakes.
         let (positions, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = if per_pixel {
-            let pts = crate::imaging::pixel_surface(scene, accel, o)?;
-            pts.into_iter().unzip()
+            let fp = footprints
+                .as_ref()
+                .expect("per-pixel bakes have footprints");
+            crate::imaging::pixel_surface(scene, fp, o)
+                .into_iter()
+                .unzip()
         } else {
             (
                 mesh.positions.iter().map(|p| p.to_array()).collect(),
@@ -437,7 +455,20 @@ pub fn relight(
         radiance,
         roi,
         stats,
+        footprints,
     })
+}
+
+/// Sub-pixel samples per pixel of a per-pixel bake: its `pixel_samples` setting; bakes made
+/// before that setting existed sampled the pixel centre only (1).
+fn pixel_samples(bake: &Bake) -> u32 {
+    bake.meta
+        .settings
+        .get("pixel_samples")
+        .and_then(serde_json::Value::as_u64)
+        .map_or(1, |k| {
+            k.clamp(1, u64::from(prt_bake::MAX_PIXEL_SAMPLES)) as u32
+        })
 }
 
 fn accumulate_stats(

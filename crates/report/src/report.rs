@@ -386,8 +386,8 @@ pub fn run_report(
         };
         let adaptive = relight(scene, &accel, &bake, &ad_opt)?;
         notes.extend(full.stats.notes.iter().cloned());
-        let full_img = form_image(scene, &accel, &full, false, 0.0)?;
-        let ad_img = form_image(scene, &accel, &adaptive, false, 0.0)?;
+        let full_img = form_image(scene, &accel, &full, 0.0)?;
+        let ad_img = form_image(scene, &accel, &adaptive, 0.0)?;
         let (fi, ai) = (to_compare_image(&full_img), to_compare_image(&ad_img));
         let m_full = compare(&fi, &reference, Some(&mask))?.masked.expect("mask");
         let m_ad = compare(&ai, &reference, Some(&mask))?.masked.expect("mask");

@@ -161,10 +161,6 @@ fn bake(scene: &Scene, accel: &Accel, points: PointKind, seed: u64) -> prt_bakef
 }
 
 fn image(scene: &Scene, accel: &Accel, bake: &prt_bakefile::Bake, order: usize) -> RgbImage {
-    let per_pixel = matches!(
-        bake.meta.sample_kind,
-        prt_bakefile::SampleKind::Pixel { .. }
-    );
     let opt = RelightOptions {
         order: Some(order),
         timing_frames: 1,
@@ -172,7 +168,7 @@ fn image(scene: &Scene, accel: &Accel, bake: &prt_bakefile::Bake, order: usize) 
         ..RelightOptions::default()
     };
     let relit = relight(scene, accel, bake, &opt).expect("relight");
-    form_image(scene, accel, &relit, per_pixel, 0.0).expect("image")
+    form_image(scene, accel, &relit, 0.0).expect("image")
 }
 
 /// Relative L2 bound on the lighting's truncation above `order` (see the module comment).
