@@ -93,6 +93,10 @@ def main():
     quad_grid((-1, -1, -1), (0, 2, 0), (0, 0, 2))   # left x=-1, normal +X
     quad_grid((1, -1, -1), (0, 0, 2), (0, 2, 0))    # right x=+1, normal -X
     write("open_box.obj", verts, faces, None, "Open box [-1,1]^3 without its top, faces pointing inward: concave.")
+    # The coarsest possible floor: two triangles spanning [-1,1]^2 at y = 0, facing +Y (scaled
+    # to tens of metres in the mixed-scale scenes, its triangles are as large as the scene).
+    write("quad.obj", [(-1, 0, -1), (-1, 0, 1), (1, 0, 1), (1, 0, -1)], [(0, 1, 2), (0, 2, 3)],
+          [(0, 1, 0)] * 4, "Two-triangle square [-1,1]^2 at y = 0, facing +Y.")
 
 
 def write_hdr(name, w, h, f):
@@ -117,6 +121,11 @@ def maps():
     # A smooth sky: brightness varies with elevation only (rows), 64×32.
     write_hdr("gradient_sky.hdr", 64, 32,
               lambda x, y: (0.2 + 0.8 * (1 - y / 31), 0.3 + 0.7 * (1 - y / 31), 0.5 + 0.5 * (1 - y / 31)))
+    # Light from above the horizon only (rows 0-15), varying with azimuth; black below, so a
+    # floor's size cannot change what a part standing on it receives (mixed-scale scenes).
+    write_hdr("upper_sky.hdr", 64, 32,
+              lambda x, y: (0.0, 0.0, 0.0) if y >= 16 else
+              tuple(c * (0.8 + 0.4 * math.sin(2 * math.pi * (x + 0.5) / 64) ** 2) for c in (1.0, 0.95, 0.85)))
 
 
 if __name__ == "__main__":

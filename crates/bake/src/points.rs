@@ -33,7 +33,7 @@ impl SamplePoint {
 #[must_use]
 pub fn vertex_points(scene: &Scene, accel: &Accel, mesh: usize) -> Vec<SamplePoint> {
     let m = &scene.meshes[mesh];
-    let max_abs = accel.max_abs_coordinate();
+    let extent = accel.mesh_extent(mesh);
     m.positions
         .iter()
         .zip(&m.normals)
@@ -43,7 +43,7 @@ pub fn vertex_points(scene: &Scene, accel: &Accel, mesh: usize) -> Vec<SamplePoi
                 position: *p,
                 normal: n,
                 offset_normal: n,
-                offset: point_offset(*p, max_abs),
+                offset: point_offset(*p, extent),
             }
         })
         .collect()

@@ -1,5 +1,26 @@
-//! Ray/triangle acceleration over every triangle of a scene: an obvhs CWBVH with the three
-//! known obvhs 0.4.0 defects worked around (see `FACTS.md`).
+//! Ray/triangle acceleration over every triangle of a scene: obvhs CWBVHs with the known
+//! obvhs 0.4.0 defects worked around (see `FACTS.md`), precise relative to **each object**.
+//!
+//! **Layout.** Objects (meshes) are put into *groups* of similar scale: an object joins a group
+//! when the group's box, with the object added, is at most [`GROUP_RATIO`] times the object's own
+//! extent (objects are taken largest first), so a 1 mm part on a 10 m floor gets a group of its
+//! own while a bunny on a 4 m floor shares one. Each group has its own CWBVH, built and
+//! traversed in the group's own space: translated to the group's centre and scaled by a power
+//! of two so its largest absolute coordinate lands in `[32, 64)`. Everything that obvhs does
+//! relative to the size of its space — box padding, quantisation, its fixed node `tmin` — is
+//! therefore relative to the group, i.e. to the object, not to the largest object of the scene.
+//! Rays visit the groups whose (f64) world boxes they cross, nearest first; a ray reaches a
+//! group's space starting at its box entry point (in f64), so the local origin is as precise
+//! as the group's own coordinates however far away the ray started.
+//!
+//! **Exact triangle tests.** obvhs only *proposes* candidates: every ray/triangle test is done
+//! here in f64 on the world-space f32 vertices (exact in f64) with the world-space f32 ray
+//! (Möller–Trumbore; rounding errors of order `1e-16` of the triangle's size and distance). The
+//! sign of a hit distance therefore no longer depends on how large the triangle or the scene
+//! is, and ray offsets only have to cover the f32 rounding of the hit point itself
+//! ([`SPAWN_RELATIVE_OFFSET`]): a point on a 30 m floor next to a 1 mm part is offset by a few
+//! nanometres, not by a tenth of the part (the black ring such an offset leaves around the
+//! part's base is what the workspace's `tests/hard_cases.rs` pins).
 //!
 //! - **Bug A** (a `-0.0` direction component misses everything): every direction is passed
 //!   through `d + 0.0`, which turns `-0.0` into `+0.0` and changes nothing else.
@@ -7,23 +28,22 @@
 //!   computed here, in f64, with the Möller–Trumbore formulas.
 //! - **Bug C** (the node test uses `max(slab tmin, 1e-4)` against `min(slab tmax, ray.tmax)`,
 //!   so a node whose box the ray leaves before `t = 1e-4` is culled whatever it contains, and a
-//!   ray with `tmax < 1e-4` finds nothing at all): the BVH is built and traversed in a space
-//!   scaled by a power of two, chosen so the largest absolute vertex coordinate `M` lands in
-//!   `[32, 64)`. Scaling by a power of two is exact in floating point, so every intersection is
-//!   bit-for-bit the world-space one times the scale. In that space (1) the box padding of
-//!   bug D is `2^-17 · 32 ≥ 2.4e-4`, so a ray that hits a triangle at `t ≥ 0` still has to
-//!   cross the padding before it leaves the triangle's leaf box or any ancestor: every box on
-//!   the way to a hit is left after `t = 2.4e-4 > 1e-4` and is never culled; (2) obvhs gets a
-//!   `tmax` of at least `2.5e-4` and hits beyond the caller's `tmax` are rejected in the
-//!   intersection callback. Remaining limit: once a closest-hit query has found a hit closer
-//!   than `1e-4` traversal units (`≤ 3.2e-6 · M` in world units), nodes not yet visited are
-//!   culled, so a second, even closer hit within that distance can be missed. The range
-//!   `[32, 64)` is not larger because obvhs' own `validate` compares bounds with an absolute
-//!   `1e-5`, which must stay above half an ulp of the coordinates.
+//!   ray with `tmax < 1e-4` finds nothing at all): in a group's space (largest coordinate `M` in
+//!   `[32, 64)`) (1) the box padding of bug D is `2^-17 · M ≥ 2.4e-4`, and the local ray is
+//!   within `½ ulp(64) · √3 ≈ 6.6e-6` of the exact one, so a ray that hits a triangle at `t ≥ 0`
+//!   still has to cross `≥ 2.3e-4` of padding before it leaves the triangle's leaf box or any
+//!   ancestor: every box on the way to a hit is left after `t > 1e-4` and is never culled;
+//!   (2) obvhs gets a `tmax` of at least `2.5e-4` and hits beyond the caller's `tmax` are
+//!   rejected by the exact test. Remaining limit: once a closest-hit query has found a hit
+//!   closer than `1e-4` group units (`≤ 3.2e-6 · M` of the group, in world units), nodes of that
+//!   group not yet visited are culled, so a second, even closer hit within that distance can be
+//!   missed (the hit returned is still a true hit). The range `[32, 64)` is not larger because
+//!   obvhs' own `validate` compares bounds with an absolute `1e-5`, which must stay above half
+//!   an ulp of the coordinates.
 //! - **Bug D** (found here): the CWBVH child bounds are quantised as
 //!   `ceil((child.max − node.min) / 2^e)` in f32, whose subtraction can round *down*, so a child
 //!   box can end up to half an ulp inside its primitive (a crack ~1e-8 of the node size). Every
-//!   primitive box is padded by `2^-17 · M_scaled` (≥ 4 ulps of any coordinate) before the
+//!   primitive box is padded by `2^-17 · M` of its group (≥ 4 ulps of any coordinate) before the
 //!   build ([`AccelOptions::pad_boxes`]).
 
 use crate::error::TracerError;
@@ -38,27 +58,36 @@ use obvhs::{
 use prt_scene::{Mesh, Scene};
 use std::time::Duration;
 
-/// Relative bound for moving a secondary ray's origin off its surface: `2^-18 ≈ 3.8e-6`.
+/// Relative bound for moving a secondary ray's origin off its surface: `2^-18 ≈ 3.8e-6` of the
+/// largest absolute coordinate of the hit point.
 ///
-/// Derivation (unit roundoff `ε = 2^-24`, `M` = largest absolute coordinate of the triangle's
-/// vertices and of the hit point): the hit point is interpolated from barycentrics in f64 and
-/// rounded once to f32, so it lies within `√3 ε M` of the triangle's plane. Re-intersecting the
-/// own triangle, obvhs' f32 Möller–Trumbore computes `n·(v0 − o)` with an error of about
-/// `γ_5 |n| |v0 − o| ≤ 5ε · 2√3 M |n|`; its sign (and so the sign of `t`) is right once the
-/// origin is further than that from the plane. Rounding the offset origin costs another
-/// `√3 ε M`. Together about `21 ε M ≈ 1.2e-6 M`; we use about 3× that, `2^-18 M = 64 ε M`.
-/// Mitsuba 3 uses `(1 + max|p|) · 8.9e-5`, a 23× larger relative offset plus an absolute floor
-/// that is not scale invariant; ours has no floor because `M` includes the vertices, which
-/// are never all zero for a non-degenerate triangle.
+/// Derivation (unit roundoff `ε = 2^-24`): the triangle is exact (its f32 vertices), and every
+/// ray/triangle test is done in f64 on those exact values, with errors of order `1e-16` of the
+/// triangle's size — negligible. What is not exact is the f32 hit point: interpolated in f64
+/// and rounded once, it lies within `√3 ε |p|∞` of the plane; the offset origin is rounded
+/// again (`√3 ε |p|∞`). So the origin is on the right side of the plane once it is moved by
+/// more than about `3.5 ε |p|∞`; we use `64 ε |p|∞`, 18× that. Unlike Mitsuba 3's
+/// `(1 + max|p|) · 8.9e-5` there is no absolute term (a scene scaled by `2^k` behaves exactly
+/// like the unit one), and unlike a bound on the triangle's own size a point of a 30 m floor
+/// next to a 1 mm part is offset relative to where it is, not to how large the floor is. A
+/// point at the origin gets [`spawn_offset`]'s floor relative to its triangle's size.
 pub const SPAWN_RELATIVE_OFFSET: f32 = 1.0 / 262_144.0;
 
 /// Shadow rays towards a point stop at `(1 − SHADOW_RAY_SHORTEN)` of the distance, so the
 /// target's own surface is not reported as an occluder.
 pub const SHADOW_RAY_SHORTEN: f32 = 1.0e-4;
 
+/// Objects share a BVH when their union box is at most this many times the extent of each of
+/// them: box padding and obvhs' fixed node `tmin` then stay below `2^-11` of any object's size.
+pub const GROUP_RATIO: f64 = 64.0;
+
 /// Padding of primitive boxes relative to the largest scaled coordinate: `2^-17`, i.e. 4 ulps
 /// of a coordinate of twice that magnitude (the largest `child.max − node.min` difference).
 const PAD_RELATIVE: f32 = 1.0 / 131_072.0;
+
+/// Floor of [`spawn_offset`] relative to the triangle's extent, for hit points at (or very
+/// near) the origin: `2^-20`, far above the f64 tests' `1e-16`.
+const SPAWN_SIZE_FLOOR: f32 = 1.0 / 1_048_576.0;
 
 /// Smallest `tmax` handed to obvhs, in traversal units (bug C: its node test culls everything
 /// when `tmax < 1e-4`).
@@ -69,8 +98,8 @@ const MIN_TRAVERSAL_TMAX: f32 = 2.5e-4;
 pub struct AccelOptions {
     /// obvhs build preset (`pre_split` is ignored: triangles are never split).
     pub build: BvhBuildParams,
-    /// Trace in the power-of-two rescaled space (the bug C workaround). Only tests that pin the
-    /// upstream defect turn this off.
+    /// Trace each group in its own power-of-two rescaled, centred space (the bug C workaround).
+    /// Only tests that pin the upstream defect turn this off.
     pub rescale: bool,
     /// Pad primitive boxes (the bug D workaround). Only tests turn this off.
     pub pad_boxes: bool,
@@ -116,8 +145,8 @@ pub struct Hit {
     pub shading_normal: Vec3,
     /// Hit position, interpolated from the barycentrics.
     pub position: Vec3,
-    /// Distance to move a new ray's origin off the surface along the geometric normal:
-    /// `SPAWN_RELATIVE_OFFSET · M` (see [`spawn_offset`]).
+    /// Distance to move a new ray's origin off the surface along the geometric normal
+    /// (see [`spawn_offset`]).
     pub offset: f32,
 }
 
@@ -131,16 +160,12 @@ impl Hit {
 }
 
 /// The spawn offset for a point `p` on a triangle `(v0, v1, v2)`:
-/// `SPAWN_RELATIVE_OFFSET · max(|p|∞, |v0|∞, |v1|∞, |v2|∞)`.
+/// `SPAWN_RELATIVE_OFFSET · max(|p|∞, 2^-20 · e)` with `e` the triangle's extent (largest
+/// absolute coordinate difference of its vertices) — see [`SPAWN_RELATIVE_OFFSET`].
 #[must_use]
 pub fn spawn_offset(p: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> f32 {
-    let m = p
-        .abs()
-        .max(v0.abs())
-        .max(v1.abs())
-        .max(v2.abs())
-        .max_element();
-    SPAWN_RELATIVE_OFFSET * m
+    let extent = (v0.max(v1).max(v2) - v0.min(v1).min(v2)).max_element();
+    SPAWN_RELATIVE_OFFSET * p.abs().max_element().max(SPAWN_SIZE_FLOOR * extent)
 }
 
 /// `p` moved by `offset` along the unit normal `n`, to the side of `dir` (pbrt-v4 / Mitsuba 3
@@ -154,26 +179,167 @@ pub fn offset_origin(p: Vec3, n: Vec3, offset: f32, dir: Vec3) -> Vec3 {
     }
 }
 
-/// Spawn offset for a point of a surface given only its position (no triangle at hand, e.g.
-/// a vertex given to [`crate::Renderer::radiance_at_points`]): `SPAWN_RELATIVE_OFFSET · 2 |p|∞`, with
-/// the largest absolute coordinate of the scene as a floor when `p` is near the origin.
+/// Spawn offset for a point of a surface given only its position (no triangle at hand, e.g. a
+/// vertex given to [`crate::Renderer::radiance_at_points`], or a vertex of a bake):
+/// `SPAWN_RELATIVE_OFFSET · 2 |p|∞`, with `1e-3 · scale` as a floor when `p` is near the
+/// origin (`scale`: the extent of the point's object, or of the scene).
 #[must_use]
-pub fn point_offset(p: Vec3, scene_max_abs: f32) -> f32 {
-    SPAWN_RELATIVE_OFFSET * (2.0 * p.abs().max_element()).max(1.0e-3 * scene_max_abs)
+pub fn point_offset(p: Vec3, scale: f32) -> f32 {
+    SPAWN_RELATIVE_OFFSET * (2.0 * p.abs().max_element()).max(1.0e-3 * scale)
 }
 
-/// The acceleration structure: a CWBVH over all triangles of all meshes.
-pub struct Accel {
-    bvh: Option<CwBvh>,
-    /// Boxes the BVH was built over (original order), for `validate`.
+/// Objects of similar scale, with their BVH in their own centred, rescaled space.
+struct Group {
+    bvh: CwBvh,
+    /// Boxes the BVH was built over (original order, group space), for `validate`.
     boxes: Vec<PrimBox>,
-    /// Scaled-space triangles in BVH primitive order.
-    tris: Vec<Triangle>,
+    /// Group-space triangles in BVH primitive order (what the boxes bound).
+    local: Vec<Triangle>,
+    /// World-space triangles in BVH primitive order (what the exact tests use).
+    world: Vec<[Vec3; 3]>,
     /// `(mesh, triangle)` of each BVH primitive slot.
     refs: Vec<(u32, u32)>,
+    /// World position of the group space's origin.
+    centre: DVec3,
+    /// Power-of-two scale from world to group units.
+    scale: f64,
+    /// World box of the group, padded as its primitive boxes are.
+    lo: DVec3,
+    /// Upper corner of the world box.
+    hi: DVec3,
+    /// The padding in world units.
+    pad_world: f64,
+}
+
+/// The ray of one query in f64 (exact copies of the caller's f32 values).
+#[derive(Clone, Copy)]
+struct WorldRay {
+    origin: DVec3,
+    dir: DVec3,
+    /// The direction as obvhs gets it (bug A applied).
+    dir32: Vec3A,
+    inv: DVec3,
+}
+
+impl WorldRay {
+    fn new(origin: Vec3, dir: Vec3) -> Self {
+        // Bug A: `+ 0.0` maps -0.0 to +0.0 (IEEE round-to-nearest), leaving all else unchanged.
+        let dir32 = Vec3A::from(dir) + Vec3A::ZERO;
+        let d = Vec3::from(dir32).as_dvec3();
+        Self {
+            origin: origin.as_dvec3(),
+            dir: d,
+            dir32,
+            inv: DVec3::ONE / d,
+        }
+    }
+
+    /// `[t0, t1]` of the ray inside the box, if it meets it.
+    fn clip(&self, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
+        let a = (lo - self.origin) * self.inv;
+        let b = (hi - self.origin) * self.inv;
+        // `min`/`max` drop a NaN (0 · ∞ when the origin lies on a slab plane of a zero
+        // direction component), keeping the other bound.
+        let t0 = a.x.min(b.x).max(a.y.min(b.y)).max(a.z.min(b.z));
+        let t1 = a.x.max(b.x).min(a.y.max(b.y)).min(a.z.max(b.z));
+        (t0 <= t1 && t1 >= 0.0).then_some((t0, t1))
+    }
+
+    /// Exact-input Möller–Trumbore in f64: the distance to triangle `tri` if the ray meets it
+    /// with `0 ≤ t ≤ tmax`.
+    #[inline]
+    fn intersect(&self, tri: &[Vec3; 3], tmax: f64) -> Option<f64> {
+        let [a, b, c] = tri.map(Vec3::as_dvec3);
+        let (e1, e2) = (b - a, c - a);
+        let p = self.dir.cross(e2);
+        let det = e1.dot(p);
+        if det == 0.0 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let tv = self.origin - a;
+        let u = tv.dot(p) * inv;
+        if !(0.0..=1.0).contains(&u) {
+            return None;
+        }
+        let q = tv.cross(e1);
+        let v = self.dir.dot(q) * inv;
+        if v < 0.0 || u + v > 1.0 {
+            return None;
+        }
+        let t = e2.dot(q) * inv;
+        (t >= 0.0 && t <= tmax).then_some(t)
+    }
+}
+
+impl Group {
+    /// The obvhs ray for this group's space, starting where the ray enters the group's box
+    /// (or at its origin if that is inside), and the world `t` of that start.
+    fn local_ray(&self, ray: &WorldRay, t0: f64, tmax: f64) -> (Ray, f64) {
+        let start = (t0 - self.pad_world).max(0.0);
+        let o = ((ray.origin + ray.dir * start - self.centre) * self.scale).as_vec3();
+        let tmax_local = if tmax.is_finite() {
+            ((tmax - start) * self.scale) as f32
+        } else {
+            f32::INFINITY
+        };
+        (
+            Ray::new(
+                Vec3A::from(o),
+                ray.dir32,
+                0.0,
+                tmax_local.max(MIN_TRAVERSAL_TMAX),
+            ),
+            start,
+        )
+    }
+
+    /// The closest hit closer than `best.t` in this group; updates `best`.
+    fn closest(&self, group: usize, ray: &WorldRay, t0: f64, best: &mut Best) {
+        let (local, start) = self.local_ray(ray, t0, best.t);
+        let mut hit = RayHit::none();
+        let scale = self.scale;
+        self.bvh.ray_traverse(local, &mut hit, |_, slot| {
+            match ray.intersect(&self.world[slot], best.t) {
+                Some(t) => {
+                    if t < best.t || best.slot.is_none() {
+                        *best = Best {
+                            t,
+                            slot: Some((group, slot)),
+                        };
+                    }
+                    (((t - start) * scale) as f32).max(0.0)
+                }
+                None => f32::INFINITY,
+            }
+        });
+    }
+
+    /// Whether anything in this group is hit with `t ≤ tmax`.
+    fn occluded(&self, ray: &WorldRay, t0: f64, tmax: f64) -> bool {
+        let (local, start) = self.local_ray(ray, t0, tmax);
+        let scale = self.scale;
+        !self.bvh.ray_traverse_miss(local, |_, slot| {
+            match ray.intersect(&self.world[slot], tmax) {
+                Some(t) => (((t - start) * scale) as f32).max(0.0),
+                None => f32::INFINITY,
+            }
+        })
+    }
+}
+
+/// The closest hit found so far: world `t` and `(group, slot)`.
+struct Best {
+    t: f64,
+    slot: Option<(usize, usize)>,
+}
+
+/// The acceleration structure: per-scale groups of objects, each with its own CWBVH.
+pub struct Accel {
+    groups: Vec<Group>,
     meshes: Vec<Mesh>,
-    scale: f32,
-    inv_scale: f32,
+    /// Extent (largest side of the bounding box) of each mesh; 0 for empty meshes.
+    extents: Vec<f32>,
     max_abs: f32,
     triangle_count: usize,
 }
@@ -182,19 +348,65 @@ impl std::fmt::Debug for Accel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Accel")
             .field("triangles", &self.triangle_count)
-            .field("scale", &self.scale)
+            .field("groups", &self.groups.len())
             .finish_non_exhaustive()
     }
 }
 
-/// `2^k` for `k` in the normal f32 exponent range, exactly.
-fn pow2(k: i32) -> f32 {
-    f32::from_bits(((k.clamp(-126, 127) + 127) as u32) << 23)
+/// `2^k` for `k` in the normal f64 exponent range, exactly.
+fn pow2(k: i32) -> f64 {
+    f64::from_bits(((k.clamp(-1022, 1023) + 1023) as u64) << 52)
 }
 
 /// Unbiased exponent `e` with `2^e ≤ x < 2^(e+1)` for a positive normal `x`.
-fn exponent_of(x: f32) -> i32 {
-    ((x.to_bits() >> 23) & 0xff) as i32 - 127
+fn exponent_of(x: f64) -> i32 {
+    ((x.to_bits() >> 52) & 0x7ff) as i32 - 1023
+}
+
+/// World bounding box of a mesh's used vertices.
+fn mesh_bounds(mesh: &Mesh) -> Option<(DVec3, DVec3)> {
+    let mut it = mesh.indices.iter().flatten();
+    let first = mesh.positions[*it.next()? as usize].as_dvec3();
+    Some(it.fold((first, first), |(lo, hi), &i| {
+        let p = mesh.positions[i as usize].as_dvec3();
+        (lo.min(p), hi.max(p))
+    }))
+}
+
+/// Groups of mesh indices: largest mesh first; a mesh joins the first group whose box, with it
+/// added, is at most `GROUP_RATIO` times the mesh's extent.
+fn group_meshes(bounds: &[Option<(DVec3, DVec3)>]) -> Vec<Vec<usize>> {
+    let extent = |b: &(DVec3, DVec3)| (b.1 - b.0).max_element();
+    let mut order: Vec<usize> = (0..bounds.len()).filter(|&m| bounds[m].is_some()).collect();
+    order.sort_by(|&a, &b| {
+        let (ea, eb) = (extent(&bounds[a].unwrap()), extent(&bounds[b].unwrap()));
+        eb.total_cmp(&ea).then(a.cmp(&b))
+    });
+    let mut groups: Vec<(Vec<usize>, DVec3, DVec3)> = Vec::new();
+    for m in order {
+        let (lo, hi) = bounds[m].unwrap();
+        let e = extent(&(lo, hi)).max(f64::MIN_POSITIVE);
+        let joined = groups
+            .iter_mut()
+            .find(|(_, glo, ghi)| extent(&(glo.min(lo), ghi.max(hi))) <= GROUP_RATIO * e);
+        match joined {
+            Some((members, glo, ghi)) => {
+                members.push(m);
+                *glo = glo.min(lo);
+                *ghi = ghi.max(hi);
+            }
+            None => groups.push((vec![m], lo, hi)),
+        }
+    }
+    let mut out: Vec<Vec<usize>> = groups
+        .into_iter()
+        .map(|(mut g, _, _)| {
+            g.sort_unstable();
+            g
+        })
+        .collect();
+    out.sort_unstable();
+    out
 }
 
 impl Accel {
@@ -250,67 +462,112 @@ impl Accel {
                 }
             }
         }
-        let scale = if options.rescale && max_abs > f32::MIN_POSITIVE {
-            pow2(5 - exponent_of(max_abs))
-        } else {
-            1.0
-        };
-        let inv_scale = 1.0 / scale;
+        let bounds: Vec<Option<(DVec3, DVec3)>> = meshes.iter().map(mesh_bounds).collect();
+        let extents = bounds
+            .iter()
+            .map(|b| b.map_or(0.0, |(lo, hi)| (hi - lo).max_element() as f32))
+            .collect();
+        let groups = group_meshes(&bounds)
+            .into_iter()
+            .map(|members| Self::build_group(meshes, &bounds, &members, options))
+            .collect();
+        Ok(Self {
+            groups,
+            meshes: meshes.to_vec(),
+            extents,
+            max_abs,
+            triangle_count: meshes.iter().map(|m| m.indices.len()).sum(),
+        })
+    }
 
-        let mut tris = Vec::new();
+    fn build_group(
+        meshes: &[Mesh],
+        bounds: &[Option<(DVec3, DVec3)>],
+        members: &[usize],
+        options: AccelOptions,
+    ) -> Group {
+        let (lo, hi) = members
+            .iter()
+            .filter_map(|&m| bounds[m])
+            .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
+            .expect("groups hold meshes with triangles");
+        let (centre, scale) = if options.rescale {
+            let centre = ((lo + hi) * 0.5).as_vec3().as_dvec3();
+            let m = (hi - centre).max(centre - lo).max_element();
+            let scale = if m > 0.0 {
+                pow2(5 - exponent_of(m))
+            } else {
+                1.0
+            };
+            (centre, scale)
+        } else {
+            (DVec3::ZERO, 1.0)
+        };
+        let mut local = Vec::new();
+        let mut world = Vec::new();
         let mut refs = Vec::new();
-        for (mi, mesh) in meshes.iter().enumerate() {
+        let mut max_local = 0.0f32;
+        for &mi in members {
+            let mesh = &meshes[mi];
             for (ti, idx) in mesh.indices.iter().enumerate() {
-                let p = |k: usize| Vec3A::from(mesh.positions[idx[k] as usize] * scale);
-                tris.push(Triangle {
-                    v0: p(0),
-                    v1: p(1),
-                    v2: p(2),
+                let w = idx.map(|i| mesh.positions[i as usize]);
+                let l = w.map(|p| ((p.as_dvec3() - centre) * scale).as_vec3());
+                for p in l {
+                    max_local = max_local.max(p.abs().max_element());
+                }
+                local.push(Triangle {
+                    v0: l[0].into(),
+                    v1: l[1].into(),
+                    v2: l[2].into(),
                 });
+                world.push(w);
                 refs.push((mi as u32, ti as u32));
             }
         }
-        let triangle_count = tris.len();
         let pad = if options.pad_boxes {
-            max_abs * scale * PAD_RELATIVE
+            max_local * PAD_RELATIVE
         } else {
             0.0
         };
-        let boxes: Vec<PrimBox> = tris
+        let boxes: Vec<PrimBox> = local
             .iter()
             .map(|t| {
                 let b = t.aabb();
                 PrimBox(Aabb::new(b.min - pad, b.max + pad))
             })
             .collect();
-        let (bvh, tris, refs) = if tris.is_empty() {
-            (None, tris, refs)
-        } else {
-            let mut build_time = Duration::ZERO;
-            let bvh = build_cwbvh(&boxes, options.build, &mut build_time);
-            let ordered: Vec<Triangle> = bvh
-                .primitive_indices
-                .iter()
-                .map(|&i| tris[i as usize])
-                .collect();
-            let ordered_refs = bvh
-                .primitive_indices
-                .iter()
-                .map(|&i| refs[i as usize])
-                .collect();
-            (Some(bvh), ordered, ordered_refs)
-        };
-        Ok(Self {
+        let mut build_time = Duration::ZERO;
+        let bvh = build_cwbvh(&boxes, options.build, &mut build_time);
+        let local = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| local[i as usize])
+            .collect();
+        let world = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| world[i as usize])
+            .collect();
+        let refs = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| refs[i as usize])
+            .collect();
+        // World box: the local boxes' extent mapped back, plus one more padding for the
+        // rounding of the local coordinates (½ ulp ≪ pad).
+        let pad_world = 2.0 * f64::from(pad.max(max_local * PAD_RELATIVE)) / scale;
+        Group {
             bvh,
             boxes,
-            tris,
+            local,
+            world,
             refs,
-            meshes: meshes.to_vec(),
+            centre,
             scale,
-            inv_scale,
-            max_abs,
-            triangle_count,
-        })
+            lo: lo - DVec3::splat(pad_world),
+            hi: hi + DVec3::splat(pad_world),
+            pad_world,
+        }
     }
 
     /// Number of triangles.
@@ -331,76 +588,87 @@ impl Accel {
         self.max_abs
     }
 
-    /// The power-of-two scale of the traversal space (1 when rescaling is off).
+    /// Extent of mesh `mesh` (largest side of its bounding box, world units; 0 when it has no
+    /// triangles).
     #[must_use]
-    pub fn traversal_scale(&self) -> f32 {
-        self.scale
+    pub fn mesh_extent(&self, mesh: usize) -> f32 {
+        self.extents.get(mesh).copied().unwrap_or(0.0)
     }
 
-    /// The traversal ray and the true `tmax` in traversal units. The ray's own `tmax` is at
-    /// least [`MIN_TRAVERSAL_TMAX`] (bug C: obvhs culls every node when `tmax < 1e-4`); hits
-    /// beyond the true `tmax` are filtered in the intersection callback.
-    fn ray(&self, origin: Vec3, dir: Vec3, tmax: f32) -> (Ray, f32) {
-        // Bug A: `+ 0.0` maps -0.0 to +0.0 (IEEE round-to-nearest), leaving all else unchanged.
-        let d = Vec3A::from(dir) + Vec3A::ZERO;
-        let tmax = if tmax.is_finite() {
-            tmax * self.scale
-        } else {
-            f32::INFINITY
-        };
-        let ray = Ray::new(
-            Vec3A::from(origin * self.scale),
-            d,
-            0.0,
-            tmax.max(MIN_TRAVERSAL_TMAX),
-        );
-        (ray, tmax)
+    /// Number of scale groups (each with its own BVH).
+    #[must_use]
+    pub fn group_count(&self) -> usize {
+        self.groups.len()
+    }
+
+    /// The power-of-two scales of the groups' traversal spaces (1 when rescaling is off).
+    #[must_use]
+    pub fn traversal_scales(&self) -> Vec<f64> {
+        self.groups.iter().map(|g| g.scale).collect()
+    }
+
+    /// The groups the ray's box test passes, with the entry `t`, nearest first.
+    fn groups_on(&self, ray: &WorldRay, tmax: f64) -> impl Iterator<Item = (usize, f64)> {
+        let mut on: Vec<(usize, f64)> = self
+            .groups
+            .iter()
+            .enumerate()
+            .filter_map(|(i, g)| {
+                let (t0, _) = ray.clip(g.lo, g.hi)?;
+                (t0 <= tmax).then_some((i, t0.max(0.0)))
+            })
+            .collect();
+        if on.len() > 1 {
+            on.sort_by(|a, b| a.1.total_cmp(&b.1));
+        }
+        on.into_iter()
+    }
+
+    fn checked(origin: Vec3, dir: Vec3, tmax: f32) -> Option<f64> {
+        if !(origin.is_finite() && dir.is_finite()) || tmax.is_nan() {
+            return None;
+        }
+        Some(f64::from(tmax))
     }
 
     /// The closest intersection with `t ∈ [0, tmax]` along the unit direction `dir`.
     #[must_use]
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        let bvh = self.bvh.as_ref()?;
-        if !(origin.is_finite() && dir.is_finite()) || tmax.is_nan() {
-            return None;
-        }
-        let (ray, tmax) = self.ray(origin, dir, tmax);
-        let mut hit = RayHit::none();
-        let tris = &self.tris;
-        let found = bvh.ray_traverse(ray, &mut hit, |r, slot| {
-            let t = tris[slot].intersect(r);
-            if t <= tmax {
-                t
-            } else {
-                f32::INFINITY
+        let tmax = Self::checked(origin, dir, tmax)?;
+        let ray = WorldRay::new(origin, dir);
+        let mut best = Best {
+            t: tmax,
+            slot: None,
+        };
+        if let [g] = self.groups.as_slice() {
+            let (t0, _) = ray.clip(g.lo, g.hi)?;
+            g.closest(0, &ray, t0.max(0.0), &mut best);
+        } else {
+            for (gi, t0) in self.groups_on(&ray, tmax) {
+                if t0 > best.t {
+                    break;
+                }
+                self.groups[gi].closest(gi, &ray, t0, &mut best);
             }
-        });
-        if !found || hit.t > tmax {
-            return None;
         }
-        let slot = hit.primitive_id as usize;
-        Some(self.hit_record(slot, origin, dir, hit.t * self.inv_scale))
+        let (gi, slot) = best.slot?;
+        Some(self.hit_record(gi, slot, &ray, best.t))
     }
 
     /// Whether anything is hit with `t ∈ [0, tmax]` along the unit direction `dir`.
     #[must_use]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else {
+        let Some(tmax) = Self::checked(origin, dir, tmax) else {
             return false;
         };
-        if !(origin.is_finite() && dir.is_finite()) || tmax.is_nan() {
-            return false;
+        let ray = WorldRay::new(origin, dir);
+        if let [g] = self.groups.as_slice() {
+            return ray
+                .clip(g.lo, g.hi)
+                .is_some_and(|(t0, _)| t0 <= tmax && g.occluded(&ray, t0.max(0.0), tmax));
         }
-        let (ray, tmax) = self.ray(origin, dir, tmax);
-        let tris = &self.tris;
-        !bvh.ray_traverse_miss(ray, |r, slot| {
-            let t = tris[slot].intersect(r);
-            if t <= tmax {
-                t
-            } else {
-                f32::INFINITY
-            }
-        })
+        self.groups_on(&ray, tmax)
+            .any(|(gi, t0)| self.groups[gi].occluded(&ray, t0, tmax))
     }
 
     /// Whether the segment from `from` to `to` is blocked, stopping `SHADOW_RAY_SHORTEN` short
@@ -423,16 +691,14 @@ impl Accel {
         idx.map(|i| m.positions[i as usize])
     }
 
-    fn hit_record(&self, slot: usize, origin: Vec3, dir: Vec3, t: f32) -> Hit {
-        let (mesh, tri) = self.refs[slot];
+    fn hit_record(&self, group: usize, slot: usize, ray: &WorldRay, t: f64) -> Hit {
+        let g = &self.groups[group];
+        let (mesh, tri) = g.refs[slot];
         let m = &self.meshes[mesh as usize];
-        // World vertices from the traversal copy (just touched, so in cache): scaling back by
-        // a power of two is exact.
-        let st = &self.tris[slot];
-        let [v0, v1, v2] = [st.v0, st.v1, st.v2].map(|v| Vec3::from(v) * self.inv_scale);
+        let [v0, v1, v2] = g.world[slot];
         // Bug B: barycentrics by Möller–Trumbore in f64 (u weights v1, v weights v2).
         let (a0, a1, a2) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
-        let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
+        let (o, d) = (ray.origin, ray.dir);
         let (e1, e2) = (a1 - a0, a2 - a0);
         let pvec = d.cross(e2);
         let det = e1.dot(pvec);
@@ -441,7 +707,7 @@ impl Accel {
             let qvec = tvec.cross(e1);
             (tvec.dot(pvec) / det, d.dot(qvec) / det)
         } else {
-            barycentrics_of_point(a0, a1, a2, o + d * f64::from(t))
+            barycentrics_of_point(a0, a1, a2, o + d * t)
         };
         u = u.clamp(0.0, 1.0);
         v = v.clamp(0.0, 1.0);
@@ -467,7 +733,7 @@ impl Accel {
             }
         };
         Hit {
-            t,
+            t: t as f32,
             mesh,
             tri,
             u: u as f32,
@@ -479,19 +745,20 @@ impl Accel {
         }
     }
 
-    /// Checks the structure: the obvhs CWBVH invariants (its own `validate`), that every
-    /// triangle of every mesh appears exactly once, and that the traversal-space triangles are
-    /// exactly the world triangles times the scale.
+    /// Checks the structure: the obvhs CWBVH invariants of every group (its own `validate`),
+    /// that every triangle of every mesh appears exactly once, that the world triangles are
+    /// the meshes' and the group-space ones their image, and that every triangle lies inside
+    /// its leaf's quantised box exactly.
     ///
     /// # Errors
     /// A description of the first inconsistency found.
     pub fn validate(&self) -> Result<(), TracerError> {
         let fail = |reason: String| Err(TracerError::InvalidAccel(reason));
-        let expected: usize = self.meshes.iter().map(|m| m.indices.len()).sum();
-        if expected != self.triangle_count || self.refs.len() != self.tris.len() {
+        let in_groups: usize = self.groups.iter().map(|g| g.refs.len()).sum();
+        if in_groups != self.triangle_count {
             return fail(format!(
-                "{expected} mesh triangles, {} in the BVH",
-                self.refs.len()
+                "{} mesh triangles, {in_groups} in the BVHs",
+                self.triangle_count
             ));
         }
         let mut seen: Vec<Vec<bool>> = self
@@ -499,41 +766,52 @@ impl Accel {
             .iter()
             .map(|m| vec![false; m.indices.len()])
             .collect();
-        for (slot, &(mesh, tri)) in self.refs.iter().enumerate() {
-            let Some(flag) = seen
-                .get_mut(mesh as usize)
-                .and_then(|s| s.get_mut(tri as usize))
-            else {
-                return fail(format!(
-                    "slot {slot} refers to missing triangle {mesh}/{tri}"
-                ));
-            };
-            if *flag {
-                return fail(format!("triangle {mesh}/{tri} appears twice"));
+        for (gi, g) in self.groups.iter().enumerate() {
+            if g.world.len() != g.refs.len() || g.local.len() != g.refs.len() {
+                return fail(format!("group {gi}: array lengths differ"));
             }
-            *flag = true;
-            let world = self.triangle(mesh, tri);
-            let t = &self.tris[slot];
-            for (k, s) in [t.v0, t.v1, t.v2].into_iter().enumerate() {
-                if Vec3::from(s) != world[k] * self.scale {
-                    return fail(format!("slot {slot} vertex {k} differs from its mesh"));
+            for (slot, &(mesh, tri)) in g.refs.iter().enumerate() {
+                let Some(flag) = seen
+                    .get_mut(mesh as usize)
+                    .and_then(|s| s.get_mut(tri as usize))
+                else {
+                    return fail(format!(
+                        "group {gi} slot {slot} refers to missing triangle {mesh}/{tri}"
+                    ));
+                };
+                if *flag {
+                    return fail(format!("triangle {mesh}/{tri} appears twice"));
+                }
+                *flag = true;
+                let world = self.triangle(mesh, tri);
+                if g.world[slot] != world {
+                    return fail(format!("group {gi} slot {slot} differs from its mesh"));
+                }
+                let t = &g.local[slot];
+                for (k, s) in [t.v0, t.v1, t.v2].into_iter().enumerate() {
+                    let expect = ((world[k].as_dvec3() - g.centre) * g.scale).as_vec3();
+                    if Vec3::from(s) != expect {
+                        return fail(format!(
+                            "group {gi} slot {slot} vertex {k} is not its group-space image"
+                        ));
+                    }
+                    if world[k].as_dvec3().cmplt(g.lo).any()
+                        || world[k].as_dvec3().cmpgt(g.hi).any()
+                    {
+                        return fail(format!("group {gi} slot {slot} is outside the group box"));
+                    }
                 }
             }
-        }
-        if seen.iter().flatten().any(|&f| !f) {
-            return fail("a triangle is missing from the BVH".into());
-        }
-        if let Some(bvh) = &self.bvh {
-            let boxes = &self.boxes;
+            let boxes = &g.boxes;
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                bvh.validate(boxes, false);
+                g.bvh.validate(boxes, false);
             }));
             if result.is_err() {
-                return fail("obvhs CwBvh::validate failed".into());
+                return fail(format!("group {gi}: obvhs CwBvh::validate failed"));
             }
             // Stricter than obvhs (which allows 1e-5): every triangle lies inside its leaf's
             // quantised box exactly, so traversal cannot cut into it (bug D).
-            for (ni, node) in bvh.nodes.iter().enumerate() {
+            for (ni, node) in g.bvh.nodes.iter().enumerate() {
                 for ch in 0..8 {
                     if !node.is_leaf(ch) || node.is_child_empty(ch) {
                         continue;
@@ -541,18 +819,23 @@ impl Accel {
                     let bounds = node.child_aabb(ch);
                     let (first, count) = node.child_primitives(ch);
                     for slot in first..first + count {
-                        let Some(tri) = self.tris.get(slot as usize) else {
-                            return fail(format!("node {ni} refers to primitive slot {slot}"));
+                        let Some(tri) = g.local.get(slot as usize) else {
+                            return fail(format!(
+                                "group {gi} node {ni} refers to primitive slot {slot}"
+                            ));
                         };
                         let b = tri.aabb();
                         if b.min.cmplt(bounds.min).any() || b.max.cmpgt(bounds.max).any() {
                             return fail(format!(
-                                "triangle in slot {slot} sticks out of its leaf box in node {ni}"
+                                "group {gi}: triangle in slot {slot} sticks out of its leaf box in node {ni}"
                             ));
                         }
                     }
                 }
             }
+        }
+        if seen.iter().flatten().any(|&f| !f) {
+            return fail("a triangle is missing from the BVHs".into());
         }
         Ok(())
     }
