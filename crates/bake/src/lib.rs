@@ -36,8 +36,8 @@ pub use settings::{BakeSettings, PointKind, DEFAULT_PIXEL_SAMPLES, MAX_PIXEL_SAM
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use prt_bakefile::{
-    Bake, BakeMeta, Decision, EnvCoefficients, EnvPrecision, ObjectBake, SampleKind, ShardInfo,
-    ToolInfo, TransferBlock, TransferKind,
+    Bake, BakeMeta, Decision, EnvCoefficients, EnvPrecision, ObjectBake, RayStats, SampleKind,
+    ShardInfo, ToolInfo, TransferBlock, TransferKind,
 };
 use prt_scene::{Mapping, Material, Scene};
 use prt_sh::{Basis, EnvMapping, ImageRef};
@@ -73,6 +73,9 @@ pub struct ObjectReport {
     pub hit_fraction: f64,
     /// Fraction of diffuse rays that hit the back of a surface.
     pub backface_fraction: f64,
+    /// Fraction of diffuse rays traced from points more than half of whose rays hit the back
+    /// of a surface: rays started inside geometry.
+    pub inside_fraction: f64,
     /// Transfer kinds stored.
     pub kinds: Vec<String>,
 }
@@ -316,6 +319,7 @@ pub fn bake(
 
     // ---- Assemble objects.
     let mut objects = Vec::with_capacity(plans.len());
+    let mut ray_stats = Vec::with_capacity(plans.len());
     let mut reports = Vec::with_capacity(plans.len());
     let sample_kind;
     if vertex_mode {
@@ -386,18 +390,25 @@ pub fn bake(
             debug_assert!(blocks
                 .iter()
                 .all(|b| b.data.len() == count as usize * channels * n2));
-            let (hits, back): (u64, u64) = rows.iter().fold((0, 0), |(h, b), d| {
-                (h + u64::from(d.hit_count), b + u64::from(d.backface_hits))
-            });
-            let denom = (count * u64::from(settings.rays)).max(1) as f64;
+            let hits: u64 = rows.iter().map(|d| u64::from(d.hit_count)).sum();
+            let mut stats = RayStats {
+                object: plan.name.clone(),
+                ..RayStats::default()
+            };
+            for d in rows {
+                stats.add(&point_stats(d, settings.rays));
+            }
+            let denom = stats.rays.max(1) as f64;
             reports.push(ObjectReport {
                 name: plan.name.clone(),
                 order: plan.order,
                 points: count,
                 hit_fraction: hits as f64 / denom,
-                backface_fraction: back as f64 / denom,
+                backface_fraction: stats.backface_fraction(),
+                inside_fraction: stats.inside_fraction(),
                 kinds,
             });
+            ray_stats.push(stats);
             objects.push(ObjectBake {
                 name: plan.name.clone(),
                 geometry_hash: geometry_hash(mesh.positions.as_slice(), &mesh.indices),
@@ -473,9 +484,8 @@ pub fn bake(
                     if let Some(u) = entry.unshadowed.as_mut() {
                         add_scaled(u, &transfer::unshadowed(plan.order, p.normal), weight);
                     }
-                    entry.rays += u64::from(rays);
                     entry.hits += u64::from(d.hit_count);
-                    entry.backface_hits += u64::from(d.backface_hits);
+                    entry.stats.add(&point_stats(&d, rays));
                 }
                 bar.inc(1);
                 objects
@@ -493,15 +503,18 @@ pub fn bake(
             let mut unsh = settings
                 .unshadowed
                 .then(|| vec![0.0f32; count as usize * stride]);
-            let (mut npts, mut rays, mut hits, mut back) = (0u64, 0u64, 0u64, 0u64);
+            let (mut npts, mut hits) = (0u64, 0u64);
+            let mut stats = RayStats {
+                object: plan.name.clone(),
+                ..RayStats::default()
+            };
             for (px, objs) in results.iter().enumerate() {
                 let Some(t) = objs.iter().find(|t| t.mesh == o) else {
                     continue;
                 };
                 npts += 1;
-                rays += t.rays;
                 hits += t.hits;
-                back += t.backface_hits;
+                stats.add(&t.stats);
                 let base = px * stride;
                 store(&mut diffuse[base..base + stride], &t.diffuse);
                 for c in 0..channels {
@@ -514,7 +527,7 @@ pub fn bake(
                     }
                 }
             }
-            rays_traced += rays * (1 + u64::from(plan.needs_visibility));
+            rays_traced += stats.rays * (1 + u64::from(plan.needs_visibility));
             let kind = if bounces > 0 {
                 TransferKind::InterreflectedDiffuse {
                     bounces: settings.bounces,
@@ -539,15 +552,16 @@ pub fn bake(
                 });
             }
             blocks.sort_by_key(|b| b.kind);
-            let denom = rays.max(1) as f64;
             reports.push(ObjectReport {
                 name: plan.name.clone(),
                 order: plan.order,
                 points: npts,
-                hit_fraction: hits as f64 / denom,
-                backface_fraction: back as f64 / denom,
+                hit_fraction: hits as f64 / stats.rays.max(1) as f64,
+                backface_fraction: stats.backface_fraction(),
+                inside_fraction: stats.inside_fraction(),
                 kinds: blocks.iter().map(|b| b.kind.name().to_owned()).collect(),
             });
+            ray_stats.push(stats);
             objects.push(ObjectBake {
                 name: plan.name.clone(),
                 geometry_hash: geometry_hash(mesh.positions.as_slice(), &mesh.indices),
@@ -651,6 +665,7 @@ pub fn bake(
                 index,
                 count,
             }),
+        ray_stats,
     };
     let bake = Bake {
         meta,
@@ -681,9 +696,9 @@ struct PixelTransfer {
     visibility: Option<Vec<f64>>,
     /// `order²`.
     unshadowed: Option<Vec<f64>>,
-    rays: u64,
     hits: u64,
-    backface_hits: u64,
+    /// Over the samples that hit the object.
+    stats: RayStats,
 }
 
 impl PixelTransfer {
@@ -698,10 +713,23 @@ impl PixelTransfer {
             diffuse: vec![0.0; diffuse],
             visibility: visibility.map(|n| vec![0.0; n]),
             unshadowed: unshadowed.map(|n| vec![0.0; n]),
-            rays: 0,
             hits: 0,
-            backface_hits: 0,
+            stats: RayStats::default(),
         }
+    }
+}
+
+/// The ray statistics of one point that traced `rays` diffuse rays: it started inside
+/// geometry when more than half of them hit the back of a surface.
+fn point_stats(d: &DirectResult, rays: u32) -> RayStats {
+    let inside = 2 * d.backface_hits > rays;
+    RayStats {
+        object: String::new(),
+        points: 1,
+        rays: u64::from(rays),
+        backface_hits: u64::from(d.backface_hits),
+        inside_points: u64::from(inside),
+        inside_rays: if inside { u64::from(rays) } else { 0 },
     }
 }
 

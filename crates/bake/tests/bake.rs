@@ -498,3 +498,45 @@ fn bad_settings_are_errors() {
         assert!(bake(&scene, &accel, &s).is_err());
     }
 }
+
+#[test]
+fn ray_statistics_show_a_point_inside_geometry() {
+    // A small sphere enclosed by a large one (interpenetrating or nested geometry, the way a
+    // broken asset shows it). Exact expectations: every ray of the inner sphere's vertices hits
+    // the back of the outer sphere (back-face fraction 1, and every point counts as started
+    // inside geometry); the outer sphere is convex with outward normals, so its rays hit
+    // nothing (0 and 0).
+    let scene = furnace_scene(
+        vec![
+            icosphere(2),
+            transformed(icosphere(1), 0.3, Vec3::new(0.1, 0.0, 0.0)),
+        ],
+        white(),
+    );
+    let accel = Accel::build(&scene).unwrap();
+    let settings = BakeSettings {
+        order: Some(2),
+        rays: 64,
+        bounces: 0,
+        ..BakeSettings::final_quality()
+    };
+    let out = bake(&scene, &accel, &settings).unwrap();
+    let stats = &out.bake.meta.ray_stats;
+    assert_eq!(stats.len(), 2);
+    assert_eq!(stats[0].object, out.bake.objects[0].name);
+    assert_eq!(stats[0].rays, 162 * 64);
+    assert_eq!((stats[0].backface_hits, stats[0].inside_points), (0, 0));
+    assert_eq!(stats[1].points, 42);
+    assert_eq!(stats[1].backface_hits, stats[1].rays);
+    assert_eq!(stats[1].inside_points, 42);
+    assert_eq!(out.report.objects[1].inside_fraction, 1.0);
+    assert_eq!(out.report.objects[0].backface_fraction, 0.0);
+    // `prt inspect` shows them.
+    let text = prt_bakefile::summary(&out.bake).to_string();
+    assert!(
+        text.contains(
+            "back-face hits 100.000 %, rays started inside geometry 100.000 % (42 points)"
+        ),
+        "{text}"
+    );
+}

@@ -245,6 +245,7 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
         tool: m.tool.clone(),
         settings: m.settings.clone(),
         decisions: m.decisions.clone(),
+        ray_stats: m.ray_stats.clone(),
         objects: objects_json,
         environment: bake.environment.as_ref().map(|e| EnvJson {
             order: e.order,

@@ -63,8 +63,8 @@ pub use merge::{merge, split};
 pub use meta::ShConvention;
 pub use model::{
     Bake, BakeMeta, BrdfLobe, BrdfProjection, Decision, EnvCoefficients, EnvPrecision,
-    GlossyBrdfTable, ObjectBake, SampleKind, ScalarType, ShardInfo, ToolInfo, TransferBlock,
-    TransferKind,
+    GlossyBrdfTable, ObjectBake, RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo,
+    TransferBlock, TransferKind,
 };
 pub use summary::{summary, BlockSummary, FileSummary, ObjectSummary, SectionSummary, Summary};
 pub use view::{decode, BakeView, BlockInfo, Coefficients, ObjectInfo, SectionEntry};

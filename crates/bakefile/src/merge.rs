@@ -1,7 +1,7 @@
 //! Sharded bakes: splitting a bake into shards and merging shards back.
 
 use crate::error::BakeFileError;
-use crate::model::{Bake, ObjectBake, ShardInfo, TransferBlock};
+use crate::model::{Bake, ObjectBake, RayStats, ShardInfo, TransferBlock};
 
 fn fail(msg: impl Into<String>) -> BakeFileError {
     BakeFileError::Merge(msg.into())
@@ -48,9 +48,11 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
     }
     let mut meta = first.meta.clone();
     meta.shard = ShardInfo::default();
+    meta.ray_stats.clear();
     for s in shards {
         let mut m = s.meta.clone();
         m.shard = ShardInfo::default();
+        m.ray_stats.clear();
         if m != meta {
             return Err(fail(format!(
                 "shard {} has different metadata (settings, seed, tool, decisions, ...)",
@@ -141,6 +143,32 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
             blocks,
         });
     }
+    // Ray statistics are counts over each shard's points: they add up (all shards or none
+    // carry them, for every object).
+    let with_stats = shards
+        .iter()
+        .filter(|s| !s.meta.ray_stats.is_empty())
+        .count();
+    if with_stats != 0 && with_stats != shards.len() {
+        return Err(fail("some shards carry ray statistics and some do not"));
+    }
+    if with_stats != 0 {
+        let mut total: Vec<RayStats> = first
+            .meta
+            .ray_stats
+            .iter()
+            .map(|r| RayStats {
+                object: r.object.clone(),
+                ..RayStats::default()
+            })
+            .collect();
+        for s in shards {
+            for (t, r) in total.iter_mut().zip(&s.meta.ray_stats) {
+                t.add(r);
+            }
+        }
+        meta.ray_stats = total;
+    }
     let merged = Bake {
         meta,
         objects,
@@ -173,6 +201,16 @@ pub fn split(bake: &Bake, shard_count: u32) -> Result<Vec<Bake>, BakeFileError> 
                 index: k,
                 count: shard_count,
             };
+            // The counts cannot be split by point: shard 0 keeps them, the others count 0, so
+            // merging adds them back exactly.
+            if k > 0 {
+                for r in &mut meta.ray_stats {
+                    *r = RayStats {
+                        object: r.object.clone(),
+                        ..RayStats::default()
+                    };
+                }
+            }
             let objects = bake
                 .objects
                 .iter()

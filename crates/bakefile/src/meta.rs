@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::BakeFileError;
-use crate::model::{Decision, SampleKind, ScalarType, ShardInfo, ToolInfo};
+use crate::model::{Decision, RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo};
 
 /// Value of `"format"`.
 pub(crate) const FORMAT_NAME: &str = "prt-bake";
@@ -100,6 +100,8 @@ pub(crate) struct MetaJson {
     pub environment: Option<EnvJson>,
     pub brdfs: Vec<BrdfJson>,
     pub glossy: Vec<GlossyJson>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ray_stats: Vec<RayStats>,
 }
 
 pub(crate) fn hash_string(h: u64) -> String {

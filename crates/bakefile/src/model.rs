@@ -165,6 +165,49 @@ pub struct Decision {
     pub reason: String,
 }
 
+/// What one object's rays met during a bake: numbers that make a broken mesh visible
+/// (inverted normals, interpenetrating or unclosed geometry). Counts over this file's points,
+/// so shards add up ([`crate::merge`]).
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct RayStats {
+    /// The object's name (the same order as [`Bake::objects`]).
+    pub object: String,
+    /// Points whose rays are counted (per-pixel bakes: footprint samples).
+    pub points: u64,
+    /// Diffuse-transfer rays traced from them.
+    pub rays: u64,
+    /// Rays whose first hit is the back of a surface.
+    pub backface_hits: u64,
+    /// Points more than half of whose rays hit the back of a surface: rays *started inside
+    /// geometry* (a point enclosed by another closed object, or by its own inverted mesh).
+    pub inside_points: u64,
+    /// Rays traced from those points.
+    pub inside_rays: u64,
+}
+
+impl RayStats {
+    /// Fraction of rays whose first hit is a back face (0 when no rays).
+    #[must_use]
+    pub fn backface_fraction(&self) -> f64 {
+        self.backface_hits as f64 / self.rays.max(1) as f64
+    }
+
+    /// Fraction of rays started inside geometry (0 when no rays).
+    #[must_use]
+    pub fn inside_fraction(&self) -> f64 {
+        self.inside_rays as f64 / self.rays.max(1) as f64
+    }
+
+    /// Adds another shard's counts of the same object.
+    pub fn add(&mut self, other: &RayStats) {
+        self.points += other.points;
+        self.rays += other.rays;
+        self.backface_hits += other.backface_hits;
+        self.inside_points += other.inside_points;
+        self.inside_rays += other.inside_rays;
+    }
+}
+
 /// Which part of a sharded bake a file holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ShardInfo {
@@ -203,6 +246,9 @@ pub struct BakeMeta {
     pub decisions: Vec<Decision>,
     /// Which shard this is.
     pub shard: ShardInfo,
+    /// Per object, what its rays met (empty when the writer did not record it; otherwise one
+    /// entry per object, in object order).
+    pub ray_stats: Vec<RayStats>,
 }
 
 impl Default for BakeMeta {
@@ -216,6 +262,7 @@ impl Default for BakeMeta {
             settings: serde_json::Value::Object(serde_json::Map::new()),
             decisions: Vec::new(),
             shard: ShardInfo::default(),
+            ray_stats: Vec::new(),
         }
     }
 }
@@ -405,6 +452,27 @@ impl Bake {
         }
         if !m.settings.is_object() {
             return Err(bad("settings must be a JSON object"));
+        }
+        if !m.ray_stats.is_empty() {
+            if m.ray_stats.len() != self.objects.len() {
+                return Err(bad(format!(
+                    "{} ray statistics for {} objects",
+                    m.ray_stats.len(),
+                    self.objects.len()
+                )));
+            }
+            for (r, o) in m.ray_stats.iter().zip(&self.objects) {
+                if r.object != o.name
+                    || r.backface_hits > r.rays
+                    || r.inside_rays > r.rays
+                    || r.inside_points > r.points
+                {
+                    return Err(bad(format!(
+                        "ray statistics of {:?} do not fit object {:?} (or count more hits than rays)",
+                        r.object, o.name
+                    )));
+                }
+            }
         }
         if let SampleKind::Pixel { width, height } = m.sample_kind {
             if width == 0 || height == 0 {

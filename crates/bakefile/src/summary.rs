@@ -70,6 +70,8 @@ pub struct ObjectSummary {
     pub channels: u32,
     /// Its blocks.
     pub blocks: Vec<BlockSummary>,
+    /// What its rays met, when the bake recorded it.
+    pub ray_stats: Option<crate::model::RayStats>,
 }
 
 /// Summary of a bake: header facts, per-object orders, kinds, counts and value statistics.
@@ -176,6 +178,7 @@ fn summarise(
                         }
                     })
                     .collect(),
+                ray_stats: m.ray_stats.get(oi).cloned(),
             })
             .collect(),
         environment: bake.environment.as_ref().map(|e| (e.order, e.precision)),
@@ -271,6 +274,17 @@ impl std::fmt::Display for Summary {
                     write!(f, ", min {lo}, max {hi}")?;
                 }
                 writeln!(f, ", {} NaN, {} inf", b.nan_count, b.inf_count)?;
+            }
+            if let Some(r) = &o.ray_stats {
+                writeln!(
+                    f,
+                    "  rays: {} from {} points; back-face hits {:.3} %, rays started inside geometry {:.3} % ({} points)",
+                    r.rays,
+                    r.points,
+                    100.0 * r.backface_fraction(),
+                    100.0 * r.inside_fraction(),
+                    r.inside_points
+                )?;
             }
         }
         if let Some((order, precision)) = self.environment {

@@ -771,6 +771,19 @@ impl<'a> BakeView<'a> {
         agree("seed", &json.seed, &seed)?;
         agree("shard", &json.shard, &shard)?;
         agree("objects.len()", &json.objects.len(), &objects.len())?;
+        if !json.ray_stats.is_empty() {
+            agree("ray_stats.len()", &json.ray_stats.len(), &objects.len())?;
+            for (r, o) in json.ray_stats.iter().zip(&json.objects) {
+                agree("ray_stats[].object", &r.object, &o.name)?;
+                if r.backface_hits > r.rays || r.inside_rays > r.rays || r.inside_points > r.points
+                {
+                    return Err(BakeFileError::Metadata(format!(
+                        "ray statistics of {:?} count more hits than rays or points",
+                        r.object
+                    )));
+                }
+            }
+        }
         for (j, o) in json.objects.iter().zip(&objects) {
             let f = |x: &str| format!("objects[{:?}].{x}", o.name);
             agree(&f("name"), &j.name, &o.name)?;
@@ -837,6 +850,7 @@ impl<'a> BakeView<'a> {
                 settings: json.settings,
                 decisions: json.decisions,
                 shard,
+                ray_stats: json.ray_stats,
             },
             objects,
             environment,

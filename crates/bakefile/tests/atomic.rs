@@ -28,6 +28,7 @@ fn test01_write_then_read() {
     // Overwriting replaces the file whole.
     let mut smaller = bake.clone();
     smaller.objects.truncate(1);
+    smaller.meta.ray_stats.truncate(1);
     write_bake(&path, &smaller, ScalarType::F16).unwrap();
     assert_eq!(entries(dir.path()), ["scene.prtbake"]);
     assert_eq!(read_bake(&path).unwrap().objects.len(), 1);

@@ -90,6 +90,12 @@ fn spec_read(bytes: &[u8]) -> Bake {
         tool: serde_json::from_value(meta["tool"].clone()).unwrap(),
         settings: meta["settings"].clone(),
         decisions: serde_json::from_value(meta["decisions"].clone()).unwrap(),
+        ray_stats: serde_json::from_value(
+            meta.get("ray_stats")
+                .cloned()
+                .unwrap_or(serde_json::json!([])),
+        )
+        .unwrap(),
     };
     // §3.3, §3.4, §3.5
     let objt = sec(b"OBJT").unwrap();

@@ -141,12 +141,13 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
         }
         for o in &out.report.objects {
             println!(
-                "{:<24} order {:>2}  points {:>8}  ray hits {:>5.1}%  back faces {:>4.1}%  kinds {}",
+                "{:<24} order {:>2}  points {:>8}  ray hits {:>5.1}%  back faces {:>4.1}%  started inside {:>4.1}%  kinds {}",
                 o.name,
                 o.order,
                 o.points,
                 100.0 * o.hit_fraction,
                 100.0 * o.backface_fraction,
+                100.0 * o.inside_fraction,
                 o.kinds.join(", ")
             );
         }
@@ -227,6 +228,16 @@ fn print_summary(path: &std::path::Path, s: &Summary) {
                 b.max.map_or("-".into(), |v| format!("{v:.5e}")),
                 b.nan_count,
                 b.inf_count
+            );
+        }
+        if let Some(r) = &o.ray_stats {
+            println!(
+                "    rays {} from {} points: back-face hits {:.3} %, started inside geometry {:.3} % ({} points)",
+                r.rays,
+                r.points,
+                100.0 * r.backface_fraction(),
+                100.0 * r.inside_fraction(),
+                r.inside_points
             );
         }
     }

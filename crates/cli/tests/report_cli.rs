@@ -88,6 +88,17 @@ fn report_writes_everything_and_its_figures_are_reproduced_by_hand() {
         md.contains("| order |") && md.contains("prt relight"),
         "{md}"
     );
+    // Per object: back-face hits and rays started inside geometry, in the JSON and the text;
+    // every bake ray counted (points × rays).
+    let rays = first["bake_rays"].as_array().expect("bake_rays");
+    assert!(!rays.is_empty());
+    for r in rays {
+        assert_eq!(r["rays"].as_u64(), r["points"].as_u64().map(|p| p * 64));
+        for k in ["backface_fraction", "inside_fraction"] {
+            assert!((0.0..=1.0).contains(&r[k].as_f64().unwrap()), "{k}: {r}");
+        }
+    }
+    assert!(md.contains("rays started inside geometry"), "{md}");
     let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
     assert!(
         csv.starts_with("order,")

@@ -135,5 +135,23 @@ fn three_shards_merge_to_the_unsharded_file_byte_for_byte() {
             b.len(),
             a.len()
         );
+        // The ray statistics (summed by the merge, so byte equality above covers the sum) are
+        // shown by `prt inspect`: every one of the 50 vertices' 64 rays counted.
+        let out = prt()
+            .arg("inspect")
+            .arg(&merged)
+            .arg("--json")
+            .output()
+            .unwrap();
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let stats = &json["objects"][0]["ray_stats"];
+        assert_eq!(stats["points"], 50, "{json}");
+        assert_eq!(stats["rays"], 50 * 64, "{json}");
+        let text = prt().arg("inspect").arg(&merged).output().unwrap();
+        let text = String::from_utf8_lossy(&text.stdout);
+        assert!(
+            text.contains("rays 3200 from 50 points: back-face hits"),
+            "{text}"
+        );
     }
 }

@@ -21,4 +21,4 @@ pub mod report;
 pub use error::ReportError;
 pub use imaging::{form_image, object_mask, roi_image, RgbImage};
 pub use relit::{check_bake, relight, RelightOptions, RelightStats, Relit};
-pub use report::{run_report, ReportData, ReportSettings};
+pub use report::{run_report, ObjectRays, ReportData, ReportSettings};

@@ -67,6 +67,22 @@ pub fn sample_bake() -> Bake {
                 },
             ],
             shard: ShardInfo::default(),
+            ray_stats: vec![
+                RayStats {
+                    object: "bunny".into(),
+                    points: 37,
+                    rays: 37 * 1024,
+                    backface_hits: 91,
+                    inside_points: 1,
+                    inside_rays: 1024,
+                },
+                RayStats {
+                    object: "floor".into(),
+                    points: 11,
+                    rays: 11 * 1024,
+                    ..RayStats::default()
+                },
+            ],
         },
         objects: vec![
             object("bunny", 37, 5, 1, &mut r),
@@ -223,6 +239,7 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
             },
             settings: serde_json::json!({ "x": r.random::<f64>(), "n": r.random::<u32>() }),
             decisions: vec![],
+            ray_stats: vec![],
             shard: ShardInfo::default(),
         },
         objects,
