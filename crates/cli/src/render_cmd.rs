@@ -19,9 +19,19 @@ pub enum MisArg {
 pub struct RenderArgs {
     /// Scene file (TOML).
     pub scene: PathBuf,
-    /// Samples per pixel (default: the scene's `[render] spp`).
+    /// Samples per pixel (default: the scene's `[render] spp`). With --target-noise or
+    /// --time-budget: the most it may take (default: unlimited).
     #[arg(long)]
     pub spp: Option<u32>,
+    /// Keep sampling until the image's own estimate of its relative noise on object pixels
+    /// (from its two half images) is below this, e.g. 0.01 for 1 %; printed with the result.
+    #[arg(long, allow_hyphen_values = true)]
+    pub target_noise: Option<f64>,
+    /// Stop when the next pass of samples would not fit in this many seconds (with
+    /// --target-noise: whichever comes first). An error if not even the first pass (8 spp)
+    /// fits.
+    #[arg(long, allow_hyphen_values = true)]
+    pub time_budget: Option<f64>,
     /// Indirect bounces: 0 = direct light with shadows, -1 = unlimited (Russian roulette)
     /// (default: the scene's `[render] bounces`).
     #[arg(long, allow_hyphen_values = true)]
@@ -73,6 +83,11 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     }
     let scene = loaded.scene;
     let mut settings = RenderSettings::from_scene(&scene.render);
+    settings.target_noise = args.target_noise;
+    settings.time_budget = args.time_budget;
+    if args.target_noise.is_some() || args.time_budget.is_some() {
+        settings.spp = u32::MAX;
+    }
     if let Some(spp) = args.spp {
         settings.spp = spp;
     }
@@ -119,8 +134,16 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         output::write_png(png, &image, args.exposure)?;
     }
     let samples = f64::from(image.width) * f64::from(image.height) * f64::from(image.settings.spp);
+    let noise = image.noise.map_or(String::new(), |e| {
+        format!(
+            ", noise {:.3} %{}",
+            100.0 * e,
+            args.target_noise
+                .map_or(String::new(), |r| format!(" (target {:.3} %)", 100.0 * r))
+        )
+    });
     eprintln!(
-        "rendered {}×{} at {} spp, bounces {}, seed {} in {:.2} s ({:.0} samples/s) → {}",
+        "rendered {}×{} at {} spp, bounces {}, seed {} in {:.2} s ({:.0} samples/s){noise} → {}",
         image.width,
         image.height,
         image.settings.spp,

@@ -1884,6 +1884,36 @@ fn option_rows() {
         ),
         render("opt_render_spp_0", &["--spp", "0"], "spp", &["at least 1"]),
         render(
+            "opt_render_target_noise_0",
+            &["--target-noise", "0"],
+            "target noise",
+            &["(0, 1)"],
+        ),
+        render(
+            "opt_render_target_noise_negative",
+            &["--target-noise", "-0.01"],
+            "target noise",
+            &["(0, 1)"],
+        ),
+        render(
+            "opt_render_target_noise_nan",
+            &["--target-noise", "NaN"],
+            "target noise",
+            &["(0, 1)"],
+        ),
+        render(
+            "opt_render_time_budget_0",
+            &["--time-budget", "0"],
+            "time budget",
+            &["positive number of seconds"],
+        ),
+        render(
+            "opt_render_time_budget_too_short",
+            &["--time-budget", "1e-9"],
+            "time budget",
+            &["too short for one pass"],
+        ),
+        render(
             "opt_render_bounces_minus_2",
             &["--bounces", "-2"],
             "bounces",

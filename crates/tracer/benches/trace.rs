@@ -1,16 +1,36 @@
-//! Throughput of the tracer on the 37k-vertex Stanford bunny (`scenes/meshes/bunny.obj`):
-//! incoherent closest-hit and occlusion rays per second (rays from a deterministic PCG stream,
-//! origins on a sphere around the bunny aimed at random points inside its bounds, traced in
-//! parallel over both cores with rayon), and camera samples per second of a full render.
+//! Benchmarks on the 37k-vertex Stanford bunny (`scenes/meshes/bunny.obj`).
+//!
+//! - `build/build_medium`: building [`Accel`] with the default options (`medium_build`).
+//! - `rays/{coherent,incoherent,shadow}/{prt,obvhs}`: ray throughput of [`Accel`] next to plain
+//!   obvhs (`build_cwbvh_from_tris` with `medium_build` over the same world-space triangles,
+//!   reordered once into the BVH's primitive order) on exactly the same rays, traced in parallel
+//!   over the batch with rayon:
+//!   - `coherent`: closest hit of the camera rays through the pixel centres of a 256×256 pinhole
+//!     grid (40° vertical field of view) looking at the bunny, in row-major order;
+//!   - `incoherent`: closest hit of 65,536 random rays (a deterministic PCG stream; origins on a
+//!     sphere around the bunny aimed at random points inside its bounds);
+//!   - `shadow`: the incoherent rays as occlusion queries (any hit: [`Accel::occluded`] vs
+//!     `CwBvh::ray_traverse_miss`), unbounded.
+//!
+//!   Every direction gets `+ 0.0` (obvhs bug A: a `-0.0` component misses), for both sides.
+//!   Before timing, the setup asserts that both agree on hit/miss for all but at most 0.1 % of
+//!   each batch (rays grazing triangle edges) and prints the disagreement counts. The prt side
+//!   also builds its full [`prt_tracer::Hit`] record; the obvhs side only finds `t` and the id.
+//! - `render/bunny_64x48_4spp_1bounce`: camera samples per second of a full render.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
+use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle;
+use obvhs::BvhBuildParams;
 use prt_scene::{Material, Mesh};
-use prt_tracer::{test_util, Accel, AccelOptions, RenderSettings, Renderer};
+use prt_tracer::{test_util, Accel, AccelOptions, PinholeCamera, RenderSettings, Renderer};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use std::path::PathBuf;
+use std::time::Duration;
 
 fn bunny() -> Mesh {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes/meshes/bunny.obj");
@@ -46,6 +66,96 @@ fn rays(n: usize, center: Vec3, radius: f32) -> Vec<(Vec3, Vec3)> {
         .collect()
 }
 
+/// Camera rays through the pixel centres of a `size`×`size` pinhole grid, row by row.
+fn camera_rays(eye: Vec3, target: Vec3, size: u32) -> Vec<(Vec3, Vec3)> {
+    let cam = PinholeCamera::new(&test_util::camera(eye, target, 40.0, size, size))
+        .expect("valid camera");
+    (0..size)
+        .flat_map(|y| (0..size).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let d = cam.direction(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            (eye, d)
+        })
+        .collect()
+}
+
+/// Plain obvhs: a CWBVH over the mesh's world-space triangles, in the BVH's primitive order.
+struct PlainObvhs {
+    bvh: CwBvh,
+    tris: Vec<Triangle>,
+}
+
+impl PlainObvhs {
+    fn new(mesh: &Mesh) -> Self {
+        let tris: Vec<Triangle> = mesh
+            .indices
+            .iter()
+            .map(|idx| {
+                let [v0, v1, v2] = idx.map(|i| mesh.positions[i as usize].into());
+                Triangle { v0, v1, v2 }
+            })
+            .collect();
+        let mut build_time = Duration::ZERO;
+        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut build_time);
+        let tris = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
+        Self { bvh, tris }
+    }
+
+    fn ray(origin: Vec3, dir: Vec3) -> Ray {
+        Ray::new_inf(origin.into(), dir.into())
+    }
+
+    fn closest_hit(&self, origin: Vec3, dir: Vec3) -> bool {
+        let mut hit = RayHit::none();
+        self.bvh
+            .ray_traverse(Self::ray(origin, dir), &mut hit, |r, id| {
+                self.tris[id].intersect(r)
+            })
+    }
+
+    fn occluded(&self, origin: Vec3, dir: Vec3) -> bool {
+        !self
+            .bvh
+            .ray_traverse_miss(Self::ray(origin, dir), |r, id| self.tris[id].intersect(r))
+    }
+}
+
+/// The three ray kinds of the `rays` group.
+#[derive(Clone, Copy)]
+enum Kind {
+    Coherent,
+    Incoherent,
+    Shadow,
+}
+
+impl Kind {
+    fn name(self) -> &'static str {
+        match self {
+            Kind::Coherent => "coherent",
+            Kind::Incoherent => "incoherent",
+            Kind::Shadow => "shadow",
+        }
+    }
+
+    fn prt(self, accel: &Accel, o: Vec3, d: Vec3) -> bool {
+        match self {
+            Kind::Shadow => accel.occluded(o, d, f32::INFINITY),
+            _ => accel.closest_hit(o, d, f32::INFINITY).is_some(),
+        }
+    }
+
+    fn obvhs(self, plain: &PlainObvhs, o: Vec3, d: Vec3) -> bool {
+        match self {
+            Kind::Shadow => plain.occluded(o, d),
+            _ => plain.closest_hit(o, d),
+        }
+    }
+}
+
 fn bench(c: &mut Criterion) {
     let mesh = bunny();
     let (lo, hi) = mesh
@@ -56,29 +166,68 @@ fn bench(c: &mut Criterion) {
         });
     let (center, radius) = ((lo + hi) * 0.5, (hi - lo).length() * 0.5);
     let accel = Accel::from_meshes(std::slice::from_ref(&mesh), AccelOptions::default()).unwrap();
-    let batch = rays(1 << 16, center, radius);
+    let plain = PlainObvhs::new(&mesh);
+    let eye = center + Vec3::new(0.0, 0.3 * radius, 2.5 * radius);
+    // `+ 0.0` turns -0.0 components into +0.0 (obvhs bug A), for both sides alike.
+    let no_neg_zero = |rays: Vec<(Vec3, Vec3)>| -> Vec<(Vec3, Vec3)> {
+        rays.into_iter().map(|(o, d)| (o, d + Vec3::ZERO)).collect()
+    };
+    let coherent = no_neg_zero(camera_rays(eye, center, 256));
+    let incoherent = no_neg_zero(rays(1 << 16, center, radius));
+    let kinds = [
+        (Kind::Coherent, &coherent),
+        (Kind::Incoherent, &incoherent),
+        (Kind::Shadow, &incoherent),
+    ];
 
-    let mut g = c.benchmark_group("bunny_rays");
-    g.throughput(Throughput::Elements(batch.len() as u64));
+    // Equal work: both must agree on hit/miss except for a few edge rays.
+    for (kind, batch) in kinds {
+        let (hits, disagree) = batch
+            .par_iter()
+            .map(|&(o, d)| {
+                let (a, b) = (kind.prt(&accel, o, d), kind.obvhs(&plain, o, d));
+                (usize::from(a), usize::from(a != b))
+            })
+            .reduce(|| (0, 0), |x, y| (x.0 + y.0, x.1 + y.1));
+        println!(
+            "rays/{}: {} rays, {hits} prt hits, hit/miss disagreements prt vs obvhs: {disagree}",
+            kind.name(),
+            batch.len()
+        );
+        assert!(
+            disagree * 1000 <= batch.len(),
+            "{}: prt and obvhs disagree on {disagree} of {} rays",
+            kind.name(),
+            batch.len()
+        );
+    }
+
+    let mut g = c.benchmark_group("build");
     g.bench_function("build_medium", |b| {
         b.iter(|| Accel::from_meshes(std::slice::from_ref(&mesh), AccelOptions::default()))
     });
-    g.bench_function("closest_hit", |b| {
-        b.iter(|| {
-            batch
-                .par_iter()
-                .filter(|(o, d)| accel.closest_hit(*o, *d, f32::INFINITY).is_some())
-                .count()
-        })
-    });
-    g.bench_function("occluded", |b| {
-        b.iter(|| {
-            batch
-                .par_iter()
-                .filter(|(o, d)| accel.occluded(*o, *d, f32::INFINITY))
-                .count()
-        })
-    });
+    g.finish();
+
+    let mut g = c.benchmark_group("rays");
+    for (kind, batch) in kinds {
+        g.throughput(Throughput::Elements(batch.len() as u64));
+        g.bench_function(format!("{}/prt", kind.name()), |b| {
+            b.iter(|| {
+                batch
+                    .par_iter()
+                    .filter(|&&(o, d)| kind.prt(&accel, o, d))
+                    .count()
+            })
+        });
+        g.bench_function(format!("{}/obvhs", kind.name()), |b| {
+            b.iter(|| {
+                batch
+                    .par_iter()
+                    .filter(|&&(o, d)| kind.obvhs(&plain, o, d))
+                    .count()
+            })
+        });
+    }
     g.finish();
 
     // A full render: bunny on a floor, lat-long sky, 64×48 pixels, 4 spp, 1 bounce.
@@ -93,7 +242,6 @@ fn bench(c: &mut Criterion) {
             [1.5 - row, 1.2 - row * 0.8, 1.0 - row * 0.5]
         })
         .collect();
-    let eye = center + Vec3::new(0.0, 0.3 * radius, 2.5 * radius);
     let scene = test_util::scene(
         test_util::camera(eye, center, 40.0, 64, 48),
         test_util::latlong_environment(32, 16, texels),

@@ -38,5 +38,5 @@ pub use accel::{
 pub use camera::PinholeCamera;
 pub use error::TracerError;
 pub use obvhs::BvhBuildParams;
-pub use render::{render, Aovs, RenderOutput, Renderer, SurfacePoint};
+pub use render::{render, Aovs, RenderOutput, Renderer, SurfacePoint, FIRST_PASS_SPP};
 pub use settings::{MisHeuristic, Mode, RenderSettings};

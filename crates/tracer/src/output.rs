@@ -7,7 +7,8 @@
 //! 0 for background) and `variance.R/G/B` (estimated variance of the pixel mean, sample
 //! variance / spp). The header carries the attributes `prt.spp` (i32), `prt.bounces` (i32),
 //! `prt.seed` (text, decimal u64), `prt.mode` (text), `prt.render_seconds` (f64),
-//! `prt.tool_version` (text) and `prt.invalid_samples` (i32).
+//! `prt.tool_version` (text), `prt.invalid_samples` (i32) and `prt.noise_estimate` (f64: the
+//! image's own relative noise estimate on object pixels, NaN when it has none).
 //!
 //! **PNG view** (CONVENTIONS.md): radiance × 2^EV, clamped to [0, 1], sRGB curve, 8 bits.
 //!
@@ -120,6 +121,10 @@ pub fn metadata(out: &RenderOutput) -> Vec<(String, AttributeValue)> {
         (
             "prt.invalid_samples".into(),
             AttributeValue::I32(i32::try_from(out.invalid_samples).unwrap_or(i32::MAX)),
+        ),
+        (
+            "prt.noise_estimate".into(),
+            AttributeValue::F64(out.noise.unwrap_or(f64::NAN)),
         ),
     ]
 }

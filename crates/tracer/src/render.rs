@@ -65,6 +65,11 @@ pub struct RenderOutput {
     pub seconds: f64,
     /// Samples that came out NaN or infinite and were counted as zero (should be 0).
     pub invalid_samples: u64,
+    /// The image's own estimate of its relative noise on object pixels (pixels whose camera
+    /// rays hit a surface at least half the time): `‖error‖ / ‖image‖` estimated from its
+    /// two half images (even and odd samples). `None` with an odd sample count or no object
+    /// pixel.
+    pub noise: Option<f64>,
 }
 
 /// Renders `scene` with `settings`: the one-call entry point.
@@ -75,14 +80,56 @@ pub fn render(scene: &Scene, settings: &RenderSettings) -> Result<RenderOutput, 
     Renderer::new(scene, settings.clone())?.render()
 }
 
-struct TileOut {
+/// Per-pixel running sums over the samples taken so far (in sample order, so a render
+/// continued pass after pass sums exactly as one run of the same total would).
+#[derive(Clone, Copy, Default)]
+struct PixelSums {
+    sum: DVec3,
+    sum_sq: DVec3,
+    /// Sum over the even-numbered samples: with the odd ones, two independent half images.
+    sum_even: DVec3,
+    normal: DVec3,
+    albedo: DVec3,
+    depth: f64,
+    /// Samples whose camera ray hit a surface.
+    hits: u32,
+    invalid: u64,
+}
+
+/// The sums of one tile's pixels, row-major within the tile.
+struct TileSums {
     x0: u32,
     y0: u32,
     w: u32,
     h: u32,
-    radiance: Vec<Vec3>,
-    aovs: Aovs,
-    invalid: u64,
+    pixels: Vec<PixelSums>,
+}
+
+/// First pass of a render that stops on noise or time: enough samples (an even number) for
+/// both half images to estimate the noise.
+pub const FIRST_PASS_SPP: u32 = 8;
+
+/// The relative noise of the object pixels of an image made of `k` samples per pixel (`k`
+/// even), estimated from its two half images (even and odd samples): with `A`, `B` their
+/// means, `E[(A − B)²] = 4 Var(mean)`, so `Σ (A − B)² / 4` estimates the squared error of the
+/// whole image without bias. Relative to `Σ mean²`; over pixels whose camera rays hit a
+/// surface at least half the time. `None` when there is no such pixel or `k < 2`.
+fn relative_noise(tiles: &[TileSums], k: u32) -> Option<f64> {
+    if k < 2 || !k.is_multiple_of(2) {
+        return None;
+    }
+    let (half, kf) = (f64::from(k / 2), f64::from(k));
+    let (mut err, mut norm) = (0.0f64, 0.0f64);
+    for p in tiles.iter().flat_map(|t| &t.pixels) {
+        if 2 * p.hits < k {
+            continue;
+        }
+        let a = p.sum_even / half;
+        let b = (p.sum - p.sum_even) / half;
+        err += (a - b).length_squared() / 4.0;
+        norm += (p.sum / kf).length_squared();
+    }
+    (norm > 0.0).then(|| (err / norm).sqrt())
 }
 
 impl<'s> Renderer<'s> {
@@ -174,10 +221,17 @@ impl<'s> Renderer<'s> {
         bar
     }
 
-    /// Renders the scene's camera view.
+    /// Renders the scene's camera view: `spp` samples per pixel, or, with
+    /// [`RenderSettings::target_noise`] or [`RenderSettings::time_budget`], passes of samples
+    /// until the image's own noise estimate ([`RenderOutput::noise`]) is below the target or
+    /// the next pass would not fit in the budget (`spp` is then the most it may take). A pass
+    /// continues the per-pixel sample sequences, so a render that stops at `k` samples is
+    /// bit-identical to a render of `k` samples; the number of passes depends only on noise
+    /// estimates of the image (never on which thread did what) unless a time budget decides.
     ///
     /// # Errors
-    /// An invalid camera, or a thread pool that cannot be built.
+    /// An invalid camera, a thread pool that cannot be built, or a time budget shorter than
+    /// the first pass.
     pub fn render(&self) -> Result<RenderOutput, TracerError> {
         let cam = PinholeCamera::new(&self.scene.camera)?;
         let (width, height) = (cam.width(), cam.height());
@@ -185,25 +239,90 @@ impl<'s> Renderer<'s> {
         let mut tiles = Vec::new();
         for y0 in (0..height).step_by(ts as usize) {
             for x0 in (0..width).step_by(ts as usize) {
-                tiles.push((x0, y0, ts.min(width - x0), ts.min(height - y0)));
+                let (w, h) = (ts.min(width - x0), ts.min(height - y0));
+                tiles.push(TileSums {
+                    x0,
+                    y0,
+                    w,
+                    h,
+                    pixels: vec![PixelSums::default(); (w * h) as usize],
+                });
             }
         }
-        let bar = self.progress(tiles.len() as u64, "render");
+        let max_spp = self.settings.spp;
+        let target = self.settings.target_noise;
+        let budget = self.settings.time_budget;
+        let progressive = target.is_some() || budget.is_some();
+        let pixels = u64::from(width) * u64::from(height);
+        let mut next = if progressive {
+            FIRST_PASS_SPP.min(max_spp)
+        } else {
+            max_spp
+        };
+        let bar = self.progress(pixels * u64::from(next), "render");
         let start = Instant::now();
-        let outs: Vec<TileOut> = self.run(|| {
-            tiles
-                .par_iter()
-                .map(|&(x0, y0, w, h)| {
-                    let t = self.render_tile(&cam, x0, y0, w, h);
-                    bar.inc(1);
-                    t
-                })
-                .collect()
-        })?;
+        let mut done = 0u32;
+        let mut noise;
+        loop {
+            let (from, to) = (done, next);
+            self.run(|| {
+                tiles.par_iter_mut().for_each(|t| {
+                    self.render_tile(&cam, t, from, to);
+                    bar.inc(u64::from(t.w * t.h) * u64::from(to - from));
+                });
+            })?;
+            done = to;
+            noise = relative_noise(&tiles, done);
+            let elapsed = start.elapsed().as_secs_f64();
+            if !progressive || done >= max_spp {
+                break;
+            }
+            if let Some(b) = budget {
+                if done == FIRST_PASS_SPP.min(max_spp) && elapsed > b {
+                    bar.finish_and_clear();
+                    return Err(TracerError::InvalidSettings(format!(
+                        "the time budget of {b} s is too short for one pass of {done} samples per pixel (it took {elapsed:.2} s)"
+                    )));
+                }
+            }
+            // Samples still needed: noise falls as 1/√spp, so the target needs
+            // done·(noise/target)² in all (2 % more, so the last pass lands just under it);
+            // at most 4× per pass while the estimate is young. Without a target (budget
+            // only), double.
+            let want = match (target, noise) {
+                (Some(r), Some(e)) if e <= r => break,
+                (Some(r), Some(e)) => {
+                    let need = f64::from(done) * (e / r).powi(2) * 1.02;
+                    need.min(4.0 * f64::from(done)).ceil() as u64
+                }
+                (Some(_), None) => 4 * u64::from(done),
+                (None, _) => 2 * u64::from(done),
+            };
+            let mut want = want.clamp(u64::from(done) + 2, u64::from(max_spp)) as u32;
+            if let Some(b) = budget {
+                let per_sample = elapsed / f64::from(done);
+                let fits = ((b - elapsed) / per_sample).floor().max(0.0) as u64;
+                want = want.min((u64::from(done) + fits).min(u64::from(max_spp)) as u32);
+            }
+            want -= want % 2;
+            if want <= done {
+                break;
+            }
+            next = want;
+            bar.set_length(pixels * u64::from(next));
+            if let Some(e) = noise {
+                bar.set_message(format!(
+                    "render: {done} spp, noise {:.3} %{}",
+                    100.0 * e,
+                    target.map_or(String::new(), |r| format!(" (target {:.3} %)", 100.0 * r))
+                ));
+            }
+        }
         let seconds = start.elapsed().as_secs_f64();
         bar.finish_and_clear();
 
         let n = (width * height) as usize;
+        let aov = self.settings.aovs;
         let mut radiance = vec![Vec3::ZERO; n];
         let mut aovs = Aovs {
             normal: vec![Vec3::ZERO; n],
@@ -212,18 +331,24 @@ impl<'s> Renderer<'s> {
             variance: vec![Vec3::ZERO; n],
         };
         let mut invalid_samples = 0;
-        for t in outs {
-            invalid_samples += t.invalid;
+        let k = f64::from(done);
+        for t in &tiles {
             for ty in 0..t.h {
                 for tx in 0..t.w {
-                    let src = (ty * t.w + tx) as usize;
+                    let p = &t.pixels[(ty * t.w + tx) as usize];
                     let dst = ((t.y0 + ty) * width + t.x0 + tx) as usize;
-                    radiance[dst] = t.radiance[src];
-                    if self.settings.aovs {
-                        aovs.normal[dst] = t.aovs.normal[src];
-                        aovs.albedo[dst] = t.aovs.albedo[src];
-                        aovs.depth[dst] = t.aovs.depth[src];
-                        aovs.variance[dst] = t.aovs.variance[src];
+                    invalid_samples += p.invalid;
+                    radiance[dst] = (p.sum / k).as_vec3();
+                    if aov {
+                        aovs.normal[dst] = (p.normal / k).as_vec3();
+                        aovs.albedo[dst] = (p.albedo / k).as_vec3();
+                        aovs.depth[dst] = (p.depth / k) as f32;
+                        let var = if done > 1 {
+                            ((p.sum_sq - p.sum * p.sum / k) / (k - 1.0)).max(DVec3::ZERO) / k
+                        } else {
+                            DVec3::ZERO
+                        };
+                        aovs.variance[dst] = var.as_vec3();
                     }
                 }
             }
@@ -232,33 +357,27 @@ impl<'s> Renderer<'s> {
             width,
             height,
             radiance,
-            aovs: self.settings.aovs.then_some(aovs),
-            settings: self.settings.clone(),
+            aovs: aov.then_some(aovs),
+            settings: RenderSettings {
+                spp: done,
+                ..self.settings.clone()
+            },
             seconds,
             invalid_samples,
+            noise,
         })
     }
 
-    fn render_tile(&self, cam: &PinholeCamera, x0: u32, y0: u32, w: u32, h: u32) -> TileOut {
-        let spp = self.settings.spp;
-        let n = (w * h) as usize;
+    /// Adds samples `from..to` of every pixel of the tile to its sums.
+    fn render_tile(&self, cam: &PinholeCamera, t: &mut TileSums, from: u32, to: u32) {
         let aov = self.settings.aovs;
-        let mut out = TileOut {
-            x0,
-            y0,
-            w,
-            h,
-            radiance: Vec::with_capacity(n),
-            aovs: Aovs::default(),
-            invalid: 0,
-        };
         let eye = cam.eye();
-        for y in y0..y0 + h {
-            for x in x0..x0 + w {
+        for ty in 0..t.h {
+            for tx in 0..t.w {
+                let (x, y) = (t.x0 + tx, t.y0 + ty);
                 let pixel = u64::from(y) * u64::from(cam.width()) + u64::from(x);
-                let (mut sum, mut sum_sq) = (DVec3::ZERO, DVec3::ZERO);
-                let (mut normal, mut albedo, mut depth) = (DVec3::ZERO, DVec3::ZERO, 0.0f64);
-                for sample in 0..spp {
+                let p = &mut t.pixels[(ty * t.w + tx) as usize];
+                for sample in from..to {
                     let mut s =
                         stream(self.settings.seed, Purpose::Pixel, pixel, u64::from(sample));
                     let [jx, jy] = s.next_2d();
@@ -268,39 +387,29 @@ impl<'s> Renderer<'s> {
                         None => self.background(dir),
                         Some(hit) => {
                             let v = self.vertex(&hit);
+                            p.hits += 1;
                             if aov {
                                 let ns = if v.ns.dot(dir) > 0.0 { -v.ns } else { v.ns };
-                                normal += ns.as_dvec3();
-                                albedo += Vec3::from_array(v.mat.albedo()).as_dvec3();
-                                depth += f64::from(hit.t);
+                                p.normal += ns.as_dvec3();
+                                p.albedo += Vec3::from_array(v.mat.albedo()).as_dvec3();
+                                p.depth += f64::from(hit.t);
                             }
                             self.li_surface(v, -dir, &mut s)
                         }
                     };
                     if !l.is_finite() {
-                        out.invalid += 1;
+                        p.invalid += 1;
                         l = Vec3::ZERO;
                     }
                     let l = l.as_dvec3();
-                    sum += l;
-                    sum_sq += l * l;
-                }
-                let k = f64::from(spp);
-                out.radiance.push((sum / k).as_vec3());
-                if aov {
-                    out.aovs.normal.push((normal / k).as_vec3());
-                    out.aovs.albedo.push((albedo / k).as_vec3());
-                    out.aovs.depth.push((depth / k) as f32);
-                    let var = if spp > 1 {
-                        ((sum_sq - sum * sum / k) / (k - 1.0)).max(DVec3::ZERO) / k
-                    } else {
-                        DVec3::ZERO
-                    };
-                    out.aovs.variance.push(var.as_vec3());
+                    p.sum += l;
+                    p.sum_sq += l * l;
+                    if sample % 2 == 0 {
+                        p.sum_even += l;
+                    }
                 }
             }
         }
-        out
     }
 
     /// Radiance leaving each point towards its `view_dir` (or the AO fraction, per the mode),

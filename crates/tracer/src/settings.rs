@@ -58,6 +58,14 @@ pub struct RenderSettings {
     pub aovs: bool,
     /// Show a progress bar when stderr is a terminal (default true).
     pub progress: bool,
+    /// Render in passes until the image's own estimate of its relative noise on object pixels
+    /// ([`crate::RenderOutput::noise`]) is at most this (in `(0, 1)`); `spp` is then the most
+    /// samples per pixel it may take. Default `None`: exactly `spp`.
+    pub target_noise: Option<f64>,
+    /// Render in passes while the next one fits in this many seconds (`spp` is then the most
+    /// samples per pixel it may take); with `target_noise`, whichever comes first. An error
+    /// when not even the first pass fits. Default `None`.
+    pub time_budget: Option<f64>,
 }
 
 impl Default for RenderSettings {
@@ -74,6 +82,8 @@ impl Default for RenderSettings {
             threads: None,
             aovs: false,
             progress: true,
+            target_noise: None,
+            time_budget: None,
         }
     }
 }
@@ -135,6 +145,20 @@ impl RenderSettings {
         }
         if self.threads == Some(0) {
             return bad("threads must be at least 1".into());
+        }
+        if let Some(r) = self.target_noise {
+            if !(r > 0.0 && r < 1.0) {
+                return bad(format!(
+                    "target noise {r} must be a relative error in (0, 1), e.g. 0.01 for 1 %"
+                ));
+            }
+        }
+        if let Some(b) = self.time_budget {
+            if !(b > 0.0 && b.is_finite()) {
+                return bad(format!(
+                    "time budget {b} must be a positive number of seconds"
+                ));
+            }
         }
         if let Mode::AmbientOcclusion {
             max_distance: Some(d),
