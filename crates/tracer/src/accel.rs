@@ -218,7 +218,6 @@ struct WorldRay {
     dir: DVec3,
     /// The direction as obvhs gets it (bug A applied).
     dir32: Vec3A,
-    inv: DVec3,
 }
 
 impl WorldRay {
@@ -230,14 +229,18 @@ impl WorldRay {
             origin: origin.as_dvec3(),
             dir: d,
             dir32,
-            inv: DVec3::ONE / d,
         }
     }
 
-    /// `[t0, t1]` of the ray inside the box, if it meets it.
+    /// `[t0, t1]` of the ray inside the box, if it meets it (`t0 = 0` without any division
+    /// when the origin is inside, the case of every secondary ray of a one-group scene).
     fn clip(&self, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
-        let a = (lo - self.origin) * self.inv;
-        let b = (hi - self.origin) * self.inv;
+        if self.origin.cmpge(lo).all() && self.origin.cmple(hi).all() {
+            return Some((0.0, f64::INFINITY));
+        }
+        let inv = DVec3::ONE / self.dir;
+        let a = (lo - self.origin) * inv;
+        let b = (hi - self.origin) * inv;
         // `min`/`max` drop a NaN (0 · ∞ when the origin lies on a slab plane of a zero
         // direction component), keeping the other bound.
         let t0 = a.x.min(b.x).max(a.y.min(b.y)).max(a.z.min(b.z));
