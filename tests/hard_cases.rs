@@ -53,9 +53,11 @@ fn sun_path_tracing_converges_at_the_monte_carlo_rate() {
     // Naive: sampling only the BRDF almost never finds a sun of a few texels, so images are
     // dominated by rare huge samples (fireflies) and the error falls much slower than spp^-½
     // at practical spp. With environment importance sampling + MIS each sample sees the sun
-    // with a bounded weight: the RMS error against a 1024-spp reference must fall at about the
-    // Monte Carlo rate. Fit over 4 → 64 spp (16×); the expected slope is −0.5 and the reference's
-    // own noise (1/√16 of the 64-spp error) flattens it by < 0.03; accept [−0.65, −0.38].
+    // with a bounded weight: the RMS error against a 1024-spp reference must fall at least at
+    // the Monte Carlo rate. Fit over 4 → 64 spp (16×); with i.i.d. samples the slope is −0.5
+    // and the reference's own noise (1/√16 of the 64-spp error) flattens it by < 0.03; the
+    // scrambled Sobol pixel samples make it steeper where the integrand is smooth (−0.68
+    // measured; −0.50 with i.i.d. samples), never beyond the QMC rate −1: accept [−1, −0.38].
     let scene = load("sun.toml");
     let reference = render(&scene, 1024, 0, 99);
     let mask = object_pixels(&scene);
@@ -73,7 +75,7 @@ fn sun_path_tracing_converges_at_the_monte_carlo_rate() {
     let e64 = rmse(&render(&scene, 64, 0, 2));
     let slope = (e64 / e4).ln() / 16f64.ln();
     assert!(
-        (-0.65..=-0.38).contains(&slope),
+        (-1.0..=-0.38).contains(&slope),
         "error slope {slope} (rmse {e4} at 4 spp, {e64} at 64 spp)"
     );
     assert!(reference.iter().all(|v| v.is_finite()));

@@ -33,17 +33,110 @@ pub fn mix64(mut z: u64) -> u64 {
 #[must_use]
 pub fn stream(seed: u64, purpose: Purpose, index: u64, sample: u64) -> Sampler {
     let h = mix64(mix64(mix64(mix64(seed) ^ purpose as u64) ^ index) ^ sample);
-    Sampler(Pcg32::new(h, mix64(h ^ 0x9E37_79B9_7F4A_7C15)))
+    Sampler {
+        pcg: Pcg32::new(h, mix64(h ^ 0x9E37_79B9_7F4A_7C15)),
+        qmc: None,
+    }
 }
 
-/// Uniform numbers in `[0, 1)` from one PCG stream.
+/// Dimensions of a camera path taken from the scrambled Sobol points (camera jitter, then
+/// about five per bounce); later ones come from the sample's PCG stream.
+pub const QMC_DIMENSIONS: u32 = 24;
+
+/// The sampler of sample `sample` of pixel `pixel`: randomised quasi-Monte Carlo. Samples
+/// alternate between two independent *replicas* (even samples are replica 0, odd ones replica
+/// 1); within a replica, sample `j` takes point `j` of the 2D Sobol (0,2)-sequence for each
+/// consecutive pair of dimensions, with a hash-based Owen scrambling (nested uniform
+/// scrambling, Owen 1995; the hash of Burley 2020, "Practical Hash-based Owen Scrambling")
+/// and a scrambled point order, both keyed by (seed, pixel, replica, pair). Every point is
+/// uniform in `[0, 1)²` (so estimates stay unbiased), the points of a replica are stratified
+/// in every 2D projection of a pair, and the two replicas are independent, so the half images
+/// of even and odd samples give an unbiased estimate of the error
+/// ([`crate::RenderOutput::noise`]). Dimensions past [`QMC_DIMENSIONS`] are PCG numbers.
+#[must_use]
+pub fn pixel_sampler(seed: u64, pixel: u64, sample: u64) -> Sampler {
+    let mut s = stream(seed, Purpose::Pixel, pixel, sample);
+    let replica = sample & 1;
+    let key = mix64(mix64(mix64(seed) ^ Purpose::Pixel as u64 ^ 0x5142_4d43) ^ pixel) ^ replica;
+    s.qmc = Some(Qmc {
+        key: mix64(key),
+        index: (sample >> 1) as u32,
+        dim: 0,
+    });
+    s
+}
+
+/// The quasi-random part of a pixel sampler.
 #[derive(Clone, Debug)]
-pub struct Sampler(Pcg32);
+struct Qmc {
+    key: u64,
+    index: u32,
+    dim: u32,
+}
+
+/// Second dimension of the Sobol sequence (the first is the bit reversal of the index):
+/// direction numbers `v_0 = 2^31`, `v_{k+1} = v_k ⊕ (v_k >> 1)` (Kollig & Keller 2002).
+fn sobol_dim1(mut i: u32) -> u32 {
+    let (mut r, mut v) = (0u32, 1u32 << 31);
+    while i != 0 {
+        if i & 1 != 0 {
+            r ^= v;
+        }
+        i >>= 1;
+        v ^= v >> 1;
+    }
+    r
+}
+
+/// A nested uniform (Owen) scrambling of the bits of `x`, most significant first: every bit
+/// is flipped by a hash of the bits above it (Burley 2020: the Laine–Karras permutation on
+/// the reversed bits; adding the seed and multiplying by even constants only carry
+/// information towards more significant bits of the reversed word).
+fn owen_scramble(x: u32, seed: u32) -> u32 {
+    let mut v = x.reverse_bits();
+    v = v.wrapping_add(seed);
+    v ^= v.wrapping_mul(0x6c50_b47c);
+    v ^= v.wrapping_mul(0xb82f_1e52);
+    v ^= v.wrapping_mul(0xc7af_e638);
+    v ^= v.wrapping_mul(0x8d22_f6e6);
+    v.reverse_bits()
+}
+
+impl Qmc {
+    /// Dimension `dim` of this sample, in 32-bit fixed point.
+    fn next(&mut self) -> u32 {
+        let (pair, component) = (self.dim / 2, self.dim % 2);
+        self.dim += 1;
+        let h = mix64(self.key ^ u64::from(pair));
+        let (shuffle, scramble) = (h as u32, (h >> 32) as u32);
+        // The point order, shuffled by an Owen scrambling of the index (any aligned block of
+        // 2^k consecutive samples keeps its set of points).
+        let i = owen_scramble(self.index, shuffle);
+        let x = if component == 0 {
+            i.reverse_bits()
+        } else {
+            sobol_dim1(i)
+        };
+        owen_scramble(x, scramble ^ (component * 0x9e37_79b9))
+    }
+}
+
+/// Uniform numbers in `[0, 1)`: scrambled Sobol points for the first dimensions of a pixel
+/// sample ([`pixel_sampler`]), PCG otherwise.
+#[derive(Clone, Debug)]
+pub struct Sampler {
+    pcg: Pcg32,
+    qmc: Option<Qmc>,
+}
 
 impl Sampler {
-    /// One number in `[0, 1)` (24 random bits, so never rounds up to 1).
+    /// One number in `[0, 1)` (24 bits, so never rounds up to 1).
     pub fn next_f32(&mut self) -> f32 {
-        (self.0.random::<u32>() >> 8) as f32 * (1.0 / 16_777_216.0)
+        let bits = match &mut self.qmc {
+            Some(q) if q.dim < QMC_DIMENSIONS => q.next(),
+            _ => self.pcg.random::<u32>(),
+        };
+        (bits >> 8) as f32 * (1.0 / 16_777_216.0)
     }
 
     /// Two numbers.

@@ -161,7 +161,7 @@ fn test02_deterministic_across_threads_and_tiles() {
 /// slope over ln spp (Σ(x − x̄)² = 28 (ln 2)²) then has a standard error ≈ 0.03/3.67 ≈ 0.008.
 /// Tolerance 0.06: about 7 standard errors, leaving room for heavier-than-Gaussian tails.
 #[test]
-fn test03_rmse_falls_as_inverse_sqrt_spp() {
+fn test03_rmse_falls_at_least_as_inverse_sqrt_spp() {
     let scene = test_scene(16, 12);
     let reference = Renderer::new(
         &scene,
@@ -207,8 +207,16 @@ fn test03_rmse_falls_as_inverse_sqrt_spp() {
         .map(|(x, y)| (x - mx) * (y - my))
         .sum::<f64>()
         / xs.iter().map(|x| (x - mx).powi(2)).sum::<f64>();
+    // Pixel samples are randomised QMC (scrambled Sobol for the first dimensions): the error
+    // falls at least at the Monte Carlo rate −½ (a bias would flatten it towards 0), and faster
+    // where the integrand is smooth in the first dimensions, never beyond the QMC rate of −1
+    // for these discontinuous (visibility) integrands. Allowed: [−1, −0.44] (−½ with the
+    // earlier ±0.06 for noise); measured −0.571 (with i.i.d. PCG samples it was −0.498).
     eprintln!("RMSE slope {slope:.4} (ln RMSE {ys:?})");
-    assert!((slope + 0.5).abs() < 0.06, "slope {slope}, ln RMSE {ys:?}");
+    assert!(
+        (-1.0..=-0.44).contains(&slope),
+        "slope {slope}, ln RMSE {ys:?}"
+    );
 }
 
 /// Bad input is an error, not a panic.
