@@ -1,0 +1,89 @@
+//! The pixel sampler (`rng::pixel_sampler`): scrambled Sobol points must be a (0, m, 2)-net in
+//! every pair of dimensions of a replica (the stratification that lowers the variance), uniform
+//! across pixels (chi-square), and the two replicas independent (what keeps the half-image noise
+//! estimate unbiased).
+
+use prt_tracer::rng::{pixel_sampler, QMC_DIMENSIONS};
+
+/// The first `2^m` samples of replica `replica` of a pixel, all QMC dimensions.
+fn points(seed: u64, pixel: u64, replica: u64, m: u32) -> Vec<Vec<f32>> {
+    (0..1u64 << m)
+        .map(|j| {
+            let mut s = pixel_sampler(seed, pixel, 2 * j + replica);
+            (0..QMC_DIMENSIONS).map(|_| s.next_f32()).collect()
+        })
+        .collect()
+}
+
+#[test]
+fn test01_every_dimension_pair_is_a_0_m_2_net() {
+    // Owen scrambling and the scrambled point order keep the net property of the 2D Sobol
+    // sequence: for every split a + b = m, each of the 2^a × 2^b elementary boxes holds exactly
+    // one of the first 2^m points. Exact (a wrong direction number or a scramble that is not
+    // nested breaks it at once).
+    let m = 8;
+    for (seed, pixel, replica) in [(0, 0, 0), (7, 12_345, 1), (u64::MAX, 3, 0)] {
+        let pts = points(seed, pixel, replica, m);
+        for pair in 0..(QMC_DIMENSIONS / 2) as usize {
+            for a in 0..=m {
+                let b = m - a;
+                let mut seen = vec![false; 1 << m];
+                for p in &pts {
+                    let (x, y) = (p[2 * pair], p[2 * pair + 1]);
+                    let cx = (x * (1u32 << a) as f32) as usize;
+                    let cy = (y * (1u32 << b) as f32) as usize;
+                    let cell = (cx << b) | cy;
+                    assert!(
+                        !seen[cell],
+                        "pair {pair}, split {a}+{b}: two points in one box (seed {seed}, pixel {pixel})"
+                    );
+                    seen[cell] = true;
+                }
+            }
+        }
+    }
+}
+
+/// Pearson chi-square of counts against a uniform expectation; returns the statistic.
+fn chi_square(counts: &[u32], total: u32) -> f64 {
+    let e = f64::from(total) / counts.len() as f64;
+    counts.iter().map(|&c| (f64::from(c) - e).powi(2) / e).sum()
+}
+
+#[test]
+fn test02_points_are_uniform_across_pixels_and_replicas_independent() {
+    // One sample per pixel over 40,000 pixels, a 16 × 16 histogram per pair of dimensions:
+    // chi-square with 255 degrees of freedom; the 1e-4 upper quantile is about 353
+    // (Wilson–Hilferty), so a correct sampler fails with probability < 1e-4 per histogram.
+    // Replicas: the correlation of the same dimension of samples 0 and 1 of a pixel over
+    // 40,000 pixels has a standard deviation of 1/√40000 = 0.005; allow 5 of those.
+    let pixels = 40_000u64;
+    let mut counts = vec![vec![0u32; 256]; (QMC_DIMENSIONS / 2) as usize];
+    let (mut sxy, mut sx, mut sy) = (0.0f64, 0.0f64, 0.0f64);
+    for p in 0..pixels {
+        let mut s0 = pixel_sampler(3, p, 0);
+        let mut s1 = pixel_sampler(3, p, 1);
+        for (pair, c) in counts.iter_mut().enumerate() {
+            let (x, y) = (s0.next_f32(), s0.next_f32());
+            c[(x * 16.0) as usize * 16 + (y * 16.0) as usize] += 1;
+            let z = s1.next_f32();
+            let _ = s1.next_f32();
+            if pair == 0 {
+                sxy += f64::from(x) * f64::from(z);
+                sx += f64::from(x);
+                sy += f64::from(z);
+            }
+        }
+    }
+    for (pair, c) in counts.iter().enumerate() {
+        let chi2 = chi_square(c, pixels as u32);
+        assert!(
+            chi2 < 353.0,
+            "pair {pair}: chi-square {chi2:.1} over 255 dof"
+        );
+    }
+    let n = pixels as f64;
+    let cov = sxy / n - (sx / n) * (sy / n);
+    let corr = cov / (1.0 / 12.0);
+    assert!(corr.abs() < 0.025, "replica correlation {corr}");
+}
