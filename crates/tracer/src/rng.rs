@@ -62,6 +62,7 @@ pub fn pixel_sampler(seed: u64, pixel: u64, sample: u64) -> Sampler {
         key: mix64(key),
         index: (sample >> 1) as u32,
         dim: 0,
+        pending: 0,
     });
     s
 }
@@ -71,7 +72,10 @@ pub fn pixel_sampler(seed: u64, pixel: u64, sample: u64) -> Sampler {
 struct Qmc {
     key: u64,
     index: u32,
+    /// Next dimension.
     dim: u32,
+    /// The second component of the pair whose first one was just taken.
+    pending: u32,
 }
 
 /// Second dimension of the Sobol sequence (the first is the bit reversal of the index):
@@ -103,21 +107,17 @@ fn owen_scramble(x: u32, seed: u32) -> u32 {
 }
 
 impl Qmc {
-    /// Dimension `dim` of this sample, in 32-bit fixed point.
-    fn next(&mut self) -> u32 {
-        let (pair, component) = (self.dim / 2, self.dim % 2);
-        self.dim += 1;
+    /// Both components of dimension pair `pair` of this sample, in 32-bit fixed point.
+    fn pair(&self, pair: u32) -> (u32, u32) {
         let h = mix64(self.key ^ u64::from(pair));
         let (shuffle, scramble) = (h as u32, (h >> 32) as u32);
         // The point order, shuffled by an Owen scrambling of the index (any aligned block of
         // 2^k consecutive samples keeps its set of points).
         let i = owen_scramble(self.index, shuffle);
-        let x = if component == 0 {
-            i.reverse_bits()
-        } else {
-            sobol_dim1(i)
-        };
-        owen_scramble(x, scramble ^ (component * 0x9e37_79b9))
+        (
+            owen_scramble(i.reverse_bits(), scramble),
+            owen_scramble(sobol_dim1(i), scramble ^ 0x9e37_79b9),
+        )
     }
 }
 
@@ -133,19 +133,45 @@ impl Sampler {
     /// One number in `[0, 1)` (24 bits, so never rounds up to 1).
     pub fn next_f32(&mut self) -> f32 {
         let bits = match &mut self.qmc {
-            Some(q) if q.dim < QMC_DIMENSIONS => q.next(),
+            Some(q) if q.dim < QMC_DIMENSIONS => {
+                let d = q.dim;
+                q.dim += 1;
+                if d % 2 == 0 {
+                    let (x, y) = q.pair(d / 2);
+                    q.pending = y;
+                    x
+                } else {
+                    q.pending
+                }
+            }
             _ => self.pcg.random::<u32>(),
         };
-        (bits >> 8) as f32 * (1.0 / 16_777_216.0)
+        to_unit(bits)
     }
 
-    /// Two numbers.
+    /// Two numbers: one whole pair of quasi-random dimensions (a component left over by
+    /// [`Sampler::next_f32`] is skipped, so 2D samples keep the 2D stratification).
     pub fn next_2d(&mut self) -> [f32; 2] {
+        if let Some(q) = &mut self.qmc {
+            q.dim += q.dim % 2;
+            if q.dim < QMC_DIMENSIONS {
+                let (x, y) = q.pair(q.dim / 2);
+                q.dim += 2;
+                return [to_unit(x), to_unit(y)];
+            }
+        }
         [self.next_f32(), self.next_f32()]
     }
 
-    /// Three numbers.
+    /// Three numbers: one, then a 2D pair (how BRDF sampling uses them: lobe, then direction).
     pub fn next_3d(&mut self) -> [f32; 3] {
-        [self.next_f32(), self.next_f32(), self.next_f32()]
+        let a = self.next_f32();
+        let [b, c] = self.next_2d();
+        [a, b, c]
     }
+}
+
+/// The top 24 bits of `bits` as a number in `[0, 1)`.
+fn to_unit(bits: u32) -> f32 {
+    (bits >> 8) as f32 * (1.0 / 16_777_216.0)
 }
