@@ -534,9 +534,7 @@ fn ray_statistics_show_a_point_inside_geometry() {
     // `prt inspect` shows them.
     let text = prt_bakefile::summary(&out.bake).to_string();
     assert!(
-        text.contains(
-            "back-face hits 100.000 %, rays started inside geometry 100.000 % (42 points)"
-        ),
+        text.contains("back-face hits 100.000 %, started inside geometry 100.000 % (42 points)"),
         "{text}"
     );
 }

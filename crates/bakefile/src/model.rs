@@ -199,12 +199,29 @@ impl RayStats {
     }
 
     /// Adds another shard's counts of the same object.
+    ///
+    /// (Printed by its `Display`: `rays R from P points: back-face hits x %, started inside
+    /// geometry y % (K points)`.)
     pub fn add(&mut self, other: &RayStats) {
         self.points += other.points;
         self.rays += other.rays;
         self.backface_hits += other.backface_hits;
         self.inside_points += other.inside_points;
         self.inside_rays += other.inside_rays;
+    }
+}
+
+impl std::fmt::Display for RayStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "rays {} from {} points: back-face hits {:.3} %, started inside geometry {:.3} % ({} points)",
+            self.rays,
+            self.points,
+            100.0 * self.backface_fraction(),
+            100.0 * self.inside_fraction(),
+            self.inside_points
+        )
     }
 }
 

@@ -276,15 +276,7 @@ impl std::fmt::Display for Summary {
                 writeln!(f, ", {} NaN, {} inf", b.nan_count, b.inf_count)?;
             }
             if let Some(r) = &o.ray_stats {
-                writeln!(
-                    f,
-                    "  rays: {} from {} points; back-face hits {:.3} %, rays started inside geometry {:.3} % ({} points)",
-                    r.rays,
-                    r.points,
-                    100.0 * r.backface_fraction(),
-                    100.0 * r.inside_fraction(),
-                    r.inside_points
-                )?;
+                writeln!(f, "  {r}")?;
             }
         }
         if let Some((order, precision)) = self.environment {

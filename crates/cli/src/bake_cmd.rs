@@ -231,14 +231,7 @@ fn print_summary(path: &std::path::Path, s: &Summary) {
             );
         }
         if let Some(r) = &o.ray_stats {
-            println!(
-                "    rays {} from {} points: back-face hits {:.3} %, started inside geometry {:.3} % ({} points)",
-                r.rays,
-                r.points,
-                100.0 * r.backface_fraction(),
-                100.0 * r.inside_fraction(),
-                r.inside_points
-            );
+            println!("    {r}");
         }
     }
     for d in &s.decisions {
