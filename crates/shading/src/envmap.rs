@@ -262,36 +262,40 @@ impl EnvSampler {
             }
         };
         let dir = self.env.to_world(map_dir).as_vec3().normalize();
-        let pdf = self.pdf(dir);
+        let (radiance, pdf) = self.radiance_and_pdf(dir);
         if !(pdf.is_finite() && pdf > 0.0) {
             return None;
         }
-        Some(EnvSample {
-            dir,
-            radiance: self.radiance(dir),
-            pdf,
-        })
+        Some(EnvSample { dir, radiance, pdf })
     }
 
     /// Solid-angle pdf of [`Self::sample`] at world direction `dir` (unit).
     #[must_use]
     pub fn pdf(&self, dir: Vec3) -> f32 {
-        let Some(dist) = self.dist.as_ref() else {
-            return 0.0;
-        };
+        self.radiance_and_pdf(dir).1
+    }
+
+    /// [`Self::radiance`] and [`Self::pdf`] of one direction with one texel lookup (what an
+    /// environment sample and a BRDF-sampled ray that escapes both need).
+    #[must_use]
+    pub fn radiance_and_pdf(&self, dir: Vec3) -> (Vec3, f32) {
         let m = self.env.to_map_frame(dir.as_dvec3());
         let img = &self.env.image;
-        match self.env.mapping {
-            Mapping::LatLong => {
-                let (c, r) = img.latlong_texel(m);
-                (dist.pmf(c, r) / self.measure[r]) as f32
-            }
+        let (c, r) = match self.env.mapping {
+            Mapping::LatLong => img.latlong_texel(m),
+            Mapping::Angular => img.angular_texel(m),
+        };
+        let radiance = Vec3::from_array(img.texel(c, r));
+        let Some(dist) = self.dist.as_ref() else {
+            return (radiance, 0.0);
+        };
+        let pdf = match self.env.mapping {
+            Mapping::LatLong => (dist.pmf(c, r) / self.measure[r]) as f32,
             Mapping::Angular => {
-                let (c, r) = img.angular_texel(m);
                 let area = self.measure[r * img.width + c];
                 let p = dist.pmf(c, r);
                 if area <= 0.0 || p <= 0.0 {
-                    return 0.0;
+                    return (radiance, 0.0);
                 }
                 // r = θ/π and sin(πr) = sin θ from atan2 of the exact components: unlike
                 // acos(z), this stays accurate next to −Z, where the pdf is steepest.
@@ -304,11 +308,12 @@ impl EnvSampler {
                     PI * (hxy / len) / (theta / PI)
                 };
                 if jac.is_nan() || jac <= 0.0 {
-                    return 0.0;
+                    return (radiance, 0.0);
                 }
                 (p / (area * jac)) as f32
             }
-        }
+        };
+        (radiance, pdf)
     }
 
     /// Radiance arriving from world direction `dir` (the piecewise-constant texel value).

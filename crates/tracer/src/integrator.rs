@@ -128,12 +128,13 @@ impl Renderer<'_> {
                 .accel
                 .closest_hit(v.spawn(ng, bs.wi), bs.wi, f32::INFINITY)
             else {
+                let (l, env_pdf) = self.env.radiance_and_pdf(bs.wi);
                 let w = if bs.is_delta {
                     1.0
                 } else {
-                    mis_weight(h, bs.pdf, self.env.pdf(bs.wi))
+                    mis_weight(h, bs.pdf, env_pdf)
                 };
-                radiance += beta * self.env.radiance(bs.wi) * w;
+                radiance += beta * l * w;
                 break;
             };
             indirect += 1;

@@ -78,32 +78,68 @@ struct Qmc {
     pending: u32,
 }
 
-/// Second dimension of the Sobol sequence (the first is the bit reversal of the index):
-/// direction numbers `v_0 = 2^31`, `v_{k+1} = v_k ⊕ (v_k >> 1)` (Kollig & Keller 2002).
-fn sobol_dim1(mut i: u32) -> u32 {
-    let (mut r, mut v) = (0u32, 1u32 << 31);
-    while i != 0 {
-        if i & 1 != 0 {
-            r ^= v;
-        }
-        i >>= 1;
-        v ^= v >> 1;
+/// Direction numbers of the second dimension of the Sobol sequence (the first is the bit
+/// reversal of the index): `v_0 = 2^31`, `v_{k+1} = v_k ⊕ (v_k >> 1)` (Kollig & Keller 2002).
+const fn sobol_dim1_directions() -> [u32; 32] {
+    let mut v = [0u32; 32];
+    v[0] = 1 << 31;
+    let mut k = 1;
+    while k < 32 {
+        v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+        k += 1;
     }
-    r
+    v
 }
 
-/// A nested uniform (Owen) scrambling of the bits of `x`, most significant first: every bit
-/// is flipped by a hash of the bits above it (Burley 2020: the Laine–Karras permutation on
-/// the reversed bits; adding the seed and multiplying by even constants only carry
-/// information towards more significant bits of the reversed word).
-fn owen_scramble(x: u32, seed: u32) -> u32 {
-    let mut v = x.reverse_bits();
+/// The second Sobol dimension is linear over GF(2) in the index bits: one table of the XOR of
+/// the direction numbers per byte value and byte position.
+const SOBOL_DIM1_BYTES: [[u32; 256]; 4] = {
+    let v = sobol_dim1_directions();
+    let mut t = [[0u32; 256]; 4];
+    let mut byte = 0;
+    while byte < 4 {
+        let mut value = 0;
+        while value < 256 {
+            let mut r = 0u32;
+            let mut bit = 0;
+            while bit < 8 {
+                if value & (1 << bit) != 0 {
+                    r ^= v[byte * 8 + bit];
+                }
+                bit += 1;
+            }
+            t[byte][value] = r;
+            value += 1;
+        }
+        byte += 1;
+    }
+    t
+};
+
+/// Second dimension of the Sobol sequence for index `i`.
+fn sobol_dim1(i: u32) -> u32 {
+    let b = i.to_le_bytes();
+    SOBOL_DIM1_BYTES[0][b[0] as usize]
+        ^ SOBOL_DIM1_BYTES[1][b[1] as usize]
+        ^ SOBOL_DIM1_BYTES[2][b[2] as usize]
+        ^ SOBOL_DIM1_BYTES[3][b[3] as usize]
+}
+
+/// The Laine–Karras permutation (Burley 2020): adding the seed and multiplying by even
+/// constants only carry information towards more significant bits, so on bit-reversed values
+/// every bit is flipped by a hash of the bits above it — a nested uniform (Owen) scrambling.
+fn laine_karras(mut v: u32, seed: u32) -> u32 {
     v = v.wrapping_add(seed);
     v ^= v.wrapping_mul(0x6c50_b47c);
     v ^= v.wrapping_mul(0xb82f_1e52);
     v ^= v.wrapping_mul(0xc7af_e638);
     v ^= v.wrapping_mul(0x8d22_f6e6);
-    v.reverse_bits()
+    v
+}
+
+/// A nested uniform (Owen) scrambling of the bits of `x`, most significant first.
+fn owen_scramble(x: u32, seed: u32) -> u32 {
+    laine_karras(x.reverse_bits(), seed).reverse_bits()
 }
 
 impl Qmc {
@@ -115,7 +151,8 @@ impl Qmc {
         // 2^k consecutive samples keeps its set of points).
         let i = owen_scramble(self.index, shuffle);
         (
-            owen_scramble(i.reverse_bits(), scramble),
+            // owen_scramble(reverse(i)) without reversing twice.
+            laine_karras(i, scramble).reverse_bits(),
             owen_scramble(sobol_dim1(i), scramble ^ 0x9e37_79b9),
         )
     }
