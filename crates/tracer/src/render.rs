@@ -290,10 +290,9 @@ impl<'s> Renderer<'s> {
                     )));
                 }
             }
-            // Samples still needed: noise falls as 1/√spp, so the target needs
-            // done·(noise/target)² in all (2 % more, so the last pass lands just under it);
-            // at most 4× per pass while the estimate is young. Without a target (budget
-            // only), double.
+            // Samples still needed to reach the target (2 % more, so the last pass lands just
+            // under it), at most 4× per pass while the estimate is young. Without a target
+            // (budget only), double.
             let want = match (target, noise) {
                 (Some(r), Some(e)) if e <= r => break,
                 (Some(r), Some(e)) => {
@@ -312,7 +311,9 @@ impl<'s> Renderer<'s> {
                 (Some(_), None) => 4 * u64::from(done),
                 (None, _) => 2 * u64::from(done),
             };
-            let mut want = want.clamp(u64::from(done) + 2, u64::from(max_spp)) as u32;
+            // At least one more pair of samples, at most the cap (which may be odd: the last
+            // pass then stops one short, keeping the sample count even for the estimate).
+            let mut want = want.max(u64::from(done) + 2).min(u64::from(max_spp)) as u32;
             if let Some(b) = budget {
                 let per_sample = elapsed / f64::from(done);
                 let fits = ((b - elapsed) / per_sample).floor().max(0.0) as u64;

@@ -372,4 +372,11 @@ fn test06_stopping_rules_reject_bad_values() {
     };
     let out = Renderer::new(&scene, capped).unwrap().render().unwrap();
     assert_eq!(out.settings.spp, 24);
+    // A cap one above the first pass (odd): no panic, and never more than the cap.
+    let odd = RenderSettings {
+        target_noise: Some(1e-6),
+        ..quiet(prt_tracer::FIRST_PASS_SPP + 1, 0, 0)
+    };
+    let out = Renderer::new(&scene, odd).unwrap().render().unwrap();
+    assert!(out.settings.spp <= prt_tracer::FIRST_PASS_SPP + 1);
 }
