@@ -25,7 +25,7 @@
 
 use crate::{luminance, Distribution2D};
 use glam::{DVec3, Vec3};
-use prt_scene::envmap::{angular_direction, latlong_direction};
+use prt_scene::envmap::angular_direction;
 use prt_scene::{Environment, Mapping};
 use std::f64::consts::{PI, TAU};
 
@@ -34,9 +34,10 @@ use std::f64::consts::{PI, TAU};
 pub struct EnvSample {
     /// World direction towards the environment (unit).
     pub dir: Vec3,
-    /// Radiance arriving from `dir` (RGB), the same as [`EnvSampler::radiance`].
+    /// Radiance arriving from `dir` (RGB): that of the texel drawn, which is
+    /// [`EnvSampler::radiance`] at `dir` unless rounding put `dir` across a texel edge.
     pub radiance: Vec3,
-    /// Solid-angle pdf, the same as [`EnvSampler::pdf`] at `dir`.
+    /// Solid-angle pdf: [`EnvSampler::pdf`] at `dir`, with the same texel-edge proviso.
     pub pdf: f32,
 }
 
@@ -47,6 +48,9 @@ pub struct EnvSampler {
     dist: Option<Distribution2D>,
     /// Lat-long: solid angle of each row's texels. Angular: clipped `(a, b)` area of each texel.
     measure: Vec<f64>,
+    /// Lat-long: `cos θ` of the `h + 1` row edges (`θ = π r / h`), so a sample needs no
+    /// trigonometry in `θ`. Empty for angular maps.
+    row_cos: Vec<f64>,
     total_power: f64,
 }
 
@@ -202,10 +206,15 @@ impl EnvSampler {
         } else {
             None
         };
+        let row_cos = match env.mapping {
+            Mapping::LatLong => (0..=h).map(|r| (PI * r as f64 / h as f64).cos()).collect(),
+            Mapping::Angular => Vec::new(),
+        };
         Self {
             env: env.clone(),
             dist,
             measure,
+            row_cos,
             total_power,
         }
     }
@@ -227,14 +236,34 @@ impl EnvSampler {
     #[must_use]
     pub fn sample(&self, u: [f32; 2]) -> Option<EnvSample> {
         let dist = self.dist.as_ref()?;
-        let ((c, r), _p, rem) = dist.sample_discrete([f64::from(u[0]), f64::from(u[1])])?;
+        let ((c, r), p, rem) = dist.sample_discrete([f64::from(u[0]), f64::from(u[1])])?;
         let (w, h) = (self.env.image.width, self.env.image.height);
-        let map_dir = match self.env.mapping {
+        let img = &self.env.image;
+        match self.env.mapping {
             Mapping::LatLong => {
+                // Uniform in φ and in cos θ over the texel; sin θ from cos θ (θ ∈ [0, π], so
+                // sin θ ≥ 0), which spares the acos and the second sin_cos.
+                // φ's sine and cosine in f32: the direction is returned in f32 anyway.
                 let phi = TAU * (c as f64 + rem[0]) / w as f64;
-                let (t0, t1) = (PI * r as f64 / h as f64, PI * (r + 1) as f64 / h as f64);
-                let cos_t = t0.cos() + rem[1] * (t1.cos() - t0.cos());
-                latlong_direction(phi, cos_t.clamp(-1.0, 1.0).acos())
+                let (c0, c1) = (self.row_cos[r], self.row_cos[r + 1]);
+                let cos_t = (c0 + rem[1] * (c1 - c0)).clamp(-1.0, 1.0);
+                let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+                let (sp, cp) = (phi as f32).sin_cos();
+                let (sp, cp) = (f64::from(sp), f64::from(cp));
+                let map_dir = DVec3::new(sp * sin_t, cos_t, -cp * sin_t);
+                let dir = self.env.to_world(map_dir).as_vec3().normalize();
+                // The pdf and radiance of the texel the sample was drawn from: the same values
+                // a lookup of `dir` gives, except where f32 rounding of `dir` crosses a texel
+                // edge (a set of measure zero, so the estimator is unchanged).
+                let pdf = (p / self.measure[r]) as f32;
+                if !(pdf.is_finite() && pdf > 0.0) {
+                    return None;
+                }
+                Some(EnvSample {
+                    dir,
+                    radiance: Vec3::from_array(img.texel(c, r)),
+                    pdf,
+                })
             }
             Mapping::Angular => {
                 let (a0, a1, b0, b1) = angular_rect(c, r, w, h);
@@ -258,15 +287,17 @@ impl EnvSampler {
                     let (blo, bhi) = clipped_b_range(a, b0, b1);
                     (a, blo + rem[1] * (bhi - blo).max(0.0))
                 };
-                angular_direction(a, b).unwrap_or(DVec3::NEG_Z)
+                let map_dir = angular_direction(a, b).unwrap_or(DVec3::NEG_Z);
+                let dir = self.env.to_world(map_dir).as_vec3().normalize();
+                // The angular pdf varies inside a texel (the Jacobian), so it is evaluated at
+                // the direction itself.
+                let (radiance, pdf) = self.radiance_and_pdf(dir);
+                if !(pdf.is_finite() && pdf > 0.0) {
+                    return None;
+                }
+                Some(EnvSample { dir, radiance, pdf })
             }
-        };
-        let dir = self.env.to_world(map_dir).as_vec3().normalize();
-        let (radiance, pdf) = self.radiance_and_pdf(dir);
-        if !(pdf.is_finite() && pdf > 0.0) {
-            return None;
         }
-        Some(EnvSample { dir, radiance, pdf })
     }
 
     /// Solid-angle pdf of [`Self::sample`] at world direction `dir` (unit).

@@ -80,18 +80,39 @@ fn check_sample_consistency(env: &Environment) {
     let s = EnvSampler::new(env);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
     let mut rejected = 0;
+    let mut edge = 0;
     for _ in 0..100_000 {
-        // `None` only when f32 rounding puts the direction into a black neighbour texel.
+        // `None` only when f32 rounding puts an angular-map direction into a black
+        // neighbour texel (lat-long samples report the texel they were drawn from).
         let Some(x) = s.sample([rng.random(), rng.random()]) else {
             rejected += 1;
             continue;
         };
         assert!((x.dir.length() - 1.0).abs() < 1e-5);
-        assert_eq!(x.pdf, s.pdf(x.dir));
-        assert_eq!(x.radiance, s.radiance(x.dir));
         assert!(luminance(x.radiance) > 0.0, "sampled a black texel");
+        if x.pdf != s.pdf(x.dir) || x.radiance != s.radiance(x.dir) {
+            // Allowed only where the f32 direction sits on a texel edge: a tiny nudge of
+            // the direction must change the texel a lookup finds.
+            let moved = [Vec3::X, Vec3::Y, Vec3::Z].iter().any(|&a| {
+                [-1.0f32, 1.0].iter().any(|&sgn| {
+                    let d = (x.dir + a * sgn * 1e-5).normalize();
+                    s.pdf(d) != s.pdf(x.dir) || s.radiance(d) != s.radiance(x.dir)
+                })
+            });
+            assert!(
+                moved,
+                "sample at {:?} disagrees with lookup away from an edge",
+                x.dir
+            );
+            edge += 1;
+        }
     }
+    // Edge cases come from rounding to f32 (~6e-8 of a texel edge's neighbourhood).
     assert!(rejected <= 2, "{rejected} rejected samples");
+    assert!(
+        edge <= 10,
+        "{edge} samples disagree with lookup at texel edges"
+    );
 }
 
 #[test]

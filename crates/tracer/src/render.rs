@@ -3,7 +3,7 @@
 use crate::accel::{point_offset, Accel, Hit};
 use crate::camera::PinholeCamera;
 use crate::integrator::Vertex;
-use crate::rng::{pixel_sampler, stream, Purpose};
+use crate::rng::{stream, PixelKeys, Purpose};
 use crate::settings::{Mode, RenderSettings};
 use crate::TracerError;
 use glam::{DVec3, Vec3};
@@ -392,8 +392,9 @@ impl<'s> Renderer<'s> {
                 let (x, y) = (t.x0 + tx, t.y0 + ty);
                 let pixel = u64::from(y) * u64::from(cam.width()) + u64::from(x);
                 let p = &mut t.pixels[(ty * t.w + tx) as usize];
+                let keys = PixelKeys::new(self.settings.seed, pixel);
                 for sample in from..to {
-                    let mut s = pixel_sampler(self.settings.seed, pixel, u64::from(sample));
+                    let mut s = keys.sampler(u64::from(sample));
                     let [jx, jy] = s.next_2d();
                     let dir =
                         cam.direction(f64::from(x) + f64::from(jx), f64::from(y) + f64::from(jy));

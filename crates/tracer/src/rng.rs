@@ -32,10 +32,35 @@ pub fn mix64(mut z: u64) -> u64 {
 /// The stream for `(seed, purpose, index, sample)` (see the module docs for the mixer).
 #[must_use]
 pub fn stream(seed: u64, purpose: Purpose, index: u64, sample: u64) -> Sampler {
-    let h = mix64(mix64(mix64(mix64(seed) ^ purpose as u64) ^ index) ^ sample);
+    stream_from_pixel_hash(mix64(mix64(mix64(seed) ^ purpose as u64) ^ index), sample)
+}
+
+/// [`stream`] from the hash of its first three numbers (`mix(mix(mix(seed) ^ purpose) ^ index)`).
+fn stream_from_pixel_hash(index_hash: u64, sample: u64) -> Sampler {
     Sampler {
-        pcg: Pcg32::new(h, mix64(h ^ 0x9E37_79B9_7F4A_7C15)),
+        pcg: Lazy::Pending(mix64(index_hash ^ sample)),
         qmc: None,
+    }
+}
+
+/// A PCG stream started on first use: a camera path of a few bounces draws all its numbers
+/// from the quasi-random dimensions and never needs it.
+#[derive(Clone, Debug)]
+enum Lazy {
+    /// Not started; holds `h`.
+    Pending(u64),
+    Started(Pcg32),
+}
+
+impl Lazy {
+    fn next_u32(&mut self) -> u32 {
+        if let Lazy::Pending(h) = *self {
+            *self = Lazy::Started(Pcg32::new(h, mix64(h ^ 0x9E37_79B9_7F4A_7C15)));
+        }
+        match self {
+            Lazy::Started(pcg) => pcg.random::<u32>(),
+            Lazy::Pending(_) => unreachable!("started above"),
+        }
     }
 }
 
@@ -55,16 +80,43 @@ pub const QMC_DIMENSIONS: u32 = 24;
 /// ([`crate::RenderOutput::noise`]). Dimensions past [`QMC_DIMENSIONS`] are PCG numbers.
 #[must_use]
 pub fn pixel_sampler(seed: u64, pixel: u64, sample: u64) -> Sampler {
-    let mut s = stream(seed, Purpose::Pixel, pixel, sample);
-    let replica = sample & 1;
-    let key = mix64(mix64(mix64(seed) ^ Purpose::Pixel as u64 ^ 0x5142_4d43) ^ pixel) ^ replica;
-    s.qmc = Some(Qmc {
-        key: mix64(key),
-        index: (sample >> 1) as u32,
-        dim: 0,
-        pending: 0,
-    });
-    s
+    PixelKeys::new(seed, pixel).sampler(sample)
+}
+
+/// The hashes of `(seed, pixel)` that every sample of a pixel starts from, computed once per
+/// pixel: `PixelKeys::new(seed, pixel).sampler(j)` is [`pixel_sampler`]`(seed, pixel, j)`.
+#[derive(Clone, Copy, Debug)]
+pub struct PixelKeys {
+    /// `mix(mix(mix(seed) ^ Pixel) ^ pixel)`: the PCG streams' hash before the sample.
+    stream: u64,
+    /// The scrambling keys of replicas 0 and 1.
+    qmc: [u64; 2],
+}
+
+impl PixelKeys {
+    /// The keys of pixel `pixel` (index `y·width + x`) under `seed`.
+    #[must_use]
+    pub fn new(seed: u64, pixel: u64) -> Self {
+        let ms = mix64(seed);
+        let key = mix64(mix64(ms ^ Purpose::Pixel as u64 ^ 0x5142_4d43) ^ pixel);
+        Self {
+            stream: mix64(mix64(ms ^ Purpose::Pixel as u64) ^ pixel),
+            qmc: [mix64(key), mix64(key ^ 1)],
+        }
+    }
+
+    /// The sampler of sample `sample` of this pixel.
+    #[must_use]
+    pub fn sampler(&self, sample: u64) -> Sampler {
+        let mut s = stream_from_pixel_hash(self.stream, sample);
+        s.qmc = Some(Qmc {
+            key: self.qmc[(sample & 1) as usize],
+            index: (sample >> 1) as u32,
+            dim: 0,
+            pending: 0,
+        });
+        s
+    }
 }
 
 /// The quasi-random part of a pixel sampler.
@@ -162,7 +214,7 @@ impl Qmc {
 /// sample ([`pixel_sampler`]), PCG otherwise.
 #[derive(Clone, Debug)]
 pub struct Sampler {
-    pcg: Pcg32,
+    pcg: Lazy,
     qmc: Option<Qmc>,
 }
 
@@ -181,7 +233,7 @@ impl Sampler {
                     q.pending
                 }
             }
-            _ => self.pcg.random::<u32>(),
+            _ => self.pcg.next_u32(),
         };
         to_unit(bits)
     }
