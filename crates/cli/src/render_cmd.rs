@@ -27,6 +27,11 @@ pub struct RenderArgs {
     /// (from its two half images) is below this, e.g. 0.01 for 1 %; printed with the result.
     #[arg(long, allow_hyphen_values = true)]
     pub target_noise: Option<f64>,
+    /// Keep sampling until the image's own estimate of its noise ceiling on the 8-bit view
+    /// (PSNR of its sRGB view at 0 EV against its expectation, object pixels) reaches this
+    /// many dB, e.g. 45; printed with the result. With --target-noise, both must hold.
+    #[arg(long, allow_hyphen_values = true)]
+    pub target_psnr_ldr: Option<f64>,
     /// Stop when the next pass of samples would not fit in this many seconds (with
     /// --target-noise: whichever comes first). An error if not even the first pass (8 spp)
     /// fits.
@@ -85,7 +90,8 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let mut settings = RenderSettings::from_scene(&scene.render);
     settings.target_noise = args.target_noise;
     settings.time_budget = args.time_budget;
-    if args.target_noise.is_some() || args.time_budget.is_some() {
+    settings.target_psnr_ldr = args.target_psnr_ldr;
+    if args.target_noise.is_some() || args.time_budget.is_some() || args.target_psnr_ldr.is_some() {
         settings.spp = u32::MAX;
     }
     if let Some(spp) = args.spp {
@@ -136,10 +142,15 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let samples = f64::from(image.width) * f64::from(image.height) * f64::from(image.settings.spp);
     let noise = image.noise.map_or(String::new(), |e| {
         format!(
-            ", noise {:.3} %{}",
+            ", noise {:.3} %{}{}",
             100.0 * e,
             args.target_noise
-                .map_or(String::new(), |r| format!(" (target {:.3} %)", 100.0 * r))
+                .map_or(String::new(), |r| format!(" (target {:.3} %)", 100.0 * r)),
+            image.noise_psnr_ldr.map_or(String::new(), |p| format!(
+                ", 8-bit noise ceiling {p:.1} dB{}",
+                args.target_psnr_ldr
+                    .map_or(String::new(), |t| format!(" (target {t} dB)"))
+            ))
         )
     });
     eprintln!(

@@ -8,7 +8,8 @@
 //! variance / spp). The header carries the attributes `prt.spp` (i32), `prt.bounces` (i32),
 //! `prt.seed` (text, decimal u64), `prt.mode` (text), `prt.render_seconds` (f64),
 //! `prt.tool_version` (text), `prt.invalid_samples` (i32) and `prt.noise_estimate` (f64: the
-//! image's own relative noise estimate on object pixels, NaN when it has none).
+//! image's own relative noise estimate on object pixels, NaN when it has none) and
+//! `prt.noise_psnr_ldr` (f64: its own estimate of its 8-bit noise ceiling, dB, likewise).
 //!
 //! **PNG view** (CONVENTIONS.md): radiance × 2^EV, clamped to [0, 1], sRGB curve, 8 bits.
 //!
@@ -125,6 +126,10 @@ pub fn metadata(out: &RenderOutput) -> Vec<(String, AttributeValue)> {
         (
             "prt.noise_estimate".into(),
             AttributeValue::F64(out.noise.unwrap_or(f64::NAN)),
+        ),
+        (
+            "prt.noise_psnr_ldr".into(),
+            AttributeValue::F64(out.noise_psnr_ldr.unwrap_or(f64::NAN)),
         ),
     ]
 }

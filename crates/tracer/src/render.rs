@@ -3,6 +3,7 @@
 use crate::accel::{point_offset, Accel, Hit};
 use crate::camera::PinholeCamera;
 use crate::integrator::Vertex;
+use crate::output::srgb_encode;
 use crate::rng::{stream, PixelKeys, Purpose};
 use crate::settings::{Mode, RenderSettings};
 use crate::TracerError;
@@ -44,8 +45,14 @@ pub struct Aovs {
     pub albedo: Vec<Vec3>,
     /// Distance from the eye to the first hit (0 for background).
     pub depth: Vec<f32>,
-    /// Estimated variance of the pixel mean: sample variance / spp, per channel.
+    /// Estimated variance of the pixel mean: sample variance / spp, per channel (i.i.d.
+    /// samples; it over-states the error of the scrambled Sobol samples where the integrand
+    /// is smooth).
     pub variance: Vec<Vec3>,
+    /// `(A − B) / 2` with `A`, `B` the means of the even and odd samples (two independent
+    /// replicas): its square estimates the squared error of the pixel without bias, whatever
+    /// the sampler's convergence rate. Zero with an odd sample count.
+    pub half_difference: Vec<Vec3>,
 }
 
 /// A rendered image with its provenance.
@@ -70,6 +77,10 @@ pub struct RenderOutput {
     /// two half images (even and odd samples). `None` with an odd sample count or no object
     /// pixel.
     pub noise: Option<f64>,
+    /// The image's own estimate of its noise ceiling on the 8-bit view: the PSNR (dB, peak
+    /// 255) of its sRGB view at exposure 0 against that of its expectation, over the same
+    /// object pixels and from the same half images as `noise`. `None` likewise.
+    pub noise_psnr_ldr: Option<f64>,
 }
 
 /// Renders `scene` with `settings`: the one-call entry point.
@@ -109,17 +120,36 @@ struct TileSums {
 /// both half images to estimate the noise.
 pub const FIRST_PASS_SPP: u32 = 8;
 
-/// The relative noise of the object pixels of an image made of `k` samples per pixel (`k`
-/// even), estimated from its two half images (even and odd samples): with `A`, `B` their
-/// means, `E[(A − B)²] = 4 Var(mean)`, so `Σ (A − B)² / 4` estimates the squared error of the
-/// whole image without bias. Relative to `Σ mean²`; over pixels whose camera rays hit a
-/// surface at least half the time. `None` when there is no such pixel or `k < 2`.
-fn relative_noise(tiles: &[TileSums], k: u32) -> Option<f64> {
+/// The image's own noise estimates, from its two half images (even and odd samples).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct NoiseEstimate {
+    /// Relative noise `‖error‖ / ‖image‖` of the object pixels (linear radiance).
+    relative: Option<f64>,
+    /// RMS error of the object pixels' 8-bit sRGB view (exposure 0), in 8-bit levels.
+    ldr_rmse: Option<f64>,
+}
+
+/// One of the [`NoiseEstimate`] figures, for a stopping target.
+type NoiseMeasure = fn(&NoiseEstimate) -> Option<f64>;
+
+/// PSNR (peak 255) of an 8-bit RMS error.
+fn psnr_of_rmse(rmse: f64) -> f64 {
+    20.0 * (255.0 / rmse).log10()
+}
+
+/// The noise of the object pixels of an image made of `k` samples per pixel (`k` even),
+/// estimated from its two half images (even and odd samples): with `A`, `B` their means,
+/// `E[(A − B)²] = 4 Var(mean)`, so `Σ (A − B)² / 4` estimates the squared error of the whole
+/// image without bias; on the 8-bit view the same holds to first order for
+/// `(sRGB(A) − sRGB(B))² / 4` (the curve's slope carries the linear error to the display;
+/// clamped channels carry none). Over pixels whose camera rays hit a surface at least half
+/// the time. `None` when there is no such pixel or `k < 2`.
+fn noise_estimate(tiles: &[TileSums], k: u32) -> NoiseEstimate {
     if k < 2 || !k.is_multiple_of(2) {
-        return None;
+        return NoiseEstimate::default();
     }
     let (half, kf) = (f64::from(k / 2), f64::from(k));
-    let (mut err, mut norm) = (0.0f64, 0.0f64);
+    let (mut err, mut norm, mut ldr, mut count) = (0.0f64, 0.0f64, 0.0f64, 0u64);
     for p in tiles.iter().flat_map(|t| &t.pixels) {
         if 2 * p.hits < k {
             continue;
@@ -128,8 +158,17 @@ fn relative_noise(tiles: &[TileSums], k: u32) -> Option<f64> {
         let b = (p.sum - p.sum_even) / half;
         err += (a - b).length_squared() / 4.0;
         norm += (p.sum / kf).length_squared();
+        for c in 0..3 {
+            let view = |x: f64| 255.0 * f64::from(srgb_encode((x as f32).clamp(0.0, 1.0)));
+            let d = view(a[c]) - view(b[c]);
+            ldr += d * d / 4.0;
+        }
+        count += 3;
     }
-    (norm > 0.0).then(|| (err / norm).sqrt())
+    NoiseEstimate {
+        relative: (norm > 0.0).then(|| (err / norm).sqrt()),
+        ldr_rmse: (count > 0).then(|| (ldr / count as f64).sqrt()),
+    }
 }
 
 impl<'s> Renderer<'s> {
@@ -250,9 +289,26 @@ impl<'s> Renderer<'s> {
             }
         }
         let max_spp = self.settings.spp;
-        let target = self.settings.target_noise;
+        // The noise targets, each as (measure, target) in the units of `NoiseEstimate`.
+        let targets: Vec<(NoiseMeasure, f64)> = [
+            self.settings.target_noise.map(|r| {
+                (
+                    (|e: &NoiseEstimate| e.relative) as fn(&NoiseEstimate) -> Option<f64>,
+                    r,
+                )
+            }),
+            self.settings.target_psnr_ldr.map(|p| {
+                (
+                    (|e: &NoiseEstimate| e.ldr_rmse) as NoiseMeasure,
+                    255.0 * 10f64.powf(-p / 20.0),
+                )
+            }),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
         let budget = self.settings.time_budget;
-        let progressive = target.is_some() || budget.is_some();
+        let progressive = !targets.is_empty() || budget.is_some();
         let pixels = u64::from(width) * u64::from(height);
         let mut next = if progressive {
             FIRST_PASS_SPP.min(max_spp)
@@ -262,9 +318,9 @@ impl<'s> Renderer<'s> {
         let bar = self.progress(pixels * u64::from(next), "render");
         let start = Instant::now();
         let mut done = 0u32;
-        let mut noise: Option<f64> = None;
+        let mut noise = NoiseEstimate::default();
         // (spp, noise) of the previous pass.
-        let mut previous: Option<(u32, f64)> = None;
+        let mut previous: Option<(u32, NoiseEstimate)> = None;
         loop {
             let (from, to) = (done, next);
             self.run(|| {
@@ -273,11 +329,11 @@ impl<'s> Renderer<'s> {
                     bar.inc(u64::from(t.w * t.h) * u64::from(to - from));
                 });
             })?;
-            if let (Some(e), true) = (noise, done > 0) {
-                previous = Some((done, e));
+            if done > 0 {
+                previous = Some((done, noise));
             }
             done = to;
-            noise = relative_noise(&tiles, done);
+            noise = noise_estimate(&tiles, done);
             let elapsed = start.elapsed().as_secs_f64();
             if !progressive || done >= max_spp {
                 break;
@@ -290,26 +346,41 @@ impl<'s> Renderer<'s> {
                     )));
                 }
             }
-            // Samples still needed to reach the target (2 % more, so the last pass lands just
-            // under it), at most 4× per pass while the estimate is young. Without a target
-            // (budget only), double.
-            let want = match (target, noise) {
-                (Some(r), Some(e)) if e <= r => break,
-                (Some(r), Some(e)) => {
-                    // Noise falls as spp^-α: α = ½ for Monte Carlo, more for the scrambled
-                    // Sobol samples where the integrand is smooth; measured between the last
-                    // two passes and kept within [½, ¾] so a young estimate cannot overshoot.
-                    let alpha = match previous {
-                        Some((k0, e0)) if e0 > e => ((e0 / e).ln()
-                            / (f64::from(done) / f64::from(k0)).ln())
-                        .clamp(0.5, 0.75),
-                        _ => 0.5,
+            // Samples still needed to reach every target (2 % more, so the last pass lands
+            // just under it), at most 4× per pass while the estimate is young. Without a
+            // target (budget only), double.
+            let want = if targets.is_empty() {
+                2 * u64::from(done)
+            } else {
+                let mut want = 0u64;
+                let mut met = true;
+                for (measure, r) in &targets {
+                    let w = match measure(&noise) {
+                        Some(e) if e <= *r => continue,
+                        Some(e) => {
+                            // Noise falls as spp^-α: α = ½ for Monte Carlo, more for the
+                            // scrambled Sobol samples where the integrand is smooth;
+                            // measured between the last two passes and kept within [½, ¾]
+                            // so a young estimate cannot overshoot.
+                            let alpha = match previous.and_then(|(k0, p)| Some((k0, measure(&p)?)))
+                            {
+                                Some((k0, e0)) if e0 > e => ((e0 / e).ln()
+                                    / (f64::from(done) / f64::from(k0)).ln())
+                                .clamp(0.5, 0.75),
+                                _ => 0.5,
+                            };
+                            let need = f64::from(done) * (e / r).powf(1.0 / alpha) * 1.02;
+                            need.min(4.0 * f64::from(done)).ceil() as u64
+                        }
+                        None => 4 * u64::from(done),
                     };
-                    let need = f64::from(done) * (e / r).powf(1.0 / alpha) * 1.02;
-                    need.min(4.0 * f64::from(done)).ceil() as u64
+                    met = false;
+                    want = want.max(w);
                 }
-                (Some(_), None) => 4 * u64::from(done),
-                (None, _) => 2 * u64::from(done),
+                if met {
+                    break;
+                }
+                want
             };
             // At least one more pair of samples, at most the cap (which may be odd: the last
             // pass then stops one short, keeping the sample count even for the estimate).
@@ -325,11 +396,17 @@ impl<'s> Renderer<'s> {
             }
             next = want;
             bar.set_length(pixels * u64::from(next));
-            if let Some(e) = noise {
+            if let Some(e) = noise.relative {
+                let target = self.settings.target_noise;
                 bar.set_message(format!(
-                    "render: {done} spp, noise {:.3} %{}",
+                    "render: {done} spp, noise {:.3} %{}{}",
                     100.0 * e,
-                    target.map_or(String::new(), |r| format!(" (target {:.3} %)", 100.0 * r))
+                    target.map_or(String::new(), |r| format!(" (target {:.3} %)", 100.0 * r)),
+                    match (noise.ldr_rmse, self.settings.target_psnr_ldr) {
+                        (Some(m), Some(p)) =>
+                            format!(", ceiling {:.1} dB (target {p} dB)", psnr_of_rmse(m)),
+                        _ => String::new(),
+                    }
                 ));
             }
         }
@@ -344,6 +421,7 @@ impl<'s> Renderer<'s> {
             albedo: vec![Vec3::ZERO; n],
             depth: vec![0.0; n],
             variance: vec![Vec3::ZERO; n],
+            half_difference: vec![Vec3::ZERO; n],
         };
         let mut invalid_samples = 0;
         let k = f64::from(done);
@@ -364,6 +442,11 @@ impl<'s> Renderer<'s> {
                             DVec3::ZERO
                         };
                         aovs.variance[dst] = var.as_vec3();
+                        if done >= 2 && done.is_multiple_of(2) {
+                            let half = k / 2.0;
+                            let (a, b) = (p.sum_even / half, (p.sum - p.sum_even) / half);
+                            aovs.half_difference[dst] = ((a - b) / 2.0).as_vec3();
+                        }
                     }
                 }
             }
@@ -379,7 +462,8 @@ impl<'s> Renderer<'s> {
             },
             seconds,
             invalid_samples,
-            noise,
+            noise: noise.relative,
+            noise_psnr_ldr: noise.ldr_rmse.map(psnr_of_rmse),
         })
     }
 

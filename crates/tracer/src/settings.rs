@@ -66,6 +66,12 @@ pub struct RenderSettings {
     /// samples per pixel it may take); with `target_noise`, whichever comes first. An error
     /// when not even the first pass fits. Default `None`.
     pub time_budget: Option<f64>,
+    /// Render in passes until the image's own estimate of its noise ceiling on the 8-bit view
+    /// ([`crate::RenderOutput::noise_psnr_ldr`]: the PSNR of its sRGB view at exposure 0
+    /// against that of its own expectation, object pixels) is at least this many dB; `spp` is
+    /// then the most samples per pixel it may take. With `target_noise`, both must hold.
+    /// Default `None`.
+    pub target_psnr_ldr: Option<f64>,
 }
 
 impl Default for RenderSettings {
@@ -84,6 +90,7 @@ impl Default for RenderSettings {
             progress: true,
             target_noise: None,
             time_budget: None,
+            target_psnr_ldr: None,
         }
     }
 }
@@ -150,6 +157,13 @@ impl RenderSettings {
             if !(r > 0.0 && r < 1.0) {
                 return bad(format!(
                     "target noise {r} must be a relative error in (0, 1), e.g. 0.01 for 1 %"
+                ));
+            }
+        }
+        if let Some(p) = self.target_psnr_ldr {
+            if !(p > 0.0 && p.is_finite()) {
+                return bad(format!(
+                    "target PSNR {p} must be a positive, finite number of dB"
                 ));
             }
         }
