@@ -17,9 +17,18 @@ pub struct ReportArgs {
     /// Orders to relight at, `A..B` (inclusive) or a comma list.
     #[arg(long, default_value = "2..13")]
     pub orders: String,
-    /// Samples per pixel of the path-traced reference.
-    #[arg(long, default_value_t = 256)]
+    /// Samples per pixel of the path-traced reference: the most it may take to reach
+    /// --reference-psnr (exactly this with --reference-psnr 0).
+    #[arg(long, default_value_t = 16384)]
     pub reference_spp: u32,
+    /// Render the reference until its own estimate of its noise ceiling on object pixels
+    /// (8-bit view, psnr_ldr) reaches this many dB; 0 for exactly --reference-spp samples.
+    /// The reference is cached in DIR/cache like the bake.
+    #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
+    pub reference_psnr: f64,
+    /// Skip the error budget (it needs a second vertex bake and two per-pixel bakes, cached).
+    #[arg(long)]
+    pub no_budget: bool,
     /// Rays per vertex of the bake.
     #[arg(long, default_value_t = 1024)]
     pub rays: u32,
@@ -32,8 +41,8 @@ pub struct ReportArgs {
     /// Measure --threshold on the 8-bit view (as psnr_ldr) instead of in radiance.
     #[arg(long)]
     pub display_threshold: bool,
-    /// Frames timed per relighting (median).
-    #[arg(long, default_value_t = 5)]
+    /// Frames timed per relighting (the median is reported, with the fastest and slowest).
+    #[arg(long, default_value_t = 15)]
     pub frames: usize,
 }
 
@@ -72,9 +81,17 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     let orders = parse_orders(&args.orders)?;
     let scene = crate::common::load_scene(&args.scene)?;
     let bounces = crate::common::bake_bounces(args.bounces, &scene, &args.scene)?;
+    if !(args.reference_psnr.is_finite() && args.reference_psnr >= 0.0) {
+        bail!(
+            "--reference-psnr {} must be a number of dB ≥ 0 (0: a fixed sample count)",
+            args.reference_psnr
+        );
+    }
     let settings = ReportSettings {
         orders,
         reference_spp: args.reference_spp,
+        reference_psnr: (args.reference_psnr > 0.0).then_some(args.reference_psnr),
+        budget: !args.no_budget,
         rays: args.rays,
         bounces,
         threshold: args.threshold,
@@ -101,6 +118,44 @@ pub fn run(args: &ReportArgs) -> Result<()> {
                 .map_or("-".into(), |v| format!("{:.1}", 100.0 * v)),
         );
     }
+    if !data.error_budget.is_empty() {
+        println!("\nerror budget (MSE over object pixels, linear radiance):");
+        println!(
+            "order  total       {}  cross %",
+            prt_report::budget::TERMS
+                .iter()
+                .map(|t| format!("{t:>15}"))
+                .collect::<String>()
+        );
+        for b in &data.error_budget {
+            println!(
+                "{:>5}  {:<10.3e}  {}  {:>6.1}",
+                b.order,
+                b.total_mse,
+                prt_report::budget::TERMS
+                    .iter()
+                    .map(|t| format!("{:>15.3e}", b.term(t)))
+                    .collect::<String>(),
+                100.0 * b.cross_terms / b.total_mse.max(f64::MIN_POSITIVE)
+            );
+        }
+        println!("{}", data.error_budget_summary);
+    }
+    println!(
+        "reference: {} spp, noise ceiling {:.1} dB{}",
+        data.reference.spp,
+        data.reference.noise_psnr_ldr,
+        data.reference
+            .target_psnr_ldr
+            .map_or(String::new(), |t| format!(
+                " (target {t} dB{})",
+                if data.reference.target_met == Some(false) {
+                    ", not reached: raise --reference-spp"
+                } else {
+                    ""
+                }
+            ))
+    );
     println!(
         "wrote {}/report.md, index.html, report.csv, report.json, plots and images",
         args.out.display()

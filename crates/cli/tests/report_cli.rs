@@ -12,7 +12,8 @@ fn report(scene: &Path, out: &Path) -> Value {
     report_with(scene, out, &["--orders", "2..4"])
 }
 
-/// A quick report (8 spp, 64 rays, 1 timed frame) with extra options; its report.json.
+/// A quick report (at most 8 spp, 64 rays, 1 timed frame) with extra options; its
+/// report.json.
 fn report_with(scene: &Path, out: &Path, extra: &[&str]) -> Value {
     run(prt()
         .arg("report")
@@ -54,6 +55,7 @@ fn report_writes_everything_and_its_figures_are_reproduced_by_hand() {
         "images/mask.png",
         "images/roi.png",
         "images/error_adaptive_04.png",
+        "error_budget.png",
     ]
     .iter()
     .map(|s| (*s).to_string())
@@ -81,9 +83,58 @@ fn report_writes_everything_and_its_figures_are_reproduced_by_hand() {
         let img = image::open(out.join(png)).unwrap();
         assert!(img.width() >= 300 && img.height() >= 200, "{png} too small");
     }
-    assert_eq!(first["bake_cached"], false);
-    assert_eq!(first["orders"].as_array().unwrap().len(), 3);
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert_eq!(first["bake_cached"], false);
+    // The reference: capped at 8 spp it cannot reach the 45 dB default, and says so.
+    let reference = &first["reference"];
+    assert_eq!(reference["spp"].as_u64(), Some(8), "{reference}");
+    assert_eq!(reference["target_psnr_ldr"].as_f64(), Some(45.0));
+    assert_eq!(reference["target_met"], false, "{reference}");
+    let ceiling = reference["noise_psnr_ldr"].as_f64().unwrap();
+    assert!(
+        ceiling.is_finite() && ceiling > 10.0 && ceiling < 45.0,
+        "{reference}"
+    );
+    assert!(md.contains("short of the 45 dB target"), "{md}");
+    // The error budget: one row per order, every term present and ≥ 0, the total the
+    // measured error of the row, and truncation zero at the highest order.
+    let budget = first["error_budget"].as_array().expect("error_budget");
+    assert_eq!(budget.len(), 3);
+    for b in budget {
+        let total = b["total_mse"].as_f64().unwrap();
+        assert!(total > 0.0, "{b}");
+        let mut sum = 0.0;
+        for t in [
+            "truncation",
+            "interpolation",
+            "bake_noise",
+            "model",
+            "reference_noise",
+        ] {
+            let v = b["terms"][t]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{t} in {b}"));
+            assert!(v >= 0.0, "{t}: {b}");
+            sum += v;
+        }
+        let cross = b["cross_terms"].as_f64().unwrap();
+        assert!((total - sum - cross).abs() <= 1e-12 * total.max(1.0), "{b}");
+        let largest = b["largest"].as_str().unwrap();
+        assert!(
+            b["terms"]
+                .as_object()
+                .unwrap()
+                .values()
+                .all(|v| v.as_f64().unwrap() <= b["terms"][largest].as_f64().unwrap()),
+            "{b}"
+        );
+    }
+    assert_eq!(budget[2]["terms"]["truncation"].as_f64(), Some(0.0));
+    assert!(
+        md.contains("## Error budget") && md.contains("largest term"),
+        "{md}"
+    );
+    assert_eq!(first["orders"].as_array().unwrap().len(), 3);
     assert!(
         md.contains("| order |") && md.contains("prt relight"),
         "{md}"
@@ -183,15 +234,23 @@ fn report_writes_everything_and_its_figures_are_reproduced_by_hand() {
     assert_eq!(second["bake_cached"], true);
     assert_eq!(second["bake_file"], first["bake_file"]);
     assert_eq!(second["bake_seconds"].as_f64(), Some(0.0));
+    assert_eq!(second["reference"]["cached"], true);
     let strip = |v: &Value| -> Value {
         let mut v = v.clone();
         let obj = v.as_object_mut().unwrap();
-        for k in ["reference_seconds", "bake_seconds", "bake_cached"] {
+        for k in ["bake_seconds", "bake_cached"] {
             obj.remove(k);
         }
+        obj["reference"].as_object_mut().unwrap().remove("cached");
         for r in obj["orders"].as_array_mut().unwrap() {
             let r = r.as_object_mut().unwrap();
-            for k in ["full_ms", "adaptive_ms", "speedup"] {
+            for k in [
+                "full_ms",
+                "adaptive_ms",
+                "speedup",
+                "full_ms_range",
+                "adaptive_ms_range",
+            ] {
                 r.remove(k);
             }
         }

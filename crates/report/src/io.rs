@@ -75,3 +75,85 @@ pub fn to_compare_image(img: &RgbImage) -> prt_compare::Image {
         pixels: img.pixels.clone(),
     }
 }
+
+/// A path-traced reference kept in the report's cache: its radiance and the half difference
+/// `(A − B) / 2` of its two half images (which estimates its error per pixel).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CachedReference {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Samples per pixel taken.
+    pub spp: u32,
+    /// Render seconds.
+    pub seconds: f64,
+    /// Linear radiance, row-major.
+    pub radiance: Vec<Vec3>,
+    /// `(A − B) / 2` per pixel.
+    pub half_difference: Vec<Vec3>,
+}
+
+const REFERENCE_MAGIC: &[u8; 8] = b"PRTREF01";
+
+/// Writes `r` atomically: magic, width, height, spp (u32 LE), seconds (f64 LE), the radiance
+/// and the half difference (f32 LE RGB, row-major), then the CRC-32 of all that.
+///
+/// # Errors
+/// When the file cannot be written.
+pub fn write_reference(path: &Path, r: &CachedReference) -> std::result::Result<(), ReportError> {
+    let mut bytes = Vec::with_capacity(32 + 24 * r.radiance.len());
+    bytes.extend_from_slice(REFERENCE_MAGIC);
+    for v in [r.width, r.height, r.spp] {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    bytes.extend_from_slice(&r.seconds.to_le_bytes());
+    for v in r.radiance.iter().chain(&r.half_difference) {
+        for c in v.to_array() {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    let crc = crc32fast::hash(&bytes);
+    bytes.extend_from_slice(&crc.to_le_bytes());
+    prt_tracer::output::write_atomically(path, |out| {
+        std::io::Write::write_all(out, &bytes).map_err(|e| e.to_string())
+    })
+    .map_err(|e| write_err(path, e))
+}
+
+/// Reads a reference written by [`write_reference`]; `Err` with the reason when the file is
+/// missing, truncated, corrupt or of another size.
+///
+/// # Errors
+/// As above (the report then renders the reference again).
+pub fn read_reference(path: &Path) -> std::result::Result<CachedReference, String> {
+    let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+    if bytes.len() < 32 || &bytes[..8] != REFERENCE_MAGIC {
+        return Err("not a cached reference".into());
+    }
+    let (body, crc) = bytes.split_at(bytes.len() - 4);
+    if crc32fast::hash(body).to_le_bytes() != crc {
+        return Err("checksum mismatch".into());
+    }
+    let u32_at = |o: usize| u32::from_le_bytes(body[o..o + 4].try_into().expect("4 bytes"));
+    let (width, height, spp) = (u32_at(8), u32_at(12), u32_at(16));
+    let seconds = f64::from_le_bytes(body[20..28].try_into().expect("8 bytes"));
+    let n = width as usize * height as usize;
+    if body.len() != 28 + 24 * n {
+        return Err(format!("{} bytes for {width}×{height} pixels", body.len()));
+    }
+    let floats: Vec<f32> = body[28..]
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+        .collect();
+    let vecs: Vec<Vec3> = floats.chunks_exact(3).map(Vec3::from_slice).collect();
+    let (radiance, half_difference) = vecs.split_at(n);
+    Ok(CachedReference {
+        width,
+        height,
+        spp,
+        seconds,
+        radiance: radiance.to_vec(),
+        half_difference: half_difference.to_vec(),
+    })
+}

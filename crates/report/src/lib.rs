@@ -10,6 +10,7 @@
 //! formation interpolates per-vertex radiance over the triangles hit by the scene camera's rays
 //! (Gouraud), which is the approximation per-pixel bakes avoid.
 
+pub mod budget;
 mod error;
 pub mod glossy;
 pub mod imaging;
@@ -21,4 +22,4 @@ pub mod report;
 pub use error::ReportError;
 pub use imaging::{form_image, object_mask, roi_image, RgbImage};
 pub use relit::{check_bake, relight, RelightOptions, RelightStats, Relit};
-pub use report::{run_report, ObjectRays, ReportData, ReportSettings};
+pub use report::{run_report, ObjectRays, ReferenceInfo, ReportData, ReportSettings};

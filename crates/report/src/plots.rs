@@ -51,44 +51,37 @@ pub struct ChartOptions {
     pub legend_upper_left: bool,
 }
 
-/// A line chart with markers: title, axis labels (with units), legend.
-pub fn line_chart(
-    path: &Path,
-    title: &str,
-    x_label: &str,
-    y_label: &str,
-    opt: &ChartOptions,
-    series: &[Series],
-) -> Result<(), ReportError> {
+/// Whether a point can be drawn: finite, and `x > 0` on a logarithmic axis.
+fn plottable(p: (f64, f64), log_x: bool) -> bool {
+    p.0.is_finite() && p.1.is_finite() && (!log_x || p.0 > 0.0)
+}
+
+/// The axis ranges `((x0, x1), (y0, y1))` of a chart: every drawable point and every finite
+/// reference line strictly inside, with a margin (and headroom for an upper-left legend).
+/// `None` when nothing can be drawn.
+#[must_use]
+pub fn chart_ranges(series: &[Series], opt: &ChartOptions) -> Option<((f64, f64), (f64, f64))> {
     let log_x = opt.log_x;
-    font();
-    let mut pts: Vec<(f64, f64)> = series
+    let pts: Vec<(f64, f64)> = series
         .iter()
         .flat_map(|s| s.points.iter().copied())
-        .filter(|p| p.0.is_finite() && p.1.is_finite())
+        .filter(|&p| plottable(p, log_x))
         .collect();
-    if let Some(&(x, _)) = pts.first() {
-        pts.extend(
-            opt.hlines
-                .iter()
-                .filter(|h| h.0.is_finite())
-                .map(|h| (x, h.0)),
-        );
-    }
-    if pts.is_empty() {
-        return Err(ReportError::Invalid(format!(
-            "{}: nothing to plot",
-            path.display()
-        )));
-    }
-    let (mut x0, mut x1) = pts
+    let &(x_any, _) = pts.first()?;
+    let lines = opt
+        .hlines
+        .iter()
+        .filter(|h| h.0.is_finite())
+        .map(|h| (x_any, h.0));
+    let all: Vec<(f64, f64)> = pts.iter().copied().chain(lines).collect();
+    let (mut x0, mut x1) = all
         .iter()
         .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.0), b.max(p.0)));
-    let (mut y0, mut y1) = pts
+    let (mut y0, mut y1) = all
         .iter()
         .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.1), b.max(p.1)));
     if log_x {
-        x0 = x0.max(1e-6) / 1.5;
+        x0 /= 1.5;
         x1 = x1.max(x0 * 2.0) * 1.5;
     } else {
         let pad = ((x1 - x0) * 0.05).max(0.5);
@@ -102,6 +95,126 @@ pub fn line_chart(
         // Headroom for the legend above the data.
         y1 += (y1 - y0) * 0.4;
     }
+    Some(((x0, x1), (y0, y1)))
+}
+
+/// Stacked bars of shares: for each `(x, total, parts)`, the parts as percentages of `total`
+/// stacked from 0 (so a gap under or a bar over the dashed 100 % line shows what the parts do
+/// not account for), one colour per part with the legend from `parts`.
+pub fn stacked_shares(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    bars: &[(f64, f64, Vec<f64>)],
+    parts: &[(String, RGBColor)],
+) -> Result<(), ReportError> {
+    font();
+    if bars.is_empty() {
+        return Err(ReportError::Invalid(format!(
+            "{}: nothing to plot",
+            path.display()
+        )));
+    }
+    let share = |v: f64, total: f64| if total > 0.0 { 100.0 * v / total } else { 0.0 };
+    let top = bars
+        .iter()
+        .map(|(_, t, p)| share(p.iter().map(|v| v.max(0.0)).sum(), *t))
+        .fold(100.0f64, f64::max);
+    let (x0, x1) = bars.iter().fold((f64::MAX, f64::MIN), |(a, b), (x, _, _)| {
+        (a.min(*x), b.max(*x))
+    });
+    let (x0, x1) = (x0 - 0.7, x1 + 0.7);
+    // Headroom for the legend.
+    let y1 = top * 1.45;
+    let tmp = path.with_extension("tmp.png");
+    {
+        let root = BitMapBackend::new(&tmp, (900, 560)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(path, e))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(16)
+            .x_label_area_size(48)
+            .y_label_area_size(70)
+            .build_cartesian_2d(x0..x1, 0.0..y1)
+            .map_err(|e| err(path, e))?;
+        let ticks = ((x1 - x0).round() as usize + 1).clamp(2, 40);
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .x_labels(ticks)
+            .x_label_formatter(&|x: &f64| {
+                if (x - x.round()).abs() < 1e-6 {
+                    format!("{x:.0}")
+                } else {
+                    String::new()
+                }
+            })
+            .y_label_formatter(&|y: &f64| format!("{y:.0}"))
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 17))
+            .draw()
+            .map_err(|e| err(path, e))?;
+        for (k, (label, colour)) in parts.iter().enumerate() {
+            let colour = *colour;
+            let rects: Vec<Rectangle<(f64, f64)>> = bars
+                .iter()
+                .map(|(x, total, p)| {
+                    let below: f64 = p[..k].iter().map(|v| share(v.max(0.0), *total)).sum();
+                    let h = share(p[k].max(0.0), *total);
+                    Rectangle::new([(x - 0.35, below), (x + 0.35, below + h)], colour.filled())
+                })
+                .collect();
+            chart
+                .draw_series(rects)
+                .map_err(|e| err(path, e))?
+                .label(label.clone())
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 14, y + 5)], colour.filled())
+                });
+        }
+        let grey = RGBColor(90, 90, 90);
+        chart
+            .draw_series(LineSeries::new(
+                vec![(x0, 100.0), (x1, 100.0)],
+                grey.stroke_width(2),
+            ))
+            .map_err(|e| err(path, e))?
+            .label("total MSE (100 %)")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], grey.stroke_width(2))
+            });
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .position(SeriesLabelPosition::UpperLeft)
+            .draw()
+            .map_err(|e| err(path, e))?;
+        root.present().map_err(|e| err(path, e))?;
+    }
+    std::fs::rename(&tmp, path).map_err(|e| err(path, e))
+}
+
+/// A line chart with markers: title, axis labels (with units), legend.
+pub fn line_chart(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    opt: &ChartOptions,
+    series: &[Series],
+) -> Result<(), ReportError> {
+    let log_x = opt.log_x;
+    font();
+    let Some(((x0, x1), (y0, y1))) = chart_ranges(series, opt) else {
+        return Err(ReportError::Invalid(format!(
+            "{}: nothing to plot",
+            path.display()
+        )));
+    };
     let tmp = path.with_extension("tmp.png");
     {
         let root = BitMapBackend::new(&tmp, (900, 560)).into_drawing_area();
@@ -183,7 +296,7 @@ pub fn line_chart(
                         .points
                         .iter()
                         .copied()
-                        .filter(|p| p.0.is_finite() && p.1.is_finite())
+                        .filter(|&p| plottable(p, log_x))
                         .collect();
                     chart
                         .draw_series(LineSeries::new(data.clone(), colour.stroke_width(2)))
@@ -315,4 +428,60 @@ pub fn image_grid(
         root.present().map_err(|e| err(path, e))?;
     }
     std::fs::rename(&tmp, path).map_err(|e| err(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn inside(r: ((f64, f64), (f64, f64)), p: (f64, f64)) -> bool {
+        p.0 > r.0 .0 && p.0 < r.0 .1 && p.1 > r.1 .0 && p.1 < r.1 .1
+    }
+
+    /// Every drawable point and reference line lies strictly inside the axes, on linear and
+    /// logarithmic x, with points that cannot be drawn (0 ms on a log axis, NaN, ∞) left out
+    /// rather than stretching or escaping the axes.
+    #[test]
+    fn every_drawn_point_is_inside_the_axes() {
+        let series = vec![
+            Series {
+                label: "a".into(),
+                points: vec![(0.0, 31.0), (0.12, 20.0), (5.7, 33.0), (f64::NAN, 1.0)],
+                colour: RGBColor(0, 0, 0),
+            },
+            Series {
+                label: "b".into(),
+                points: vec![(27.0, 8.7), (1500.0, 36.2), (3.0, f64::INFINITY)],
+                colour: RGBColor(0, 0, 0),
+            },
+        ];
+        for log_x in [false, true] {
+            let opt = ChartOptions {
+                log_x,
+                hlines: vec![(45.3, "ceiling".into()), (f64::INFINITY, "none".into())],
+                legend_upper_left: true,
+                ..ChartOptions::default()
+            };
+            let r = chart_ranges(&series, &opt).expect("points");
+            for s in &series {
+                for &p in &s.points {
+                    if plottable(p, log_x) {
+                        assert!(inside(r, p), "{p:?} outside {r:?} (log_x {log_x})");
+                    }
+                }
+            }
+            assert!(inside(r, (1.0, 45.3)), "ceiling line outside {r:?}");
+            assert!(log_x == (r.0 .0 > 0.0), "{r:?}");
+        }
+        let empty = [Series {
+            label: "c".into(),
+            points: vec![(0.0, 1.0)],
+            colour: RGBColor(0, 0, 0),
+        }];
+        let opt = ChartOptions {
+            log_x: true,
+            ..ChartOptions::default()
+        };
+        assert!(chart_ranges(&empty, &opt).is_none());
+    }
 }

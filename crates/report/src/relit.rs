@@ -77,6 +77,10 @@ pub struct RelightStats {
     /// Shading time of one frame over all objects, milliseconds: the median of the timed
     /// frames (the upper median for an even count).
     pub shade_ms: f64,
+    /// The fastest timed frame, ms.
+    pub shade_ms_min: f64,
+    /// The slowest timed frame, ms.
+    pub shade_ms_max: f64,
     /// Frames per second of the whole per-frame work over the timed frames: environment
     /// rotation, per-frame lighting preparation (light product matrices) and shading.
     pub fps: f64,
@@ -431,6 +435,8 @@ pub fn relight(
     stats.fps = times.len() as f64 / frame_seconds.max(1e-12);
     times.sort_by(f64::total_cmp);
     stats.shade_ms = 1e3 * times[times.len() / 2];
+    stats.shade_ms_min = 1e3 * times[0];
+    stats.shade_ms_max = 1e3 * times[times.len() - 1];
     if stats.adaptive {
         stats.roi_fraction_diffuse = (n_d > 0.0).then(|| roi_d / n_d);
         stats.roi_fraction_specular = (n_s > 0.0).then(|| roi_s / n_s);

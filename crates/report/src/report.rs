@@ -6,15 +6,21 @@
 //! same numbers come out of `prt render`, `prt bake`, `prt relight` and `prt compare` run by
 //! hand with the settings printed in the report.
 
+use crate::budget::{
+    ldr_noise_psnr, masked_mean_square, masked_mse, summary_sentence, BudgetInputs, BudgetRow,
+};
 use crate::error::ReportError;
 use crate::imaging::{form_image, object_mask, roi_image, RgbImage};
-use crate::io::{to_compare_image, write_exr, write_png};
-use crate::plots::{image_grid, line_chart, ChartOptions, Series, Tile};
+use crate::io::{
+    read_reference, to_compare_image, write_exr, write_png, write_reference, CachedReference,
+};
+use crate::plots::{image_grid, line_chart, stacked_shares, ChartOptions, Series, Tile};
 use crate::relit::{check_bake, relight, RelightOptions};
 use glam::Vec3;
 use plotters::style::RGBColor;
 use prt_bake::{BakeSettings, PointKind};
-use prt_compare::{compare, CompareOptions, ErrorImageOptions, Image, Mask};
+use prt_bakefile::Bake;
+use prt_compare::{compare, ErrorImageOptions, Image, Mask};
 use prt_relight::{AdaptiveParams, Threshold};
 use prt_scene::Scene;
 use serde::Serialize;
@@ -27,8 +33,15 @@ use std::time::Instant;
 pub struct ReportSettings {
     /// Orders (bands) to relight at.
     pub orders: Vec<usize>,
-    /// Samples per pixel of the path-traced reference.
+    /// Samples per pixel of the path-traced reference: the most it may take when
+    /// `reference_psnr` is set, exactly this otherwise (rounded up to even, so its two half
+    /// images estimate its noise).
     pub reference_spp: u32,
+    /// Render the reference until its own estimate of its 8-bit noise ceiling on object
+    /// pixels reaches this many dB ([`prt_tracer::RenderSettings::target_psnr_ldr`]).
+    pub reference_psnr: Option<f64>,
+    /// Measure the error budget (a second vertex bake and two per-pixel bakes, all cached).
+    pub budget: bool,
     /// Rays per vertex of the bake.
     pub rays: u32,
     /// Bounces of both the reference and the bake.
@@ -56,8 +69,12 @@ pub struct OrderRow {
     pub coefficients: usize,
     /// Full-order shading time per frame (median of the timed frames), ms.
     pub full_ms: f64,
+    /// Fastest and slowest timed full-order frame, ms.
+    pub full_ms_range: [f64; 2],
     /// Adaptive shading time per frame (median of the timed frames), ms.
     pub adaptive_ms: f64,
+    /// Fastest and slowest timed adaptive frame, ms.
+    pub adaptive_ms_range: [f64; 2],
     /// `full_ms / adaptive_ms`.
     pub speedup: f64,
     /// psnr_ldr of adaptive against full order (whole image).
@@ -100,10 +117,18 @@ pub struct ReportData {
     pub settings: serde_json::Value,
     /// Reference render time, s.
     pub reference_seconds: f64,
-    /// Monte Carlo noise of the reference (RMSE of one render against the truth, object pixels).
+    /// Monte Carlo noise of the reference (RMSE against its expectation, object pixels,
+    /// linear radiance), from its two half images.
     pub reference_noise_rmse: f64,
     /// psnr_ldr ceiling implied by that noise (object pixels).
     pub reference_noise_psnr_ldr: Option<f64>,
+    /// The reference: how it was made and how noisy it is.
+    pub reference: ReferenceInfo,
+    /// Per order, the error against the path tracer split into named terms
+    /// ([`crate::budget`]); empty without `budget`.
+    pub error_budget: Vec<BudgetRow>,
+    /// The sentence naming the largest term.
+    pub error_budget_summary: String,
     /// Bake time, s (0 when reused from the cache).
     pub bake_seconds: f64,
     /// Whether the bake came from the cache.
@@ -119,6 +144,37 @@ pub struct ReportData {
     /// Notes from the relighter.
     pub notes: Vec<String>,
 }
+
+/// The path-traced reference of a report (`report.json`: `reference`).
+#[derive(Clone, Debug, Serialize)]
+pub struct ReferenceInfo {
+    /// Samples per pixel taken.
+    pub spp: u32,
+    /// Render seconds (of the run that made it, when cached).
+    pub seconds: f64,
+    /// Whether it came from the cache.
+    pub cached: bool,
+    /// The cache file.
+    pub file: String,
+    /// Its noise: mean squared error against its expectation over object pixels, linear
+    /// radiance, per channel (from its two half images).
+    pub noise_mse: f64,
+    /// The PSNR ceiling its noise sets on the 8-bit view (object pixels): no method compared
+    /// with it can score much above this.
+    pub noise_psnr_ldr: f64,
+    /// The ceiling it was rendered to reach.
+    pub target_psnr_ldr: Option<f64>,
+    /// Whether it reached it (false: it stopped at the sample cap).
+    pub target_met: Option<bool>,
+}
+
+/// Sub-pixel positions of the budget's per-pixel bakes (the bake's rays are shared out over
+/// them): enough that the pixel footprint's own sampling noise (silhouettes, contact edges)
+/// stays well below the interpolation error it is compared with.
+const BUDGET_PIXEL_SAMPLES: u32 = 256;
+
+/// The most samples per pixel of the path-tracing convergence series.
+const MAX_CONVERGENCE_SPP: u32 = 256;
 
 /// What one object's bake rays met (from the bake file's ray statistics).
 #[derive(Clone, Debug, Serialize)]
@@ -173,6 +229,39 @@ fn fnv(bytes: &[u8], mut h: u64) -> u64 {
 
 /// Cache key of a bake: the geometry hashes, materials, environment texels and settings.
 fn bake_key(scene: &Scene, s: &BakeSettings) -> u64 {
+    let h = scene_key(scene);
+    let h = if s.points == PointKind::Pixel {
+        fnv(
+            format!("{:?} {}", scene.camera, s.pixel_samples).as_bytes(),
+            h,
+        )
+    } else {
+        h
+    };
+    fnv(
+        format!(
+            "{:?} {:?} {} {} {} {}",
+            s.order, s.points, s.rays, s.bounces, s.seed, s.error_target
+        )
+        .as_bytes(),
+        h,
+    )
+}
+
+/// Cache key of a reference render: the scene, its camera and the render settings.
+fn reference_key(scene: &Scene, r: &prt_tracer::RenderSettings) -> u64 {
+    fnv(
+        format!(
+            "{:?} {} {} {} {:?} {:?} {:?}",
+            scene.camera, r.spp, r.bounces, r.seed, r.mode, r.mis, r.target_psnr_ldr
+        )
+        .as_bytes(),
+        scene_key(scene),
+    )
+}
+
+/// Hash of what every cached result depends on: geometry, materials, environment texels.
+fn scene_key(scene: &Scene) -> u64 {
     let mut h = 0xcbf2_9ce4_8422_2325u64;
     for m in &scene.meshes {
         h = fnv(
@@ -196,14 +285,7 @@ fn bake_key(scene: &Scene, s: &BakeSettings) -> u64 {
             h = fnv(&c.to_le_bytes(), h);
         }
     }
-    fnv(
-        format!(
-            "{:?} {:?} {} {} {} {}",
-            s.order, s.points, s.rays, s.bounces, s.seed, s.error_target
-        )
-        .as_bytes(),
-        h,
-    )
+    h
 }
 
 fn to_image(radiance: &[Vec3], w: u32, h: u32) -> Image {
@@ -281,39 +363,99 @@ pub fn run_report(
     };
     write_png(&out_dir.join("images/mask.png"), &mask_png, 0.0)?;
     let mask = Mask::from_bools(w as usize, h as usize, mask_bits)?;
-    let opts = CompareOptions::default();
 
-    // 1. Reference with its variance, and the convergence series (another seed).
-    say(&format!(
-        "path-traced reference, {} spp, {} bounce(s)",
-        s.reference_spp, s.bounces
-    ));
+    // 1. The reference (cached): rendered until its own noise ceiling reaches the target,
+    // with the half difference of its two half images, which estimates its error per pixel.
+    let reference_spp = s.reference_spp + s.reference_spp % 2;
     let rs = prt_tracer::RenderSettings {
-        spp: s.reference_spp,
+        spp: reference_spp,
         bounces: s.bounces as i32,
         seed: s.seed,
         aovs: true,
         progress: s.progress,
+        target_psnr_ldr: s.reference_psnr,
         ..Default::default()
     };
-    let reference_out = prt_tracer::render(scene, &rs)?;
-    prt_tracer::output::write_exr(&out_dir.join("images/reference.exr"), &reference_out)?;
-    let reference = to_image(&reference_out.radiance, w, h);
-    let variance = to_image(
-        &reference_out.aovs.as_ref().expect("aovs asked").variance,
-        w,
-        h,
+    let reference_path = out_dir
+        .join("cache")
+        .join(format!("reference-{:016x}.bin", reference_key(scene, &rs)));
+    let (reference_data, reference_cached) = match read_reference(&reference_path) {
+        Ok(r) if r.width == w && r.height == h => {
+            say(&format!(
+                "reusing the cached reference {}",
+                reference_path.display()
+            ));
+            (r, true)
+        }
+        _ => {
+            say(&format!(
+                "path-traced reference, {} bounce(s), {}",
+                s.bounces,
+                s.reference_psnr
+                    .map_or(format!("{reference_spp} spp"), |p| format!(
+                    "until its 8-bit noise ceiling reaches {p} dB (at most {reference_spp} spp)"
+                ))
+            ));
+            let out = prt_tracer::render(scene, &rs)?;
+            let r = CachedReference {
+                width: w,
+                height: h,
+                spp: out.settings.spp,
+                seconds: out.seconds,
+                radiance: out.radiance,
+                half_difference: out.aovs.expect("aovs asked").half_difference,
+            };
+            write_reference(&reference_path, &r)?;
+            (r, false)
+        }
+    };
+    let reference = to_image(&reference_data.radiance, w, h);
+    write_exr(
+        &out_dir.join("images/reference.exr"),
+        &RgbImage {
+            width: w,
+            height: h,
+            pixels: reference.pixels.clone(),
+        },
+        &[
+            ("kind", "reference".into()),
+            ("spp", reference_data.spp.to_string()),
+            ("seed", s.seed.to_string()),
+        ],
+    )?;
+    let reference_noise_mse = masked_mean_square(&reference_data.half_difference, mask.as_slice());
+    let reference_noise_psnr = ldr_noise_psnr(
+        &reference_data.radiance,
+        &reference_data.half_difference,
+        mask.as_slice(),
     );
-    let noise = prt_compare::noise_from_variance(&variance, &reference, Some(&mask), &opts)?;
-    let noise_masked = noise.masked.unwrap_or(noise.whole);
+    let reference_info = ReferenceInfo {
+        spp: reference_data.spp,
+        seconds: reference_data.seconds,
+        cached: reference_cached,
+        file: reference_path.display().to_string(),
+        noise_mse: reference_noise_mse,
+        noise_psnr_ldr: reference_noise_psnr,
+        target_psnr_ldr: s.reference_psnr,
+        target_met: s.reference_psnr.map(|p| reference_noise_psnr >= p),
+    };
+    if let Some(p) = s.reference_psnr {
+        if reference_noise_psnr < p {
+            say(&format!(
+                "the reference stopped at the cap of {} spp with a noise ceiling of {reference_noise_psnr:.1} dB, short of {p} dB (raise --reference-spp)",
+                reference_data.spp
+            ));
+        }
+    }
     let mut convergence = Vec::new();
     let mut spp = 1;
-    while spp <= s.reference_spp / 2 {
+    while spp <= (reference_data.spp / 2).min(MAX_CONVERGENCE_SPP) {
         let cs = prt_tracer::RenderSettings {
             spp,
             seed: s.seed.wrapping_add(0x5eed),
             aovs: false,
             progress: false,
+            target_psnr_ldr: None,
             ..rs.clone()
         };
         let t = Instant::now();
@@ -330,7 +472,8 @@ pub fn run_report(
         spp *= 2;
     }
 
-    // 2. The bake (cached).
+    // 2. The bakes (cached): the one relit at every order, and for the budget a second
+    // vertex bake with another seed and two per-pixel bakes.
     let max_order = *s.orders.iter().max().expect("non-empty");
     let bs = BakeSettings {
         order: Some(max_order),
@@ -341,35 +484,99 @@ pub fn run_report(
         progress: s.progress,
         ..BakeSettings::final_quality()
     };
-    let key = bake_key(scene, &bs);
-    let bake_path = out_dir.join("cache").join(format!("bake-{key:016x}.prtb"));
-    let mut bake_seconds = 0.0;
-    let cached = prt_bakefile::read_bake(&bake_path)
-        .ok()
-        .filter(|b| check_bake(scene, b, &bake_path).is_ok());
-    let bake_cached = cached.is_some();
-    let bake = match cached {
-        Some(b) => {
-            say(&format!("reusing the cached bake {}", bake_path.display()));
-            b
-        }
-        None => {
+    let cached_bake =
+        |bs: &BakeSettings, what: &str| -> Result<(Bake, PathBuf, Option<f64>), ReportError> {
+            let key = bake_key(scene, bs);
+            let path = out_dir.join("cache").join(format!("bake-{key:016x}.prtb"));
+            if let Some(b) = prt_bakefile::read_bake(&path)
+                .ok()
+                .filter(|b| check_bake(scene, b, &path).is_ok())
+            {
+                say(&format!("reusing the cached {what} {}", path.display()));
+                return Ok((b, path, None));
+            }
             say(&format!(
-                "baking order {max_order}, {} rays per vertex, {} bounce(s)",
-                s.rays, s.bounces
+                "baking the {what}: order {max_order}, {} rays per point, {} bounce(s)",
+                bs.rays, bs.bounces
             ));
             let t = Instant::now();
-            let out = prt_bake::bake(scene, &accel, &bs)?;
-            bake_seconds = t.elapsed().as_secs_f64();
-            prt_bakefile::write_bake(&bake_path, &out.bake, prt_bakefile::ScalarType::F32)?;
-            out.bake
+            let out = prt_bake::bake(scene, &accel, bs)?;
+            let seconds = t.elapsed().as_secs_f64();
+            prt_bakefile::write_bake(&path, &out.bake, prt_bakefile::ScalarType::F32)?;
+            Ok((out.bake, path, Some(seconds)))
+        };
+    let (bake, bake_path, baked) = cached_bake(&bs, "bake")?;
+    let bake_seconds = baked.unwrap_or(0.0);
+    let bake_cached = baked.is_none();
+    let second_seed = s.seed ^ 0x0b0d_9e75_eed5_eed5;
+    let budget_bakes = if s.budget {
+        let (v2, _, _) = cached_bake(
+            &BakeSettings {
+                seed: second_seed,
+                ..bs.clone()
+            },
+            "second-seed bake (error budget)",
+        )?;
+        let pixel = BakeSettings {
+            points: PointKind::Pixel,
+            pixel_samples: BUDGET_PIXEL_SAMPLES.min(s.rays),
+            ..bs.clone()
+        };
+        let (p1, _, _) = cached_bake(&pixel, "per-pixel bake (error budget)")?;
+        let (p2, _, _) = cached_bake(
+            &BakeSettings {
+                seed: second_seed,
+                ..pixel
+            },
+            "second-seed per-pixel bake (error budget)",
+        )?;
+        Some((v2, p1, p2))
+    } else {
+        None
+    };
+    let linear =
+        |img: &RgbImage| -> Vec<Vec3> { img.pixels.iter().map(|p| Vec3::from_array(*p)).collect() };
+    let once = |order: usize| RelightOptions {
+        order: Some(order),
+        adaptive: None,
+        rotate_y_deg: 0.0,
+        timing_frames: 1,
+        warmup_frames: 0,
+        rotate_y_step_deg: 0.0,
+    };
+    let relit_image = |b: &Bake, order: usize| -> Result<Vec<Vec3>, ReportError> {
+        let r = relight(scene, &accel, b, &once(order))?;
+        Ok(linear(&form_image(scene, &accel, &r, 0.0)?))
+    };
+    // The per-pixel images at the highest order, and the per-vertex one from both seeds.
+    let budget_images = match &budget_bakes {
+        Some((v2, p1, p2)) => {
+            let p1_img = relit_image(p1, max_order)?;
+            write_exr(
+                &out_dir.join(format!("images/per_pixel_{max_order:02}.exr")),
+                &RgbImage {
+                    width: w,
+                    height: h,
+                    pixels: p1_img.iter().map(|v| v.to_array()).collect(),
+                },
+                &[
+                    ("kind", "per-pixel".into()),
+                    ("order", max_order.to_string()),
+                ],
+            )?;
+            Some((p1_img, relit_image(p2, max_order)?, v2))
         }
+        None => None,
     };
 
     // 3. Relight at every order.
     let mut rows = Vec::new();
+    let mut full_images: Vec<Vec<Vec3>> = Vec::new();
     let mut notes = Vec::new();
-    let reference_tile = srgb_tile(&reference, format!("path traced, {} spp", s.reference_spp));
+    let reference_tile = srgb_tile(
+        &reference,
+        format!("path traced, {} spp", reference_data.spp),
+    );
     let (mut full_tiles, mut ad_tiles, mut error_tiles) = (Vec::new(), Vec::new(), Vec::new());
     let mut ad_error_tile = None;
     let mut roi_tile = None;
@@ -408,6 +615,7 @@ pub fn run_report(
         notes.extend(full.stats.notes.iter().cloned());
         let full_img = form_image(scene, &accel, &full, 0.0)?;
         let ad_img = form_image(scene, &accel, &adaptive, 0.0)?;
+        full_images.push(linear(&full_img));
         let (fi, ai) = (to_compare_image(&full_img), to_compare_image(&ad_img));
         let m_full = compare(&fi, &reference, Some(&mask))?.masked.expect("mask");
         let m_ad = compare(&ai, &reference, Some(&mask))?.masked.expect("mask");
@@ -478,7 +686,9 @@ pub fn run_report(
             order,
             coefficients: order * order,
             full_ms: full.stats.shade_ms,
+            full_ms_range: [full.stats.shade_ms_min, full.stats.shade_ms_max],
             adaptive_ms: adaptive.stats.shade_ms,
+            adaptive_ms_range: [adaptive.stats.shade_ms_min, adaptive.stats.shade_ms_max],
             speedup: full.stats.shade_ms / adaptive.stats.shade_ms.max(1e-9),
             psnr_adaptive_vs_full: m_af.psnr_ldr,
             psnr_full_vs_reference: m_full.psnr_ldr,
@@ -489,10 +699,53 @@ pub fn run_report(
             roi_specular: adaptive.stats.roi_fraction_specular,
         });
     }
+
+    // 4. The error budget of every order.
+    let mut error_budget = Vec::new();
+    if let Some((p1, p2, v2)) = &budget_images {
+        let bits = mask.as_slice();
+        let r = &reference_data.radiance;
+        let top_index = s
+            .orders
+            .iter()
+            .position(|&o| o == max_order)
+            .expect("the highest order is in the list");
+        let top = &full_images[top_index];
+        let v2_top = relit_image(v2, max_order)?;
+        // The per-pixel baseline is the mean of the two per-pixel bakes (half the noise of
+        // either); its noise is a quarter of MSE(P, P').
+        let p_mean: Vec<Vec3> = p1.iter().zip(p2).map(|(a, b)| 0.5 * (*a + *b)).collect();
+        let (vertex_vs_pixel, pixel_seeds, pixel_vs_reference, vertex_seeds_highest) = (
+            masked_mse(top, &p_mean, bits),
+            masked_mse(p1, p2, bits) / 2.0,
+            masked_mse(&p_mean, r, bits),
+            masked_mse(top, &v2_top, bits),
+        );
+        for (&order, img) in s.orders.iter().zip(&full_images) {
+            let v2_n = if order == max_order {
+                v2_top.clone()
+            } else {
+                relit_image(v2, order)?
+            };
+            error_budget.push(BudgetRow::new(&BudgetInputs {
+                order,
+                total: masked_mse(img, r, bits),
+                vs_highest: masked_mse(img, top, bits),
+                vertex_vs_pixel,
+                vertex_seeds: masked_mse(img, &v2_n, bits),
+                vertex_seeds_highest,
+                pixel_seeds,
+                pixel_vs_reference,
+                reference_noise: reference_noise_mse,
+            }));
+        }
+    }
     notes.sort();
     notes.dedup();
 
-    // 4. Plots and the image grid.
+    let error_budget_summary = summary_sentence(&error_budget);
+
+    // 5. Plots and the image grid.
     let blue = RGBColor(31, 119, 180);
     let orange = RGBColor(255, 127, 14);
     let green = RGBColor(44, 160, 44);
@@ -511,7 +764,7 @@ pub fn run_report(
         .fold(0.0f64, f64::max);
     let cap = (finite_max / 5.0).ceil() * 5.0 + 5.0;
     let any_inf = rows.iter().any(|r| !r.psnr_adaptive_vs_full.is_finite());
-    let ceiling = noise_masked.psnr_ldr_ceiling;
+    let ceiling = reference_noise_psnr;
     let ceiling_line = vec![(ceiling, "reference noise ceiling".to_string())];
     line_chart(
         &out_dir.join("error_vs_time.png"),
@@ -625,6 +878,36 @@ pub fn run_report(
             },
         ],
     )?;
+    if !error_budget.is_empty() {
+        let colours = [
+            RGBColor(31, 119, 180),
+            RGBColor(255, 127, 14),
+            RGBColor(44, 160, 44),
+            RGBColor(214, 39, 40),
+            RGBColor(148, 103, 189),
+        ];
+        stacked_shares(
+            &out_dir.join("error_budget.png"),
+            "Error budget of full-order SH (share of the MSE against the path tracer)",
+            "order (number of SH bands)",
+            "% of the total MSE (object pixels, linear radiance)",
+            &error_budget
+                .iter()
+                .map(|b| {
+                    (
+                        b.order as f64,
+                        b.total_mse,
+                        crate::budget::TERMS.iter().map(|t| b.term(t)).collect(),
+                    )
+                })
+                .collect::<Vec<_>>(),
+            &crate::budget::TERMS
+                .iter()
+                .zip(colours)
+                .map(|(t, c)| (t.replace('_', " "), c))
+                .collect::<Vec<_>>(),
+        )?;
+    }
     // Grid: one column per shown order — full, adaptive, |full − reference| — then the
     // reference, the adaptive error at the highest order and the ROI picture.
     let pad = |mut v: Vec<Tile>| {
@@ -651,9 +934,12 @@ pub fn run_report(
             "cost_exponent": AdaptiveParams::new(Threshold::Absolute(s.threshold)).cost_exponent, "seed": s.seed,
             "timing_frames": s.timing_frames, "image": format!("{w}x{h}"),
         }),
-        reference_seconds: reference_out.seconds,
-        reference_noise_rmse: noise_masked.rmse,
-        reference_noise_psnr_ldr: Some(noise_masked.psnr_ldr_ceiling),
+        reference_seconds: reference_data.seconds,
+        reference_noise_rmse: reference_noise_mse.sqrt(),
+        reference_noise_psnr_ldr: Some(reference_noise_psnr),
+        reference: reference_info,
+        error_budget,
+        error_budget_summary,
         bake_seconds,
         bake_cached,
         bake_file: bake_path.display().to_string(),
@@ -726,6 +1012,20 @@ fn csv(d: &ReportData) -> String {
             r.roi_specular.map_or(String::new(), |v| v.to_string())
         );
     }
+    if !d.error_budget.is_empty() {
+        let _ = writeln!(
+            s,
+            "\norder,total_mse,{},cross_terms",
+            crate::budget::TERMS.join(",")
+        );
+        for b in &d.error_budget {
+            let _ = write!(s, "{},{}", b.order, b.total_mse);
+            for t in crate::budget::TERMS {
+                let _ = write!(s, ",{}", b.term(t));
+            }
+            let _ = writeln!(s, ",{}", b.cross_terms);
+        }
+    }
     s.push_str("\nspp,ms,psnr_ldr,rel_l2\n");
     for c in &d.convergence {
         let _ = writeln!(s, "{},{},{},{}", c.spp, c.ms, c.psnr_ldr, c.rel_l2);
@@ -742,12 +1042,20 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
         d.machine.cores, d.machine.cpu
     );
     let _ = writeln!(s, "Settings: `{}`.\n", d.settings);
+    let r = &d.reference;
     let _ = writeln!(
         s,
-        "Reference: path traced in {:.2} s; its own Monte Carlo noise on object pixels is RMSE {:.4} (a PSNR ceiling of {} dB for any method compared with it).  ",
-        d.reference_seconds,
+        "Reference: path traced, {} spp in {:.2} s{}; its own Monte Carlo noise on object pixels (from its two half images) is RMSE {:.4}, a PSNR ceiling of {} dB for any method compared with it{}.  ",
+        r.spp,
+        r.seconds,
+        if r.cached { " (cached)" } else { "" },
         d.reference_noise_rmse,
-        d.reference_noise_psnr_ldr.map_or("–".into(), db)
+        db(r.noise_psnr_ldr),
+        match (r.target_psnr_ldr, r.target_met) {
+            (Some(t), Some(false)) => format!(" — short of the {t} dB target: it stopped at the sample cap (raise --reference-spp)"),
+            (Some(t), _) => format!(" (rendered to reach {t} dB)"),
+            _ => String::new(),
+        }
     );
     let _ = writeln!(
         s,
@@ -782,16 +1090,25 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
     }
     let _ = writeln!(s, "## Per order (cf. Lee & Kim 2014, Tables 6.1 and 6.2)\n");
     let _ = writeln!(s, "PSNR is `psnr_ldr` (8-bit sRGB, peak 255); against the reference it is over object pixels only, adaptive vs full over the whole image.\n");
+    let _ = writeln!(
+        s,
+        "Times are the median of {} frames, with the fastest and slowest in brackets.\n",
+        d.settings["timing_frames"]
+    );
     let _ = writeln!(s, "| order | coefficients | full ms/frame | adaptive ms/frame | speed-up | PSNR adaptive vs full | PSNR full vs path traced | PSNR adaptive vs path traced | ROI diffuse % | ROI specular % |");
     let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in &d.orders {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3} | {:.3} | {:.2}× | {} | {} | {} | {} | {} |",
+            "| {} | {} | {:.3} [{:.3}–{:.3}] | {:.3} [{:.3}–{:.3}] | {:.2}× | {} | {} | {} | {} | {} |",
             r.order,
             r.coefficients,
             r.full_ms,
+            r.full_ms_range[0],
+            r.full_ms_range[1],
             r.adaptive_ms,
+            r.adaptive_ms_range[0],
+            r.adaptive_ms_range[1],
             r.speedup,
             db(r.psnr_adaptive_vs_full),
             db(r.psnr_full_vs_reference),
@@ -799,6 +1116,38 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
             pct(r.roi_diffuse),
             pct(r.roi_specular)
         );
+    }
+    if !d.error_budget.is_empty() {
+        let _ = writeln!(s, "\n## Error budget of full-order SH\n");
+        let _ = writeln!(s, "{}\n", d.error_budget_summary);
+        let _ = writeln!(s, "Mean squared error against the path tracer over object pixels, linear radiance, split into terms measured by controlled experiments on this scene:\n");
+        for (name, help) in crate::budget::TERM_HELP {
+            let _ = writeln!(s, "- `{name}`: {help}");
+        }
+        let _ = writeln!(s, "\n`cross` is what the terms do not account for (total − Σ terms, % of the total): correlated errors and the scatter of the estimates.\n");
+        let _ = write!(s, "| order | total MSE |");
+        for t in crate::budget::TERMS {
+            let _ = write!(s, " {t} |");
+        }
+        let _ = writeln!(s, " cross % | largest |");
+        let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|---:|---:|---|");
+        for b in &d.error_budget {
+            let _ = write!(s, "| {} | {:.3e} |", b.order, b.total_mse);
+            for t in crate::budget::TERMS {
+                let _ = write!(
+                    s,
+                    " {:.2e} ({:.0} %) |",
+                    b.term(t),
+                    100.0 * b.term(t) / b.total_mse.max(f64::MIN_POSITIVE)
+                );
+            }
+            let _ = writeln!(
+                s,
+                " {:+.1} | {} |",
+                100.0 * b.cross_terms / b.total_mse.max(f64::MIN_POSITIVE),
+                b.largest
+            );
+        }
     }
     let _ = writeln!(
         s,
@@ -861,6 +1210,9 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
     img(&mut s, "error_vs_time.png", "error against time");
     img(&mut s, "psnr_vs_order.png", "PSNR against order");
     img(&mut s, "roi_vs_order.png", "ROI against order");
+    if !d.error_budget.is_empty() {
+        img(&mut s, "error_budget.png", "error budget per order");
+    }
     img(
         &mut s,
         "images.png",

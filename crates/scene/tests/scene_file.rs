@@ -53,7 +53,7 @@ fn test01_default_scene() {
         }),
         "bunny framed"
     );
-    assert_eq!((s.camera.width, s.camera.height), (160, 120));
+    assert_eq!((s.camera.width, s.camera.height), (320, 240));
     assert_eq!((s.render.spp, s.render.bounces, s.render.seed), (64, 1, 0));
     assert_eq!(
         (s.environment.image.width, s.environment.image.height),

@@ -1,0 +1,332 @@
+//! The error budget of a report: the error of full-order SH relighting against the path
+//! tracer, split into named terms, each measured by a controlled experiment on the same scene.
+//!
+//! All terms are mean squared errors over the object pixels in linear radiance (per channel,
+//! averaged over the three channels). With `V_n` the per-vertex relighting at order `n`, `N`
+//! the highest order of the bake, `V'_n` the same from a second bake with another seed, `P`
+//! the mean of two per-pixel bakes at order `N` (two seeds, so its noise `ν_P` is a quarter
+//! of their MSE), and `R` the path-traced reference:
+//!
+//! | term | experiment | estimate |
+//! |---|---|---|
+//! | `truncation` | order `n` against order `N` of the same bake | `MSE(V_n, V_N)` |
+//! | `interpolation` | per-vertex against per-pixel at order `N` | `MSE(V_N, P) − ν_V(N) − ν_P` |
+//! | `bake_noise` | a second bake seed | `ν_V(n) = MSE(V_n, V'_n) / 2` |
+//! | `model` | per-pixel bake at order `N` against the path tracer | `MSE(P, R) − ν_P − ν_R` |
+//! | `reference_noise` | the reference's own half images | `ν_R = mean((A − B)² / 4)` |
+//!
+//! `ν_X` is the Monte Carlo noise of image `X` (its expected squared error), estimated without
+//! bias from two independent estimates: `E[(X − X')²] = 2ν` for two seeds, `E[(A − B)²] = 4ν`
+//! for the two half images of one render. The noise is subtracted from the `interpolation`
+//! and `model` differences, so they measure the systematic part only (clamped at 0 when the
+//! estimate's own scatter makes the difference negative). `model` is what PRT leaves out
+//! beyond the bake's bands and noise: bounces treated as Lambertian, the frozen cosine of the
+//! specular term and the bands above `N` that the bake did not store.
+//!
+//! The terms add up to the total `MSE(V_n, R)` when the error components are uncorrelated;
+//! what they do not account for is reported as `cross_terms = total − Σ terms` (correlations
+//! between e.g. truncation ringing and interpolation, and the scatter of the estimates).
+
+use glam::Vec3;
+use serde::Serialize;
+
+/// Names of the budget terms, in the order the report stacks them.
+pub const TERMS: [&str; 5] = [
+    "truncation",
+    "interpolation",
+    "bake_noise",
+    "model",
+    "reference_noise",
+];
+
+/// One-line explanations of the terms, for the report's text.
+pub const TERM_HELP: [(&str, &str); 5] = [
+    (
+        "truncation",
+        "order n against the highest order of the same bake",
+    ),
+    (
+        "interpolation",
+        "per-vertex against per-pixel transfer at the highest order, noise removed",
+    ),
+    (
+        "bake_noise",
+        "Monte Carlo noise of the bake: half the MSE between two bake seeds",
+    ),
+    (
+        "model",
+        "per-pixel bake at the highest order against the path tracer, noise removed: bounces as Lambertian, frozen specular cosine, bands above the highest order",
+    ),
+    (
+        "reference_noise",
+        "the reference's own noise, from its two half images",
+    ),
+];
+
+/// The budget of one order (`report.json`: `error_budget`).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct BudgetRow {
+    /// Order (bands).
+    pub order: usize,
+    /// `MSE(V_n, R)` over object pixels, linear radiance.
+    pub total_mse: f64,
+    /// The terms by name (see [`TERMS`]).
+    pub terms: serde_json::Map<String, serde_json::Value>,
+    /// `Σ terms`.
+    pub sum_mse: f64,
+    /// `total − Σ terms`: what the terms do not account for.
+    pub cross_terms: f64,
+    /// `|total − Σ terms| / total`.
+    pub cross_fraction: f64,
+    /// The largest term's name.
+    pub largest: String,
+}
+
+/// The measured inputs of one order's budget.
+#[derive(Clone, Copy, Debug)]
+pub struct BudgetInputs {
+    /// Order.
+    pub order: usize,
+    /// `MSE(V_n, R)`.
+    pub total: f64,
+    /// `MSE(V_n, V_N)`.
+    pub vs_highest: f64,
+    /// `MSE(V_N, P)`.
+    pub vertex_vs_pixel: f64,
+    /// `MSE(V_n, V'_n)`.
+    pub vertex_seeds: f64,
+    /// `MSE(V_N, V'_N)`.
+    pub vertex_seeds_highest: f64,
+    /// Twice the noise of the per-pixel baseline `P` (`MSE(P₁, P₂) / 2` when `P` is the mean
+    /// of two seeds `P₁`, `P₂`; `MSE(P, P')` for a single bake `P` and a second one `P'`).
+    pub pixel_seeds: f64,
+    /// `MSE(P, R)`.
+    pub pixel_vs_reference: f64,
+    /// `ν_R`.
+    pub reference_noise: f64,
+}
+
+impl BudgetRow {
+    /// The budget from the measured MSEs (see the module docs for the estimates).
+    #[must_use]
+    pub fn new(m: &BudgetInputs) -> Self {
+        let nu_v = m.vertex_seeds / 2.0;
+        let nu_v_top = m.vertex_seeds_highest / 2.0;
+        let nu_p = m.pixel_seeds / 2.0;
+        let values = [
+            m.vs_highest,
+            (m.vertex_vs_pixel - nu_v_top - nu_p).max(0.0),
+            nu_v,
+            (m.pixel_vs_reference - nu_p - m.reference_noise).max(0.0),
+            m.reference_noise,
+        ];
+        let sum: f64 = values.iter().sum();
+        let (largest, _) =
+            TERMS.iter().zip(values).fold(
+                ("", f64::MIN),
+                |acc, (n, v)| if v > acc.1 { (n, v) } else { acc },
+            );
+        let terms = TERMS
+            .iter()
+            .zip(values)
+            .map(|(n, v)| ((*n).to_string(), serde_json::json!(v)))
+            .collect();
+        Self {
+            order: m.order,
+            total_mse: m.total,
+            terms,
+            sum_mse: sum,
+            cross_terms: m.total - sum,
+            cross_fraction: if m.total > 0.0 {
+                (m.total - sum).abs() / m.total
+            } else {
+                0.0
+            },
+            largest: largest.to_string(),
+        }
+    }
+
+    /// A term's value (0 when absent).
+    #[must_use]
+    pub fn term(&self, name: &str) -> f64 {
+        self.terms
+            .get(name)
+            .and_then(serde_json::Value::as_f64)
+            .unwrap_or(0.0)
+    }
+}
+
+/// Mean over the pixels where `mask` is set and the three channels of `(a − b)²`.
+///
+/// # Panics
+/// When the lengths differ.
+#[must_use]
+pub fn masked_mse(a: &[Vec3], b: &[Vec3], mask: &[bool]) -> f64 {
+    assert!(
+        a.len() == b.len() && a.len() == mask.len(),
+        "image sizes differ"
+    );
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for ((x, y), &m) in a.iter().zip(b).zip(mask) {
+        if m {
+            sum += (*x - *y).as_dvec3().length_squared();
+            n += 3;
+        }
+    }
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
+}
+
+/// Mean over the masked pixels and channels of `d²` (a reference's noise from its half
+/// difference `(A − B) / 2`).
+#[must_use]
+pub fn masked_mean_square(d: &[Vec3], mask: &[bool]) -> f64 {
+    masked_mse(d, &vec![Vec3::ZERO; d.len()], mask)
+}
+
+/// The PSNR ceiling (dB, 8-bit view at exposure 0, peak 255) that an image's noise sets on
+/// the masked pixels, from its radiance `x` and half difference `d = (A − B) / 2`: with the
+/// half images `A = x + d`, `B = x − d`, `(sRGB(A) − sRGB(B))² / 4` estimates the squared
+/// 8-bit error of `x` (to first order in the noise, like the linear estimate). Infinite for a
+/// noiseless image or an empty mask.
+#[must_use]
+pub fn ldr_noise_psnr(x: &[Vec3], d: &[Vec3], mask: &[bool]) -> f64 {
+    let view = |v: f32| 255.0 * f64::from(prt_tracer::output::srgb_encode(v.clamp(0.0, 1.0)));
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for ((x, d), &m) in x.iter().zip(d).zip(mask) {
+        if m {
+            for c in 0..3 {
+                let e = (view(x[c] + d[c]) - view(x[c] - d[c])) / 2.0;
+                sum += e * e;
+            }
+            n += 3;
+        }
+    }
+    if n == 0 || sum == 0.0 {
+        return f64::INFINITY;
+    }
+    20.0 * (255.0 / (sum / n as f64).sqrt()).log10()
+}
+
+/// The sentence that names the largest term of a scene's budget (at its highest order, and
+/// at its lowest when that differs).
+#[must_use]
+pub fn summary_sentence(rows: &[BudgetRow]) -> String {
+    let (Some(first), Some(last)) = (rows.first(), rows.last()) else {
+        return String::new();
+    };
+    let share = |r: &BudgetRow| {
+        if r.total_mse > 0.0 {
+            100.0 * r.term(&r.largest) / r.total_mse
+        } else {
+            0.0
+        }
+    };
+    let mut s = format!(
+        "At order {} the largest term is {} ({:.0} % of the error against the path tracer; the terms add up to {:.0} % of it)",
+        last.order,
+        last.largest.replace('_', " "),
+        share(last),
+        100.0 * last.sum_mse / last.total_mse.max(f64::MIN_POSITIVE)
+    );
+    if first.order != last.order && first.largest != last.largest {
+        let _ = std::fmt::Write::write_fmt(
+            &mut s,
+            format_args!(
+                "; at order {} it is {} ({:.0} %)",
+                first.order,
+                first.largest.replace('_', " "),
+                share(first)
+            ),
+        );
+    }
+    s.push('.');
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Synthetic images whose errors are independent by construction: the budget recovers
+    /// each planted term and the terms add up.
+    #[test]
+    fn planted_terms_are_recovered() {
+        use rand::{Rng, SeedableRng};
+        let n = 200_000;
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
+        let mut g = |s: f32| -> Vec3 {
+            // A sum of 12 uniforms: near-Gaussian with variance s².
+            let mut v = [0.0f32; 3];
+            for c in &mut v {
+                *c = ((0..12).map(|_| rng.random::<f32>()).sum::<f32>() - 6.0) * s;
+            }
+            Vec3::from_array(v)
+        };
+        // truth T; model error m; interpolation error i; truncation t; noises.
+        let (sm, si, st, sv, sp, sr) = (0.04, 0.03, 0.02, 0.01, 0.015, 0.005);
+        let img = |f: &mut dyn FnMut(usize) -> Vec3| (0..n).map(f).collect::<Vec<_>>();
+        let truth = img(&mut |k| Vec3::splat(0.5 + 0.1 * (k as f32 * 0.001).sin()));
+        let model = img(&mut |_| g(sm));
+        let interp = img(&mut |_| g(si));
+        let trunc = img(&mut |_| g(st));
+        let nv = img(&mut |_| g(sv));
+        let nv2 = img(&mut |_| g(sv));
+        let np = img(&mut |_| g(sp));
+        let np2 = img(&mut |_| g(sp));
+        let nr = img(&mut |_| g(sr));
+        let p: Vec<Vec3> = (0..n).map(|k| truth[k] + model[k] + np[k]).collect();
+        let p2: Vec<Vec3> = (0..n).map(|k| truth[k] + model[k] + np2[k]).collect();
+        let vn_top: Vec<Vec3> = (0..n)
+            .map(|k| truth[k] + model[k] + interp[k] + nv[k])
+            .collect();
+        let vn_top2: Vec<Vec3> = (0..n)
+            .map(|k| truth[k] + model[k] + interp[k] + nv2[k])
+            .collect();
+        let vn: Vec<Vec3> = (0..n).map(|k| vn_top[k] + trunc[k]).collect();
+        let vn2: Vec<Vec3> = (0..n).map(|k| vn_top2[k] + trunc[k]).collect();
+        let r: Vec<Vec3> = (0..n).map(|k| truth[k] + nr[k]).collect();
+        let mask = vec![true; n];
+        let row = BudgetRow::new(&BudgetInputs {
+            order: 3,
+            total: masked_mse(&vn, &r, &mask),
+            vs_highest: masked_mse(&vn, &vn_top, &mask),
+            vertex_vs_pixel: masked_mse(&vn_top, &p, &mask),
+            vertex_seeds: masked_mse(&vn, &vn2, &mask),
+            vertex_seeds_highest: masked_mse(&vn_top, &vn_top2, &mask),
+            pixel_seeds: masked_mse(&p, &p2, &mask),
+            pixel_vs_reference: masked_mse(&p, &r, &mask),
+            reference_noise: f64::from(sr * sr),
+        });
+        // Each estimate is a mean of 600k squares: relative standard error ~ √(2/600k) for a
+        // plain variance, a few times that for a difference of estimates; 5 % is > 10 σ.
+        for (name, s) in [
+            ("truncation", st),
+            ("interpolation", si),
+            ("bake_noise", sv),
+            ("model", sm),
+            ("reference_noise", sr),
+        ] {
+            let want = f64::from(s * s);
+            let got = row.term(name);
+            assert!(
+                (got - want).abs() <= 0.05 * want + 2e-6,
+                "{name}: {got} vs planted {want}"
+            );
+        }
+        assert!(row.cross_fraction < 0.02, "{row:?}");
+        assert_eq!(row.largest, "model");
+        assert!(summary_sentence(&[row]).contains("model"));
+    }
+
+    #[test]
+    fn mse_uses_the_mask_only() {
+        let a = [Vec3::ONE, Vec3::ZERO];
+        let b = [Vec3::ZERO, Vec3::splat(100.0)];
+        assert_eq!(masked_mse(&a, &b, &[true, false]), 1.0);
+        assert_eq!(masked_mse(&a, &b, &[false, false]), 0.0);
+    }
+}
