@@ -221,6 +221,7 @@ pub fn bake(
                     visibility: vertex_mode && plan.needs_visibility,
                     seed: settings.seed,
                     object: plan.mesh as u64,
+                    first_ray: 0,
                     basis: &bases[o],
                 };
                 let r = direct(accel, &vertex_points[o][v as usize], v, &opt);
@@ -443,17 +444,21 @@ pub fn bake(
                     };
                     let plan = &plans[mesh];
                     let n2 = plan.order * plan.order;
-                    // The pixel's R rays are shared out over its K samples.
-                    let rays = settings.rays / k + u32::from((j as u32) < settings.rays % k);
+                    // The pixel's R rays are shared out over its K samples: sample j takes
+                    // the next contiguous block of the pixel's low-discrepancy sequence.
+                    let j = j as u32;
+                    let (base, extra) = (settings.rays / k, settings.rays % k);
+                    let rays = base + u32::from(j < extra);
                     let opt = DirectOptions {
                         rays,
                         record_hits: bounces > 0,
                         visibility: plan.needs_visibility,
                         seed: settings.seed,
                         object: plan.mesh as u64 | (1 << 32),
+                        first_ray: j * base + j.min(extra),
                         basis: &bases[mesh],
                     };
-                    let d = direct(accel, &p, px as u64 * u64::from(k) + j as u64, &opt);
+                    let d = direct(accel, &p, px as u64, &opt);
                     let entry = match objects.iter().position(|t| t.mesh == mesh) {
                         Some(i) => &mut objects[i],
                         None => {

@@ -63,6 +63,11 @@ pub struct DirectOptions<'a> {
     pub seed: u64,
     /// Key of the point's object (part of the sequence key).
     pub object: u64,
+    /// Index of the first ray in the point's sequence: the rays are points
+    /// `first_ray .. first_ray + rays` of it. A per-pixel bake gives each footprint sample its
+    /// own contiguous block of the pixel's sequence, so that together they trace one
+    /// low-discrepancy set (independent sequences per sample would be no better than random).
+    pub first_ray: u32,
     /// The basis of the point's order.
     pub basis: &'a Basis,
 }
@@ -102,7 +107,7 @@ pub fn direct(
     let seq = R2::new(opt.seed, SequencePurpose::Diffuse, opt.object, index);
     for k in 0..opt.rays {
         let dir = frame
-            .to_world(sample_cosine_hemisphere(seq.get(k)))
+            .to_world(sample_cosine_hemisphere(seq.get(opt.first_ray + k)))
             .normalize();
         let blocked = match trace(accel, point, dir) {
             Some(hit) => {
@@ -135,7 +140,7 @@ pub fn direct(
         sum.iter_mut().for_each(|s| *s = 0.0);
         for k in 0..opt.rays {
             let dir = frame
-                .to_world(sample_uniform_hemisphere(seq.get(k)))
+                .to_world(sample_uniform_hemisphere(seq.get(opt.first_ray + k)))
                 .normalize();
             if trace(accel, point, dir).is_none() {
                 opt.basis.eval_f32_unchecked(dir, &mut y);

@@ -41,22 +41,43 @@ fn background(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
 pub type PointAndNormal = ([f32; 3], [f32; 3]);
 
 /// Per pixel, the position and camera-facing normal of object `o` that the specular term of a
-/// per-pixel bake is shaded at: the first of the pixel's footprint samples that hits `o` (the
-/// pixel centre when the bake sampled centres only). Pixels where no sample hits `o` get a
-/// placeholder facing away from the camera (their transfer for `o` is zero).
+/// per-pixel bake is shaded at: the mean position and the normalised mean normal of the
+/// pixel's footprint samples that hit `o` (the pixel centre when the bake sampled centres
+/// only). The bake stores the visibility averaged over the footprint, so the lobe must be
+/// placed once per pixel; taking one sample's normal instead (as before) made the specular
+/// term of a curved glossy surface as noisy as a one-sample render of its footprint. Where the
+/// normals cancel (a sliver seen from both sides) the first sample's normal is used. Pixels
+/// where no sample hits `o` get a placeholder facing away from the camera (their transfer for
+/// `o` is zero).
 #[must_use]
 pub fn pixel_surface(scene: &Scene, footprints: &PixelFootprints, o: usize) -> Vec<PointAndNormal> {
     let eye = scene.camera.eye.as_vec3();
     (0..footprints.pixel_count())
         .map(|px| {
-            footprints
-                .pixel(px)
-                .iter()
-                .find_map(|s| match s.hit {
-                    Some((m, sp)) if m == o => Some((sp.position.to_array(), sp.normal.to_array())),
-                    _ => None,
-                })
-                .unwrap_or(((eye + Vec3::Y).to_array(), Vec3::Y.to_array()))
+            let (mut p, mut n, mut count) = (glam::DVec3::ZERO, glam::DVec3::ZERO, 0u32);
+            let mut first = None;
+            for s in footprints.pixel(px) {
+                if let Some((m, sp)) = s.hit {
+                    if m == o {
+                        p += sp.position.as_dvec3();
+                        n += sp.normal.as_dvec3();
+                        count += 1;
+                        first.get_or_insert(sp.normal);
+                    }
+                }
+            }
+            let Some(first) = first else {
+                return ((eye + Vec3::Y).to_array(), Vec3::Y.to_array());
+            };
+            let mean_n = if n.length() > 1e-6 * f64::from(count) {
+                n.normalize().as_vec3()
+            } else {
+                first
+            };
+            (
+                (p / f64::from(count)).as_vec3().to_array(),
+                mean_n.to_array(),
+            )
         })
         .collect()
 }
