@@ -133,6 +133,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         timing_frames: 5,
         warmup_frames: 2,
         rotate_y_step_deg: 0.0,
+        points: None,
     };
     let relit = prt_report::relight(&scene, &accel, &bake, &opt)?;
     let full_stats: Option<RelightStats> = if args.adaptive {

@@ -119,7 +119,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         );
     }
     if !data.error_budget.is_empty() {
-        println!("\nerror budget (MSE over object pixels, linear radiance):");
+        println!("\nerror budget (what each approximation costs; MSE over object pixels, linear radiance):");
         println!(
             "order  total       {}  cross %",
             prt_report::budget::TERMS

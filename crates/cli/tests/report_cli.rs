@@ -117,8 +117,25 @@ fn report_writes_everything_and_its_figures_are_reproduced_by_hand() {
             assert!(v >= 0.0, "{t}: {b}");
             sum += v;
         }
+        // The costs add up to the total but for what a negative cost (shown as 0) leaves.
+        let unaccounted = b["unaccounted"].as_f64().unwrap();
+        assert!(
+            (total - sum - unaccounted).abs() <= 1e-12 * total.max(1.0),
+            "{b}"
+        );
+        assert!(unaccounted >= -1e-12 * total, "{b}");
+        // The components' own sizes, and what their correlations take.
+        let direct: f64 = b["direct"]
+            .as_object()
+            .unwrap()
+            .values()
+            .map(|v| v.as_f64().unwrap())
+            .sum();
         let cross = b["cross_terms"].as_f64().unwrap();
-        assert!((total - sum - cross).abs() <= 1e-12 * total.max(1.0), "{b}");
+        assert!(
+            (total - direct - cross).abs() <= 1e-12 * total.max(1.0),
+            "{b}"
+        );
         let largest = b["largest"].as_str().unwrap();
         assert!(
             b["terms"]

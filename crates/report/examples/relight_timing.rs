@@ -92,6 +92,7 @@ fn run() -> Result<(), String> {
                 timing_frames: frames,
                 warmup_frames: warmup,
                 rotate_y_step_deg: 0.0,
+                points: None,
             };
             let r = prt_report::relight(&scene, &accel, &bake, &opt).map_err(|e| e.to_string())?;
             best[k] = best[k].min(r.stats.shade_ms);

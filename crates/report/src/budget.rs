@@ -1,31 +1,36 @@
 //! The error budget of a report: the error of full-order SH relighting against the path
 //! tracer, split into named terms, each measured by a controlled experiment on the same scene.
 //!
-//! All terms are mean squared errors over the object pixels in linear radiance (per channel,
+//! All figures are mean squared errors over the object pixels in linear radiance (per channel,
 //! averaged over the three channels). With `V_n` the per-vertex relighting at order `n`, `N`
 //! the highest order of the bake, `V'_n` the same from a second bake with another seed, `P`
 //! the mean of two per-pixel bakes at order `N` (two seeds, so its noise `ν_P` is a quarter
-//! of their MSE), and `R` the path-traced reference:
+//! of their MSE), and `R` the path-traced reference, `ν_X` the Monte Carlo noise of image `X`
+//! (its expected squared error), estimated without bias from two independent estimates
+//! (`E[(X − X')²] = 2ν` for two seeds, `E[(A − B)²] = 4ν` for the two half images of one
+//! render), and `s_X = MSE(X, R) − ν_X − ν_R` the systematic error of `X`:
 //!
-//! | term | experiment | estimate |
-//! |---|---|---|
-//! | `truncation` | order `n` against order `N` of the same bake | `MSE(V_n, V_N)` |
-//! | `interpolation` | per-vertex against per-pixel at order `N` | `MSE(V_N, P) − ν_V(N) − ν_P` |
-//! | `bake_noise` | a second bake seed | `ν_V(n) = MSE(V_n, V'_n) / 2` |
-//! | `model` | per-pixel bake at order `N` against the path tracer | `MSE(P, R) − ν_P − ν_R` |
-//! | `reference_noise` | the reference's own half images | `ν_R = mean((A − B)² / 4)` |
+//! | term | experiment | what it costs (`terms`) | its own size (`direct`) |
+//! |---|---|---|---|
+//! | `truncation` | order `n` against order `N` of the same bake | `s_{V_n} − s_{V_N}` | `MSE(V_n, V_N)` |
+//! | `interpolation` | per vertex against per pixel at order `N` | `s_{V_N} − s_P` | `MSE(V_N, P) − ν_V(N) − ν_P` |
+//! | `bake_noise` | a second bake seed | `ν_V(n) = MSE(V_n, V'_n) / 2` | the same |
+//! | `model` | the better of `V_N`, `P` against the path tracer | `min(s_{V_N}, s_P)` | `s_P` |
+//! | `reference_noise` | the reference's own half images | `ν_R` | the same |
 //!
-//! `ν_X` is the Monte Carlo noise of image `X` (its expected squared error), estimated without
-//! bias from two independent estimates: `E[(X − X')²] = 2ν` for two seeds, `E[(A − B)²] = 4ν`
-//! for the two half images of one render. The noise is subtracted from the `interpolation`
-//! and `model` differences, so they measure the systematic part only (clamped at 0 when the
-//! estimate's own scatter makes the difference negative). `model` is what PRT leaves out
-//! beyond the bake's bands and noise: bounces treated as Lambertian, the frozen cosine of the
-//! specular term and the bands above `N` that the bake did not store.
+//! `terms` is a waterfall: starting from the reference's noise, each experiment adds what its
+//! approximation costs in error against the path tracer, so they add up to the total
+//! `MSE(V_n, R)` exactly, except where a cost is negative (an approximation whose error
+//! happens to cancel part of another's, e.g. low-order ringing against a model bias) and is
+//! shown as 0; `unaccounted = total − Σ terms` says how much that leaves. `model` is what PRT
+//! leaves out beyond the bake's bands and noise: bounces treated as Lambertian, the frozen
+//! cosine of the specular term, the bands above `N`; `interpolation` is 0 when per-pixel
+//! transfer is no better than per-vertex (a mesh denser than the pixels).
 //!
-//! The terms add up to the total `MSE(V_n, R)` when the error components are uncorrelated;
-//! what they do not account for is reported as `cross_terms = total − Σ terms` (correlations
-//! between e.g. truncation ringing and interpolation, and the scatter of the estimates).
+//! `direct` gives each error component's own size, the MSE of the controlled difference; the
+//! components add up to the total only when they are uncorrelated, and `cross_terms = total −
+//! Σ direct` says how much their correlations take (positive when errors add, negative when
+//! they cancel).
 
 use glam::Vec3;
 use serde::Serialize;
@@ -47,7 +52,7 @@ pub const TERM_HELP: [(&str, &str); 5] = [
     ),
     (
         "interpolation",
-        "per-vertex against per-pixel transfer at the highest order, noise removed",
+        "per-vertex against per-pixel transfer at the highest order, noise removed (0 when per-pixel is no better)",
     ),
     (
         "bake_noise",
@@ -55,7 +60,7 @@ pub const TERM_HELP: [(&str, &str); 5] = [
     ),
     (
         "model",
-        "per-pixel bake at the highest order against the path tracer, noise removed: bounces as Lambertian, frozen specular cosine, bands above the highest order",
+        "the better of per-vertex and per-pixel transfer at the highest order against the path tracer, noise removed: bounces as Lambertian, frozen specular cosine, bands above the highest order",
     ),
     (
         "reference_noise",
@@ -70,15 +75,20 @@ pub struct BudgetRow {
     pub order: usize,
     /// `MSE(V_n, R)` over object pixels, linear radiance.
     pub total_mse: f64,
-    /// The terms by name (see [`TERMS`]).
+    /// What each approximation costs (see [`TERMS`] and the module docs): they add up to
+    /// the total but for `unaccounted`.
     pub terms: serde_json::Map<String, serde_json::Value>,
     /// `Σ terms`.
     pub sum_mse: f64,
-    /// `total − Σ terms`: what the terms do not account for.
+    /// `total − Σ terms` (non-zero only where a negative cost was shown as 0).
+    pub unaccounted: f64,
+    /// Each error component's own size: the MSE of its controlled difference.
+    pub direct: serde_json::Map<String, serde_json::Value>,
+    /// `total − Σ direct`: what the correlations between the components take.
     pub cross_terms: f64,
-    /// `|total − Σ terms| / total`.
+    /// `|total − Σ direct| / total`.
     pub cross_fraction: f64,
-    /// The largest term's name.
+    /// The name of the largest term.
     pub largest: String,
 }
 
@@ -93,6 +103,8 @@ pub struct BudgetInputs {
     pub vs_highest: f64,
     /// `MSE(V_N, P)`.
     pub vertex_vs_pixel: f64,
+    /// `MSE(V_N, R)`.
+    pub highest_vs_reference: f64,
     /// `MSE(V_n, V'_n)`.
     pub vertex_seeds: f64,
     /// `MSE(V_N, V'_N)`.
@@ -113,37 +125,63 @@ impl BudgetRow {
         let nu_v = m.vertex_seeds / 2.0;
         let nu_v_top = m.vertex_seeds_highest / 2.0;
         let nu_p = m.pixel_seeds / 2.0;
-        let values = [
+        let nu_r = m.reference_noise;
+        // Systematic errors against the path tracer.
+        let s_vn = m.total - nu_v - nu_r;
+        let s_top = m.highest_vs_reference - nu_v_top - nu_r;
+        let s_p = m.pixel_vs_reference - nu_p - nu_r;
+        let net = [
+            (s_vn - s_top).max(0.0),
+            (s_top - s_p).max(0.0),
+            nu_v,
+            s_top.min(s_p).max(0.0),
+            nu_r,
+        ];
+        let direct = [
             m.vs_highest,
             (m.vertex_vs_pixel - nu_v_top - nu_p).max(0.0),
             nu_v,
-            (m.pixel_vs_reference - nu_p - m.reference_noise).max(0.0),
-            m.reference_noise,
+            s_p.max(0.0),
+            nu_r,
         ];
-        let sum: f64 = values.iter().sum();
+        let sum: f64 = net.iter().sum();
+        let sum_direct: f64 = direct.iter().sum();
         let (largest, _) =
-            TERMS.iter().zip(values).fold(
+            TERMS.iter().zip(net).fold(
                 ("", f64::MIN),
                 |acc, (n, v)| if v > acc.1 { (n, v) } else { acc },
             );
-        let terms = TERMS
-            .iter()
-            .zip(values)
-            .map(|(n, v)| ((*n).to_string(), serde_json::json!(v)))
-            .collect();
+        let map = |values: [f64; 5]| {
+            TERMS
+                .iter()
+                .zip(values)
+                .map(|(n, v)| ((*n).to_string(), serde_json::json!(v)))
+                .collect()
+        };
         Self {
             order: m.order,
             total_mse: m.total,
-            terms,
+            terms: map(net),
             sum_mse: sum,
-            cross_terms: m.total - sum,
+            unaccounted: m.total - sum,
+            direct: map(direct),
+            cross_terms: m.total - sum_direct,
             cross_fraction: if m.total > 0.0 {
-                (m.total - sum).abs() / m.total
+                (m.total - sum_direct).abs() / m.total
             } else {
                 0.0
             },
             largest: largest.to_string(),
         }
+    }
+
+    /// A direct size's value (0 when absent).
+    #[must_use]
+    pub fn direct(&self, name: &str) -> f64 {
+        self.direct
+            .get(name)
+            .and_then(serde_json::Value::as_f64)
+            .unwrap_or(0.0)
     }
 
     /// A term's value (0 when absent).
@@ -226,11 +264,11 @@ pub fn summary_sentence(rows: &[BudgetRow]) -> String {
         }
     };
     let mut s = format!(
-        "At order {} the largest term is {} ({:.0} % of the error against the path tracer; the terms add up to {:.0} % of it)",
+        "At order {} the largest term is {} ({:.0} % of the error against the path tracer; the error components' correlations take {:+.0} % of it)",
         last.order,
         last.largest.replace('_', " "),
         share(last),
-        100.0 * last.sum_mse / last.total_mse.max(f64::MIN_POSITIVE)
+        100.0 * last.cross_terms / last.total_mse.max(f64::MIN_POSITIVE)
     );
     if first.order != last.order && first.largest != last.largest {
         let _ = std::fmt::Write::write_fmt(
@@ -295,6 +333,7 @@ mod tests {
             total: masked_mse(&vn, &r, &mask),
             vs_highest: masked_mse(&vn, &vn_top, &mask),
             vertex_vs_pixel: masked_mse(&vn_top, &p, &mask),
+            highest_vs_reference: masked_mse(&vn_top, &r, &mask),
             vertex_seeds: masked_mse(&vn, &vn2, &mask),
             vertex_seeds_highest: masked_mse(&vn_top, &vn_top2, &mask),
             pixel_seeds: masked_mse(&p, &p2, &mask),
@@ -311,15 +350,46 @@ mod tests {
             ("reference_noise", sr),
         ] {
             let want = f64::from(s * s);
-            let got = row.term(name);
-            assert!(
-                (got - want).abs() <= 0.05 * want + 2e-6,
-                "{name}: {got} vs planted {want}"
-            );
+            for (kind, got) in [("cost", row.term(name)), ("direct", row.direct(name))] {
+                assert!(
+                    (got - want).abs() <= 0.05 * want + 2e-6,
+                    "{name} ({kind}): {got} vs planted {want}"
+                );
+            }
         }
+        // Independent components: no cross terms, and the costs add up exactly.
         assert!(row.cross_fraction < 0.02, "{row:?}");
+        assert!(row.unaccounted.abs() < 1e-12, "{row:?}");
         assert_eq!(row.largest, "model");
         assert!(summary_sentence(&[row]).contains("model"));
+    }
+
+    /// A per-pixel bake that is worse than the per-vertex one (its own error `e`, a mesh
+    /// denser than the pixels): interpolation costs nothing, the model term is the per-vertex
+    /// error, and the costs still add up; the direct sizes show the anti-correlation.
+    #[test]
+    fn a_worse_per_pixel_bake_costs_no_interpolation() {
+        let m = BudgetInputs {
+            order: 5,
+            // V_n = T + a + t, V_N = T + a, P = T + e, R = T (no noise anywhere).
+            total: 3.0,                 // |a + t|², a ⟂ t, |a|² = 2, |t|² = 1
+            vs_highest: 1.0,            // |t|²
+            vertex_vs_pixel: 2.0 + 4.0, // |a − e|², a ⟂ e, |e|² = 4
+            highest_vs_reference: 2.0,
+            vertex_seeds: 0.0,
+            vertex_seeds_highest: 0.0,
+            pixel_seeds: 0.0,
+            pixel_vs_reference: 4.0,
+            reference_noise: 0.0,
+        };
+        let row = BudgetRow::new(&m);
+        assert_eq!(row.term("interpolation"), 0.0);
+        assert_eq!(row.term("model"), 2.0);
+        assert_eq!(row.term("truncation"), 1.0);
+        assert_eq!(row.unaccounted, 0.0);
+        // Direct: 1 + 6 + 0 + 4 + 0 = 11 against a total of 3.
+        assert_eq!(row.cross_terms, 3.0 - 11.0);
+        assert_eq!(row.largest, "model");
     }
 
     #[test]

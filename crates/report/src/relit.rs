@@ -35,6 +35,9 @@ pub struct RelightOptions {
     /// is lit by the environment rotated by `rotate_y_deg + k · step`; the radiance returned
     /// is frame 0's.
     pub rotate_y_step_deg: f64,
+    /// Shade only these points of each object (full order only; the others come out 0):
+    /// what a quality estimate relights at full order. `None`: every point.
+    pub points: Option<Vec<Vec<u32>>>,
 }
 
 impl Default for RelightOptions {
@@ -46,6 +49,7 @@ impl Default for RelightOptions {
             timing_frames: 5,
             warmup_frames: 2,
             rotate_y_step_deg: 0.0,
+            points: None,
         }
     }
 }
@@ -151,6 +155,19 @@ fn environment(bake: &Bake) -> (usize, Vec<[f64; 3]>) {
     (order, c)
 }
 
+/// The rows (of `stride` values) of `data` listed in `subset`, in that order; all of `data`
+/// without a subset.
+fn gather_rows(data: Vec<f32>, stride: usize, subset: Option<&[u32]>) -> Vec<f32> {
+    match subset {
+        None => data,
+        Some(sub) => sub
+            .iter()
+            .flat_map(|&i| &data[i as usize * stride..(i as usize + 1) * stride])
+            .copied()
+            .collect(),
+    }
+}
+
 /// Repacks `[point][channel][coeff]` data from order `from` to order `to ≤ from`, keeping
 /// `channels_out` channels (the first ones).
 fn truncate(
@@ -241,7 +258,27 @@ pub fn relight(
                 reason: format!("object {} has no diffuse transfer", obj.name),
             })?;
         let channels = obj.channels as usize;
-        let diffuse_data = truncate(&diffuse_block.data, baked, order, channels, channels);
+        let subset = opt
+            .points
+            .as_ref()
+            .map(|p| p.get(o).map_or(&[][..], Vec::as_slice));
+        if subset.is_some() && (opt.adaptive.is_some() || per_pixel) {
+            return Err(ReportError::Invalid(
+                "relighting a subset of points is for full-order per-vertex relighting only".into(),
+            ));
+        }
+        let all_points = diffuse_block.data.len() / (channels * baked * baked).max(1);
+        if let Some(bad) = subset.and_then(|s| s.iter().find(|&&i| i as usize >= all_points)) {
+            return Err(ReportError::Invalid(format!(
+                "point {bad} of object {} does not exist ({all_points} points)",
+                obj.name
+            )));
+        }
+        let diffuse_data = gather_rows(
+            truncate(&diffuse_block.data, baked, order, channels, channels),
+            channels * order * order,
+            subset,
+        );
         // Compact copies of the low bands for the adaptive path's level-by-level reading
         // (made once per run, outside the timed frames).
         let diffuse_low = prt_relight::low_bands(&diffuse_data, order);
@@ -298,7 +335,11 @@ pub fn relight(
             .find(|b| b.kind == TransferKind::Visibility);
         let wants_visibility = phong.is_some() || glossy_table.is_some();
         let vis_data = match (wants_visibility, vis_block) {
-            (true, Some(b)) => Some(truncate(&b.data, baked, order, channels, 1)),
+            (true, Some(b)) => Some(gather_rows(
+                truncate(&b.data, baked, order, channels, 1),
+                order * order,
+                subset,
+            )),
             (true, None) => {
                 stats.notes.push(format!(
                     "{}: no visibility transfer in the bake; specular not relit",
@@ -324,6 +365,13 @@ pub fn relight(
                     .map(|n| n.normalize_or(Vec3::Y).to_array())
                     .collect(),
             )
+        };
+        let (positions, normals) = match subset {
+            Some(sub) => (
+                sub.iter().map(|&i| positions[i as usize]).collect(),
+                sub.iter().map(|&i| normals[i as usize]).collect(),
+            ),
+            None => (positions, normals),
         };
         let vis_low = vis_data.as_ref().map(|v| prt_relight::low_bands(v, order));
         let specular_input = match (phong, &vis_data, &vis_low) {
@@ -428,6 +476,21 @@ pub fn relight(
                 sum_terms(&result, &s, points)
             }
             _ => result,
+        };
+        let result = match subset {
+            Some(sub) => {
+                let mut all = vec![[0.0f32; 3]; all_points];
+                for (&i, r) in sub.iter().zip(result) {
+                    all[i as usize] = r;
+                }
+                all
+            }
+            None => result,
+        };
+        let in_roi = if subset.is_some() {
+            vec![false; all_points]
+        } else {
+            in_roi
         };
         radiance.push(result);
         roi.push(in_roi);

@@ -543,6 +543,7 @@ pub fn run_report(
         timing_frames: 1,
         warmup_frames: 0,
         rotate_y_step_deg: 0.0,
+        points: None,
     };
     let relit_image = |b: &Bake, order: usize| -> Result<Vec<Vec3>, ReportError> {
         let r = relight(scene, &accel, b, &once(order))?;
@@ -598,6 +599,7 @@ pub fn run_report(
             timing_frames: s.timing_frames,
             warmup_frames: 2,
             rotate_y_step_deg: 0.0,
+            points: None,
         };
         let full = relight(scene, &accel, &bake, &full_opt)?;
         let ad_opt = RelightOptions {
@@ -715,6 +717,7 @@ pub fn run_report(
         // The per-pixel baseline is the mean of the two per-pixel bakes (half the noise of
         // either); its noise is a quarter of MSE(P, P').
         let p_mean: Vec<Vec3> = p1.iter().zip(p2).map(|(a, b)| 0.5 * (*a + *b)).collect();
+        let highest_vs_reference = masked_mse(top, r, bits);
         let (vertex_vs_pixel, pixel_seeds, pixel_vs_reference, vertex_seeds_highest) = (
             masked_mse(top, &p_mean, bits),
             masked_mse(p1, p2, bits) / 2.0,
@@ -732,6 +735,7 @@ pub fn run_report(
                 total: masked_mse(img, r, bits),
                 vs_highest: masked_mse(img, top, bits),
                 vertex_vs_pixel,
+                highest_vs_reference,
                 vertex_seeds: masked_mse(img, &v2_n, bits),
                 vertex_seeds_highest,
                 pixel_seeds,
@@ -888,7 +892,7 @@ pub fn run_report(
         ];
         stacked_shares(
             &out_dir.join("error_budget.png"),
-            "Error budget of full-order SH (share of the MSE against the path tracer)",
+            "Error budget of full-order SH (what each approximation costs, % of the MSE)",
             "order (number of SH bands)",
             "% of the total MSE (object pixels, linear radiance)",
             &error_budget
@@ -1015,13 +1019,20 @@ fn csv(d: &ReportData) -> String {
     if !d.error_budget.is_empty() {
         let _ = writeln!(
             s,
-            "\norder,total_mse,{},cross_terms",
-            crate::budget::TERMS.join(",")
+            "\norder,total_mse,{},unaccounted,{},cross_terms",
+            crate::budget::TERMS.join(","),
+            crate::budget::TERMS
+                .map(|t| format!("direct_{t}"))
+                .join(",")
         );
         for b in &d.error_budget {
             let _ = write!(s, "{},{}", b.order, b.total_mse);
             for t in crate::budget::TERMS {
                 let _ = write!(s, ",{}", b.term(t));
+            }
+            let _ = write!(s, ",{}", b.unaccounted);
+            for t in crate::budget::TERMS {
+                let _ = write!(s, ",{}", b.direct(t));
             }
             let _ = writeln!(s, ",{}", b.cross_terms);
         }
@@ -1124,29 +1135,42 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
         for (name, help) in crate::budget::TERM_HELP {
             let _ = writeln!(s, "- `{name}`: {help}");
         }
-        let _ = writeln!(s, "\n`cross` is what the terms do not account for (total − Σ terms, % of the total): correlated errors and the scatter of the estimates.\n");
+        let _ = writeln!(s, "\nEach term is what that approximation costs: starting from the reference's noise, each experiment adds the error it brings, so the terms add up to the total (`unaccounted` is what a negative cost, shown as 0, leaves). `cross` is from the second table: the error components' own sizes (the MSE of each controlled difference) add up to the total only when they are uncorrelated, and cross = total − Σ sizes says how much their correlations take.\n");
         let _ = write!(s, "| order | total MSE |");
         for t in crate::budget::TERMS {
             let _ = write!(s, " {t} |");
         }
-        let _ = writeln!(s, " cross % | largest |");
-        let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|---:|---:|---|");
+        let _ = writeln!(s, " unaccounted % | cross % | largest |");
+        let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
         for b in &d.error_budget {
+            let pc = |v: f64| 100.0 * v / b.total_mse.max(f64::MIN_POSITIVE);
             let _ = write!(s, "| {} | {:.3e} |", b.order, b.total_mse);
             for t in crate::budget::TERMS {
-                let _ = write!(
-                    s,
-                    " {:.2e} ({:.0} %) |",
-                    b.term(t),
-                    100.0 * b.term(t) / b.total_mse.max(f64::MIN_POSITIVE)
-                );
+                let _ = write!(s, " {:.2e} ({:.0} %) |", b.term(t), pc(b.term(t)));
             }
             let _ = writeln!(
                 s,
-                " {:+.1} | {} |",
-                100.0 * b.cross_terms / b.total_mse.max(f64::MIN_POSITIVE),
+                " {:+.1} | {:+.1} | {} |",
+                pc(b.unaccounted),
+                pc(b.cross_terms),
                 b.largest
             );
+        }
+        let _ = writeln!(
+            s,
+            "\nThe error components' own sizes (MSE of each controlled difference):\n"
+        );
+        let _ = write!(s, "| order |");
+        for t in crate::budget::TERMS {
+            let _ = write!(s, " {t} |");
+        }
+        let _ = writeln!(s, "\n|---:|---:|---:|---:|---:|---:|");
+        for b in &d.error_budget {
+            let _ = write!(s, "| {} |", b.order);
+            for t in crate::budget::TERMS {
+                let _ = write!(s, " {:.2e} |", b.direct(t));
+            }
+            let _ = writeln!(s);
         }
     }
     let _ = writeln!(
