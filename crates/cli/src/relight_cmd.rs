@@ -68,6 +68,20 @@ pub struct RelightArgs {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// With --adaptive: pick each frame's threshold so that its PSNR against full order
+    /// (8-bit view, whole image) is at least this many dB, estimated from a random sample of
+    /// pixels relit at full order (--threshold is where the first frame starts). Runs the
+    /// --frames frames (rotated by --rotate-y-step) and prints each frame's threshold,
+    /// estimate and time.
+    #[arg(long, allow_negative_numbers = true)]
+    pub target_psnr: Option<f64>,
+    /// Pixels of the --target-psnr estimate.
+    #[arg(long, default_value_t = 512)]
+    pub probe_pixels: usize,
+    /// With --target-psnr: also relight every frame at full order and at each lower order, to
+    /// print the PSNR reached and the best uniform truncation meeting the same target.
+    #[arg(long)]
+    pub verify: bool,
 }
 
 /// `--stop` values (see [`StopRule`]).
@@ -126,6 +140,18 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             Threshold::Absolute(args.threshold)
         })
     });
+    if let Some(target) = args.target_psnr {
+        let Some(params) = adaptive else {
+            bail!("--target-psnr needs --adaptive");
+        };
+        if args.out.is_some() || args.png.is_some() || args.roi_png.is_some() {
+            bail!("--target-psnr prints a per-frame study; write an image with --threshold set to a frame's threshold");
+        }
+        return run_target(args, &scene, &accel, &bake, params, target);
+    }
+    if args.verify {
+        bail!("--verify needs --target-psnr");
+    }
     let mut opt = RelightOptions {
         order: args.order,
         adaptive,
@@ -232,6 +258,68 @@ pub fn run(args: &RelightArgs) -> Result<()> {
                 args.frames
             );
         }
+    }
+    Ok(())
+}
+
+/// `prt relight --adaptive --target-psnr P`: the per-frame study.
+fn run_target(
+    args: &RelightArgs,
+    scene: &prt_scene::Scene,
+    accel: &prt_tracer::Accel,
+    bake: &prt_bakefile::Bake,
+    adaptive: AdaptiveParams,
+    target: f64,
+) -> Result<()> {
+    let opt = prt_report::target::TargetOptions {
+        order: args.order,
+        adaptive,
+        target_psnr: target,
+        probe_pixels: args.probe_pixels,
+        seed: bake.meta.seed,
+        rotations: (0..args.frames)
+            .map(|k| args.rotate_y + args.rotate_y_step * k as f64)
+            .collect(),
+        warmup_frames: 1,
+        verify: args.verify,
+    };
+    let study = prt_report::target::relight_to_target(scene, accel, bake, &opt)
+        .with_context(|| format!("{}", args.bake.display()))?;
+    if args.json {
+        println!("{}", serde_json::to_string(&study)?);
+        return Ok(());
+    }
+    println!(
+        "target {target} dB against full order; probe: {} of {} object pixels, {} vertices at full order per frame",
+        study.probe_pixels, study.candidate_pixels, study.probe_points
+    );
+    println!("rotate°  threshold  tries  PSNR est.  lower   actual   shade ms  probe ms  full ms");
+    for f in &study.frames {
+        println!(
+            "{:>7.1} {:>10.4} {:>6} {:>10.2} {:>6.2} {:>8} {:>10.3} {:>9.3} {:>8}",
+            f.rotate_y_deg,
+            f.threshold,
+            f.tries,
+            f.psnr_estimate,
+            f.psnr_lower,
+            f.psnr_actual.map_or("-".into(), |p| format!("{p:.2}")),
+            f.shade_ms,
+            f.probe_ms,
+            f.full_ms.map_or("-".into(), |m| format!("{m:.3}")),
+        );
+    }
+    if let (Some(s), Some(u), Some(us), Some(min)) = (
+        study.speedup,
+        &study.uniform,
+        study.uniform_speedup,
+        study.min_psnr_actual,
+    ) {
+        println!(
+            "median {:.3} ms/frame: {s:.2}× faster than full order, lowest PSNR reached {min:.2} dB; uniform truncation at order {} meets the target at {:.3} ms ({us:.2}×, lowest {:.2} dB)",
+            study.median_shade_ms, u.order, u.ms, u.min_psnr
+        );
+    } else {
+        println!("median {:.3} ms/frame", study.median_shade_ms);
     }
     Ok(())
 }

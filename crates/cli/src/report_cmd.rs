@@ -26,6 +26,10 @@ pub struct ReportArgs {
     /// The reference is cached in DIR/cache like the bake.
     #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
     pub reference_psnr: f64,
+    /// The quality target of the report's "target quality" column: adaptive relighting to
+    /// this PSNR against full order at each order (0: no column).
+    #[arg(long, default_value_t = 45.0, allow_negative_numbers = true)]
+    pub target_psnr: f64,
     /// Skip the error budget (it needs a second vertex bake and two per-pixel bakes, cached).
     #[arg(long)]
     pub no_budget: bool,
@@ -81,6 +85,12 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     let orders = parse_orders(&args.orders)?;
     let scene = crate::common::load_scene(&args.scene)?;
     let bounces = crate::common::bake_bounces(args.bounces, &scene, &args.scene)?;
+    if !(args.target_psnr.is_finite() && args.target_psnr >= 0.0) {
+        bail!(
+            "--target-psnr {} must be a number of dB ≥ 0 (0: no target-quality column)",
+            args.target_psnr
+        );
+    }
     if !(args.reference_psnr.is_finite() && args.reference_psnr >= 0.0) {
         bail!(
             "--reference-psnr {} must be a number of dB ≥ 0 (0: a fixed sample count)",
@@ -92,6 +102,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         reference_spp: args.reference_spp,
         reference_psnr: (args.reference_psnr > 0.0).then_some(args.reference_psnr),
         budget: !args.no_budget,
+        target_psnr: (args.target_psnr > 0.0).then_some(args.target_psnr),
         rays: args.rays,
         bounces,
         threshold: args.threshold,

@@ -239,3 +239,58 @@ fn relight_json_bake_check_exactness_roi_and_frames() {
     let err = fail(&mut relight(&scene, &dir.path().join("missing.prtb")));
     assert!(err.contains("missing.prtb"), "{err}");
 }
+
+/// `--target-psnr`: every frame reaches the target against full order (the run's own full-order
+/// images, `--verify`), the estimate is near what is reached, the run is reproducible (its
+/// decisions depend on images, not timings), and bad values are clear errors.
+#[test]
+fn target_psnr_meets_the_target_on_every_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), 3);
+    let b = dir.path().join("scene.prtb");
+    bake(&scene, &b, &[]);
+    let study = |target: &str| {
+        json(&run(relight(&scene, &b).args([
+            "--adaptive",
+            "--target-psnr",
+            target,
+            "--frames",
+            "4",
+            "--rotate-y-step",
+            "90",
+            "--verify",
+            "--json",
+        ])))
+    };
+    for target in [35.0, 45.0] {
+        let j = study(&target.to_string());
+        let frames = j["frames"].as_array().unwrap();
+        assert_eq!(frames.len(), 4);
+        for f in frames {
+            // JSON writes ∞ (full order, exact) as null.
+            let actual = f["psnr_actual"].as_f64().unwrap_or(f64::INFINITY);
+            // The bound is a 2σ one on a sample of pixels: 0.5 dB of slack.
+            assert!(actual >= target - 0.5, "target {target}: {f}");
+            let est = f["psnr_estimate"].as_f64().unwrap_or(f64::INFINITY);
+            if est.is_finite() && actual.is_finite() {
+                assert!((est - actual).abs() <= 3.0, "estimate far off: {f}");
+            }
+            assert!(f["shade_ms"].as_f64().unwrap() >= f["probe_ms"].as_f64().unwrap());
+        }
+        assert!(j["uniform"]["order"].as_u64().unwrap() >= 1, "{j}");
+        // Reproducible: the same thresholds and estimates again.
+        let again = study(&target.to_string());
+        for (a, b) in frames.iter().zip(again["frames"].as_array().unwrap()) {
+            assert_eq!(a["threshold"], b["threshold"]);
+            assert_eq!(a["tries"], b["tries"]);
+            assert_eq!(a["psnr_estimate"], b["psnr_estimate"]);
+        }
+    }
+    for bad in ["0", "-3", "NaN", "inf"] {
+        let err = fail(relight(&scene, &b).args(["--adaptive", "--target-psnr", bad]));
+        assert!(err.contains("--target-psnr"), "{bad}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    let err = fail(relight(&scene, &b).args(["--target-psnr", "40"]));
+    assert!(err.contains("needs --adaptive"), "{err}");
+}

@@ -28,7 +28,7 @@ pub struct RgbImage {
 }
 
 /// Environment radiance seen along `dir` with an extra rotation about +Y (degrees).
-fn background(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
+pub(crate) fn background_radiance(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
     let d = if rotate_y_deg == 0.0 {
         dir
     } else {
@@ -111,7 +111,7 @@ pub fn form_image(
                 let samples = fp.pixel(i as usize);
                 let weight = 1.0 / samples.len() as f32;
                 for s in samples.iter().filter(|s| s.hit.is_none()) {
-                    let b = background(scene, s.dir, rotate_y_deg);
+                    let b = background_radiance(scene, s.dir, rotate_y_deg);
                     (0..3).for_each(|ch| c[ch] += weight * b[ch]);
                 }
                 return c;
@@ -137,7 +137,7 @@ pub fn form_image(
                             }
                             c
                         }
-                        None => background(scene, dir, rotate_y_deg),
+                        None => background_radiance(scene, dir, rotate_y_deg),
                     };
                     for ch in 0..3 {
                         sum[ch] += v[ch];

@@ -18,6 +18,7 @@ pub mod io;
 pub mod plots;
 pub mod relit;
 pub mod report;
+pub mod target;
 
 pub use error::ReportError;
 pub use imaging::{form_image, object_mask, roi_image, RgbImage};

@@ -42,6 +42,9 @@ pub struct ReportSettings {
     pub reference_psnr: Option<f64>,
     /// Measure the error budget (a second vertex bake and two per-pixel bakes, all cached).
     pub budget: bool,
+    /// The quality target of the "target quality" column (dB against full order; `None`:
+    /// no column).
+    pub target_psnr: Option<f64>,
     /// Rays per vertex of the bake.
     pub rays: u32,
     /// Bounces of both the reference and the bake.
@@ -91,6 +94,26 @@ pub struct OrderRow {
     pub roi_diffuse: Option<f64>,
     /// Specular ROI fraction.
     pub roi_specular: Option<f64>,
+    /// Adaptive relighting to the report's quality target (`--target-psnr`, against full
+    /// order at this order): the frame's cost, threshold and PSNR.
+    pub target: Option<TargetColumn>,
+}
+
+/// The "target quality" column of a row.
+#[derive(Clone, Debug, Serialize)]
+pub struct TargetColumn {
+    /// The target, dB against full order.
+    pub target_psnr: f64,
+    /// Shading time of the frame, probe and retries included, ms.
+    pub ms: f64,
+    /// The threshold it settled on (0: full order).
+    pub threshold: f32,
+    /// Its estimate of the PSNR.
+    pub psnr_estimate: f64,
+    /// The PSNR against full order it reached (measured on the report's full-order image).
+    pub psnr_actual: f64,
+    /// `full_ms / ms`.
+    pub speedup: f64,
 }
 
 /// One point of the path-tracing convergence series.
@@ -614,6 +637,52 @@ pub fn run_report(
             ..full_opt.clone()
         };
         let adaptive = relight(scene, &accel, &bake, &ad_opt)?;
+        let target = match s.target_psnr {
+            Some(p) => {
+                let params = ad_opt.adaptive.expect("adaptive options");
+                let study = crate::target::relight_to_target(
+                    scene,
+                    &accel,
+                    &bake,
+                    &crate::target::TargetOptions {
+                        order: Some(order),
+                        adaptive: params,
+                        target_psnr: p,
+                        probe_pixels: 512,
+                        seed: s.seed,
+                        rotations: vec![0.0],
+                        warmup_frames: 1,
+                        verify: false,
+                    },
+                )?;
+                let f = &study.frames[0];
+                // The frame's image again (the run is deterministic) to measure its PSNR.
+                let again = relight(
+                    scene,
+                    &accel,
+                    &bake,
+                    &RelightOptions {
+                        adaptive: (f.threshold > 0.0)
+                            .then(|| crate::target::with_threshold(&params, f.threshold)),
+                        timing_frames: 1,
+                        warmup_frames: 0,
+                        ..full_opt.clone()
+                    },
+                )?;
+                let img = form_image(scene, &accel, &again, 0.0)?;
+                let fi = to_compare_image(&form_image(scene, &accel, &full, 0.0)?);
+                let m = compare(&to_compare_image(&img), &fi, None)?.whole;
+                Some(TargetColumn {
+                    target_psnr: p,
+                    ms: f.shade_ms,
+                    threshold: f.threshold,
+                    psnr_estimate: f.psnr_estimate,
+                    psnr_actual: m.psnr_ldr,
+                    speedup: full.stats.shade_ms / f.shade_ms.max(1e-9),
+                })
+            }
+            None => None,
+        };
         notes.extend(full.stats.notes.iter().cloned());
         let full_img = form_image(scene, &accel, &full, 0.0)?;
         let ad_img = form_image(scene, &accel, &adaptive, 0.0)?;
@@ -699,6 +768,7 @@ pub fn run_report(
             rel_l2_adaptive: m_ad.rel_l2,
             roi_diffuse: adaptive.stats.roi_fraction_diffuse,
             roi_specular: adaptive.stats.roi_fraction_specular,
+            target,
         });
     }
 
@@ -1127,6 +1197,34 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
             pct(r.roi_diffuse),
             pct(r.roi_specular)
         );
+    }
+    if d.orders.iter().any(|r| r.target.is_some()) {
+        let _ = writeln!(
+            s,
+            "\n## Target quality (adaptive relighting to a PSNR against full order)\n"
+        );
+        let _ = writeln!(s, "`prt relight --adaptive --target-psnr P` picks the frame's threshold from an estimate on 512 random object pixels relit at full order (their cost included); the PSNR reached is measured against the full-order image of the row. The honest baseline is the lowest uniform order that meets the same target (the PSNR-against-order plot).\n");
+        let _ = writeln!(s, "| order | target dB | ms/frame | speed-up vs full | threshold | PSNR estimate | PSNR reached |");
+        let _ = writeln!(s, "|---:|---:|---:|---:|---:|---:|---:|");
+        for r in &d.orders {
+            if let Some(t) = &r.target {
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {:.3} | {:.2}× | {} | {} | {} |",
+                    r.order,
+                    t.target_psnr,
+                    t.ms,
+                    t.speedup,
+                    if t.threshold > 0.0 {
+                        format!("{:.4}", t.threshold)
+                    } else {
+                        "full order".into()
+                    },
+                    db(t.psnr_estimate),
+                    db(t.psnr_actual)
+                );
+            }
+        }
     }
     if !d.error_budget.is_empty() {
         let _ = writeln!(s, "\n## Error budget of full-order SH\n");
