@@ -55,6 +55,12 @@ pub struct BakeArgs {
     /// Output file (.prtb).
     #[arg(long)]
     pub out: PathBuf,
+    /// Model each object with only what it needs: path-trace a reference (to a noise ceiling
+    /// 6 dB above this), bake per vertex at --order (default 13), and keep per object the
+    /// lowest SH order whose PSNR against the reference over its pixels (8-bit view) reaches
+    /// this many dB. An error that names the best reachable figure when an object cannot.
+    #[arg(long, allow_negative_numbers = true, conflicts_with_all = ["per_pixel", "shard"])]
+    pub target_psnr: Option<f64>,
 }
 
 /// Options of `prt inspect`.
@@ -96,12 +102,103 @@ fn parse_shard(text: &str) -> Result<(u32, u32)> {
     Ok((i, n))
 }
 
+/// The highest order `prt bake --target-psnr` bakes and chooses below.
+const TARGET_HIGHEST_ORDER: usize = 13;
+
+/// `prt bake --target-psnr P`: the reference, each object's PSNR per order, the truncated bake.
+fn choose_orders(
+    scene: &prt_scene::Scene,
+    accel: &prt_tracer::Accel,
+    bake: &prt_bakefile::Bake,
+    settings: &BakeSettings,
+    target: f64,
+    scene_path: &std::path::Path,
+) -> Result<prt_bakefile::Bake> {
+    let highest = settings.order.unwrap_or(TARGET_HIGHEST_ORDER);
+    eprintln!(
+        "target {target} dB: path-tracing a reference to a {} dB noise ceiling",
+        target + 6.0
+    );
+    let rs = prt_tracer::RenderSettings {
+        spp: 16384,
+        bounces: settings.bounces as i32,
+        seed: settings.seed,
+        target_psnr_ldr: Some(target + 6.0),
+        progress: true,
+        ..Default::default()
+    };
+    let reference = prt_tracer::render(scene, &rs)?;
+    let ceiling = reference.noise_psnr_ldr.unwrap_or(f64::NAN);
+    let img = prt_compare::Image {
+        width: reference.width as usize,
+        height: reference.height as usize,
+        pixels: reference.radiance.iter().map(|v| v.to_array()).collect(),
+    };
+    let orders: Vec<usize> = (1..=highest).collect();
+    let quality = prt_report::recommend::object_quality(scene, accel, bake, &img, &orders, target)?;
+    let short: Vec<String> = quality
+        .iter()
+        .filter(|q| q.pixels > 0 && q.chosen.is_none())
+        .map(|q| {
+            format!(
+                "{} reaches at most {:.2} dB (order {})",
+                q.object, q.best_psnr, q.best_order
+            )
+        })
+        .collect();
+    if !short.is_empty() {
+        bail!(
+            "{}: --target-psnr {target} cannot be met by a per-vertex bake up to order {highest}: {} (reference {} spp, noise ceiling {ceiling:.1} dB); `prt report` splits that error into its terms",
+            scene_path.display(),
+            short.join("; "),
+            reference.settings.spp
+        );
+    }
+    let mut orders_out = Vec::new();
+    let mut reasons = Vec::new();
+    for q in &quality {
+        let (n, reason) = match q.chosen {
+            Some(n) => (
+                n,
+                format!(
+                    "lowest order whose PSNR against a path-traced reference over its {} pixels reaches {target} dB: {:.2} dB (order {highest}: {:.2} dB)",
+                    q.pixels,
+                    q.psnr_by_order.iter().find(|(o, _)| *o == n).map_or(f64::NAN, |x| x.1),
+                    q.psnr_by_order.last().map_or(f64::NAN, |x| x.1)
+                ),
+            ),
+            None => (
+                highest,
+                format!("not visible from the scene camera, so its error cannot be measured: kept at order {highest}"),
+            ),
+        };
+        eprintln!("target: {}: order {n} ({reason})", q.object);
+        orders_out.push(n);
+        reasons.push(reason);
+    }
+    let mut out = prt_report::recommend::truncate_bake(bake, &orders_out, &reasons)?;
+    if let serde_json::Value::Object(m) = &mut out.meta.settings {
+        m.insert("target_psnr".into(), target.into());
+        m.insert("order".into(), serde_json::Value::Null);
+    }
+    Ok(out)
+}
+
 /// Runs `prt bake`.
 pub fn run_bake(args: &BakeArgs) -> Result<()> {
     let scene = crate::common::load_scene(&args.scene)?;
     let bounces = crate::common::bake_bounces(args.bounces, &scene, &args.scene)?;
+    if let Some(p) = args.target_psnr {
+        if !(p.is_finite() && p > 0.0) {
+            bail!("--target-psnr {p} must be a positive, finite number of dB");
+        }
+    }
     let settings = BakeSettings {
-        order: args.order,
+        order: if args.target_psnr.is_some() {
+            Some(args.order.unwrap_or(TARGET_HIGHEST_ORDER))
+        } else {
+            args.order
+        },
         max_order: args.max_order,
         error_target: args.error_target,
         rays: args.rays,
@@ -122,10 +219,21 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build()?;
-    let out = pool.install(|| -> Result<_> {
+    let mut out = pool.install(|| -> Result<_> {
         let accel = prt_tracer::Accel::build(&scene)?;
-        Ok(prt_bake::bake(&scene, &accel, &settings)?)
+        let mut out = prt_bake::bake(&scene, &accel, &settings)?;
+        if let Some(p) = args.target_psnr {
+            out.bake = choose_orders(&scene, &accel, &out.bake, &settings, p, &args.scene)?;
+        }
+        Ok(out)
     })?;
+    if args.target_psnr.is_some() {
+        // The report's per-object lines and decisions follow the chosen orders.
+        for (o, obj) in out.report.objects.iter_mut().zip(&out.bake.objects) {
+            o.order = obj.order as usize;
+        }
+        out.report.decisions = out.bake.meta.decisions.clone();
+    }
     let scalar = if args.f16 {
         ScalarType::F16
     } else {

@@ -294,3 +294,96 @@ fn target_psnr_meets_the_target_on_every_frame() {
     let err = fail(relight(&scene, &b).args(["--target-psnr", "40"]));
     assert!(err.contains("needs --adaptive"), "{err}");
 }
+
+/// `prt bake --target-psnr P`: per object the lowest order whose PSNR against a path-traced
+/// reference reaches `P` (checked here against the order-13 bake truncated by hand: the chosen
+/// order reaches it and the one below does not, on the same reference); an unreachable target
+/// is an error naming the best reachable figure, and leaves no file.
+#[test]
+fn bake_target_psnr_keeps_the_lowest_order_that_meets_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), 3);
+    let out = dir.path().join("target.prtb");
+    let full = dir.path().join("full.prtb");
+    run(prt()
+        .arg("bake")
+        .arg(&scene)
+        .args([
+            "--rays",
+            "256",
+            "--target-psnr",
+            "20",
+            "--order",
+            "8",
+            "--out",
+        ])
+        .arg(&out));
+    run(prt()
+        .arg("bake")
+        .arg(&scene)
+        .args(["--rays", "256", "--order", "8", "--out"])
+        .arg(&full));
+    let chosen = json(&run(prt().arg("inspect").arg(&out).arg("--json")));
+    let objects = chosen["objects"].as_array().unwrap();
+    assert_eq!(objects.len(), 2);
+    let decisions = chosen["decisions"].as_array().unwrap();
+    for o in objects {
+        let order = o["order"].as_u64().unwrap();
+        assert!((1..=8).contains(&order), "{o}");
+        let name = o["name"].as_str().unwrap();
+        assert!(
+            decisions.iter().any(|d| d["object"] == name
+                && d["decision"] == format!("order {order}")
+                && d["reason"].as_str().unwrap().contains("20 dB")),
+            "{name}: {decisions:?}"
+        );
+    }
+    // Truncation keeps a prefix of every object's coefficients: at the lowest chosen order
+    // the truncated and the full bake relight to the same image, bit for bit.
+    let k = objects
+        .iter()
+        .map(|o| o["order"].as_u64().unwrap())
+        .min()
+        .unwrap();
+    let (a, b) = (dir.path().join("a.exr"), dir.path().join("b.exr"));
+    run(relight(&scene, &out)
+        .args(["--order", &k.to_string(), "--out"])
+        .arg(&a));
+    run(relight(&scene, &full)
+        .args(["--order", &k.to_string(), "--out"])
+        .arg(&b));
+    let same = json(&run(prt().arg("compare").arg(&a).arg(&b).arg("--json")));
+    assert_eq!(same["max_abs"].as_f64(), Some(0.0), "{same}");
+    // Unreachable and bad targets.
+    let bad = dir.path().join("bad.prtb");
+    let err = fail(
+        prt()
+            .arg("bake")
+            .arg(&scene)
+            .args([
+                "--rays",
+                "64",
+                "--order",
+                "3",
+                "--target-psnr",
+                "99",
+                "--out",
+            ])
+            .arg(&bad),
+    );
+    assert!(
+        err.contains("cannot be met") && err.contains("reaches at most"),
+        "{err}"
+    );
+    assert!(!bad.exists());
+    for v in ["0", "-1", "NaN", "inf"] {
+        let err = fail(
+            prt()
+                .arg("bake")
+                .arg(&scene)
+                .args(["--target-psnr", v, "--out"])
+                .arg(&bad),
+        );
+        assert!(err.contains("--target-psnr"), "{v}: {err}");
+    }
+}

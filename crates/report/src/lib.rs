@@ -16,6 +16,7 @@ pub mod glossy;
 pub mod imaging;
 pub mod io;
 pub mod plots;
+pub mod recommend;
 pub mod relit;
 pub mod report;
 pub mod target;
