@@ -152,6 +152,9 @@ pub struct ReportData {
     pub error_budget: Vec<BudgetRow>,
     /// The sentence naming the largest term.
     pub error_budget_summary: String,
+    /// Per object: PSNR against the path tracer at every order and the lowest order meeting
+    /// the report's `target_psnr` ([`crate::recommend`]).
+    pub recommendation: Vec<crate::recommend::ObjectQuality>,
     /// Bake time, s (0 when reused from the cache).
     pub bake_seconds: f64,
     /// Whether the bake came from the cache.
@@ -818,6 +821,15 @@ pub fn run_report(
     notes.dedup();
 
     let error_budget_summary = summary_sentence(&error_budget);
+    // Per object: quality against the path tracer at every order, and what meets the target.
+    let recommendation = crate::recommend::object_quality(
+        scene,
+        &accel,
+        &bake,
+        &reference,
+        &s.orders,
+        s.target_psnr.unwrap_or(f64::INFINITY),
+    )?;
 
     // 5. Plots and the image grid.
     let blue = RGBColor(31, 119, 180);
@@ -1014,6 +1026,7 @@ pub fn run_report(
         reference: reference_info,
         error_budget,
         error_budget_summary,
+        recommendation,
         bake_seconds,
         bake_cached,
         bake_file: bake_path.display().to_string(),
@@ -1224,6 +1237,40 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
                     db(t.psnr_actual)
                 );
             }
+        }
+    }
+    if !d.recommendation.is_empty() {
+        let target = d
+            .orders
+            .iter()
+            .find_map(|r| r.target.as_ref().map(|t| t.target_psnr));
+        let _ = writeln!(s, "\n## Per object: what each needs\n");
+        let _ = writeln!(s, "PSNR against the path tracer over each object's pixels (8-bit view) at every order of the bake; the lowest order within 0.5 dB of the object's best is where more bands stop paying; `prt bake --target-psnr P` keeps per object the lowest order that reaches P.\n");
+        let _ = writeln!(s, "| object | pixels | best PSNR (order) | lowest order within 0.5 dB of it | lowest order reaching {} |", target.map_or("the target".into(), |t| format!("{t} dB")));
+        let _ = writeln!(s, "|---|---:|---:|---:|---:|");
+        for q in &d.recommendation {
+            if q.pixels == 0 {
+                let _ = writeln!(s, "| {} | 0 | – | – | not visible |", q.object);
+                continue;
+            }
+            let near = q
+                .psnr_by_order
+                .iter()
+                .find(|(_, p)| *p >= q.best_psnr - 0.5)
+                .map_or(q.best_order, |(o, _)| *o);
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} ({}) | {} | {} |",
+                q.object,
+                q.pixels,
+                db(q.best_psnr),
+                q.best_order,
+                near,
+                q.chosen.map_or_else(
+                    || format!("not reachable (best {})", db(q.best_psnr)),
+                    |o| o.to_string()
+                )
+            );
         }
     }
     if !d.error_budget.is_empty() {
