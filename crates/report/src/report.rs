@@ -822,7 +822,7 @@ pub fn run_report(
 
     let error_budget_summary = summary_sentence(&error_budget);
     // Per object: quality against the path tracer at every order, and what meets the target.
-    let recommendation = crate::recommend::object_quality(
+    let mut recommendation = crate::recommend::object_quality(
         scene,
         &accel,
         &bake,
@@ -830,6 +830,20 @@ pub fn run_report(
         &s.orders,
         s.target_psnr.unwrap_or(f64::INFINITY),
     )?;
+    if let Some((p1, p2, _)) = &budget_images {
+        let p_mean = to_image(
+            &p1.iter()
+                .zip(p2)
+                .map(|(a, b)| 0.5 * (*a + *b))
+                .collect::<Vec<_>>(),
+            w,
+            h,
+        );
+        let psnr = crate::recommend::object_psnr(scene, &accel, &p_mean, &reference)?;
+        for (q, p) in recommendation.iter_mut().zip(psnr) {
+            q.per_pixel_psnr = p.is_finite().then_some(p);
+        }
+    }
 
     // 5. Plots and the image grid.
     let blue = RGBColor(31, 119, 180);
@@ -1246,11 +1260,11 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
             .find_map(|r| r.target.as_ref().map(|t| t.target_psnr));
         let _ = writeln!(s, "\n## Per object: what each needs\n");
         let _ = writeln!(s, "PSNR against the path tracer over each object's pixels (8-bit view) at every order of the bake; the lowest order within 0.5 dB of the object's best is where more bands stop paying; `prt bake --target-psnr P` keeps per object the lowest order that reaches P.\n");
-        let _ = writeln!(s, "| object | pixels | best PSNR (order) | lowest order within 0.5 dB of it | lowest order reaching {} |", target.map_or("the target".into(), |t| format!("{t} dB")));
-        let _ = writeln!(s, "|---|---:|---:|---:|---:|");
+        let _ = writeln!(s, "| object | pixels | best PSNR per vertex (order) | lowest order within 0.5 dB of it | lowest order reaching {} | per pixel at the highest order | recommendation |", target.map_or("the target".into(), |t| format!("{t} dB")));
+        let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---|");
         for q in &d.recommendation {
             if q.pixels == 0 {
-                let _ = writeln!(s, "| {} | 0 | – | – | not visible |", q.object);
+                let _ = writeln!(s, "| {} | 0 | – | – | not visible | – | keep the highest order (its error cannot be measured from this camera) |", q.object);
                 continue;
             }
             let near = q
@@ -1258,9 +1272,24 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
                 .iter()
                 .find(|(_, p)| *p >= q.best_psnr - 0.5)
                 .map_or(q.best_order, |(o, _)| *o);
+            let per_pixel = q.per_pixel_psnr;
+            let advice = match (q.chosen, per_pixel, target) {
+                (Some(o), _, Some(t)) => format!("per vertex, order {o} (reaches {t} dB)"),
+                (None, Some(pp), Some(t)) if pp >= t => {
+                    format!("per pixel (reaches {t} dB; per vertex cannot)")
+                }
+                (None, Some(pp), _) if pp > q.best_psnr + 0.5 => format!(
+                    "not reachable; per pixel gets closest ({}), else per vertex order {near}",
+                    db(pp)
+                ),
+                _ => format!(
+                    "not reachable: per vertex order {near} gets within 0.5 dB of the best this bake allows ({}); the error budget names what limits it",
+                    db(q.best_psnr)
+                ),
+            };
             let _ = writeln!(
                 s,
-                "| {} | {} | {} ({}) | {} | {} |",
+                "| {} | {} | {} ({}) | {} | {} | {} | {} |",
                 q.object,
                 q.pixels,
                 db(q.best_psnr),
@@ -1269,7 +1298,9 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
                 q.chosen.map_or_else(
                     || format!("not reachable (best {})", db(q.best_psnr)),
                     |o| o.to_string()
-                )
+                ),
+                per_pixel.map_or("–".into(), db),
+                advice
             );
         }
     }
