@@ -253,6 +253,11 @@ fn fnv(bytes: &[u8], mut h: u64) -> u64 {
     h
 }
 
+/// Bumped whenever the tracer or the baker changes what they compute for the same inputs, so a
+/// report never reuses a cached reference or bake made by different code (with the crate
+/// version, part of every cache key). 2: per-pixel bakes share one sequence per pixel.
+const CACHE_EPOCH: u32 = 2;
+
 /// Cache key of a bake: the geometry hashes, materials, environment texels and settings.
 fn bake_key(scene: &Scene, s: &BakeSettings) -> u64 {
     let h = scene_key(scene);
@@ -288,7 +293,10 @@ fn reference_key(scene: &Scene, r: &prt_tracer::RenderSettings) -> u64 {
 
 /// Hash of what every cached result depends on: geometry, materials, environment texels.
 fn scene_key(scene: &Scene) -> u64 {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut h = fnv(
+        format!("{} {CACHE_EPOCH}", env!("CARGO_PKG_VERSION")).as_bytes(),
+        0xcbf2_9ce4_8422_2325u64,
+    );
     for m in &scene.meshes {
         h = fnv(
             &prt_bake::geometry_hash(&m.positions, &m.indices).to_le_bytes(),
