@@ -1102,11 +1102,11 @@ fn pct(v: Option<f64>) -> String {
 }
 
 fn csv(d: &ReportData) -> String {
-    let mut s = String::from("order,coefficients,full_ms,adaptive_ms,speedup,psnr_adaptive_vs_full,psnr_full_vs_reference,psnr_adaptive_vs_reference,rel_l2_full,rel_l2_adaptive,roi_diffuse,roi_specular\n");
+    let mut s = String::from("order,coefficients,full_ms,adaptive_ms,speedup,psnr_adaptive_vs_full,psnr_full_vs_reference,psnr_adaptive_vs_reference,rel_l2_full,rel_l2_adaptive,roi_diffuse,roi_specular,full_ms_min,full_ms_max,adaptive_ms_min,adaptive_ms_max,target_psnr,target_ms,target_threshold,target_psnr_estimate,target_psnr_actual\n");
     for r in &d.orders {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.order,
             r.coefficients,
             r.full_ms,
@@ -1118,7 +1118,15 @@ fn csv(d: &ReportData) -> String {
             r.rel_l2_full,
             r.rel_l2_adaptive,
             r.roi_diffuse.map_or(String::new(), |v| v.to_string()),
-            r.roi_specular.map_or(String::new(), |v| v.to_string())
+            r.roi_specular.map_or(String::new(), |v| v.to_string()),
+            r.full_ms_range[0],
+            r.full_ms_range[1],
+            r.adaptive_ms_range[0],
+            r.adaptive_ms_range[1],
+            r.target.as_ref().map_or(",,,,".to_string(), |t| format!(
+                "{},{},{},{},{}",
+                t.target_psnr, t.ms, t.threshold, t.psnr_estimate, t.psnr_actual
+            ))
         );
     }
     if !d.error_budget.is_empty() {
