@@ -1902,6 +1902,36 @@ fn option_rows() {
             &["(0, 1)"],
         ),
         render(
+            "opt_render_target_psnr_ldr_0",
+            &["--target-psnr-ldr", "0"],
+            "target PSNR",
+            &["positive, finite"],
+        ),
+        render(
+            "opt_render_target_psnr_ldr_nan",
+            &["--target-psnr-ldr", "NaN"],
+            "target PSNR",
+            &["positive, finite"],
+        ),
+        bake(
+            "opt_bake_target_psnr_0",
+            &["--target-psnr", "0"],
+            "--target-psnr",
+            &["positive, finite"],
+        ),
+        bake(
+            "opt_bake_target_psnr_nan",
+            &["--target-psnr", "NaN"],
+            "--target-psnr",
+            &["positive, finite"],
+        ),
+        bake(
+            "opt_bake_target_psnr_unreachable",
+            &["--target-psnr", "99", "--order", "2"],
+            "--target-psnr",
+            &["cannot be met", "reaches at most"],
+        ),
+        render(
             "opt_render_time_budget_0",
             &["--time-budget", "0"],
             "time budget",

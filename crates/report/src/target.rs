@@ -309,6 +309,14 @@ pub fn relight_to_target(
             opt.target_psnr
         )));
     }
+    if matches!(
+        bake.meta.sample_kind,
+        prt_bakefile::SampleKind::Pixel { .. }
+    ) {
+        return Err(ReportError::Invalid(
+            "--target-psnr drives adaptive relighting, which walks the mesh's vertex adjacency: it needs a per-vertex bake".into(),
+        ));
+    }
     if opt.rotations.is_empty() || opt.probe_pixels == 0 {
         return Err(ReportError::Invalid(
             "a target-quality run needs at least one frame and one probe pixel".into(),
