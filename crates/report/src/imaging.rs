@@ -155,8 +155,11 @@ pub fn form_image(
     })
 }
 
-/// The object mask: pixels whose centre ray hits a mesh.
-pub fn object_mask(scene: &Scene, accel: &Accel) -> Result<Vec<bool>, ReportError> {
+/// The object whose centre ray each pixel hits (`None`: background), row-major.
+///
+/// # Errors
+/// A camera the tracer refuses.
+pub fn object_ids(scene: &Scene, accel: &Accel) -> Result<Vec<Option<usize>>, ReportError> {
     let cam = PinholeCamera::new(&scene.camera)?;
     let (w, h) = (cam.width(), cam.height());
     let eye = cam.eye();
@@ -164,8 +167,18 @@ pub fn object_mask(scene: &Scene, accel: &Accel) -> Result<Vec<bool>, ReportErro
         .into_par_iter()
         .map(|i| {
             let dir = cam.direction(f64::from(i % w) + 0.5, f64::from(i / w) + 0.5);
-            accel.closest_hit(eye, dir, f32::INFINITY).is_some()
+            accel
+                .closest_hit(eye, dir, f32::INFINITY)
+                .map(|hit| hit.mesh as usize)
         })
+        .collect())
+}
+
+/// The object mask: pixels whose centre ray hits a mesh.
+pub fn object_mask(scene: &Scene, accel: &Accel) -> Result<Vec<bool>, ReportError> {
+    Ok(object_ids(scene, accel)?
+        .into_iter()
+        .map(|o| o.is_some())
         .collect())
 }
 

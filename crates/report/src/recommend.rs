@@ -15,8 +15,7 @@ use crate::relit::{relight, RelightOptions};
 use prt_bakefile::{Bake, Decision};
 use prt_compare::{compare, Image, Mask};
 use prt_scene::Scene;
-use prt_tracer::{Accel, PinholeCamera};
-use rayon::prelude::*;
+use prt_tracer::Accel;
 use serde::Serialize;
 
 /// One object's quality against the path tracer.
@@ -68,24 +67,7 @@ pub fn object_psnr(
         .collect()
 }
 
-/// The object whose centre ray each pixel hits (`None`: background).
-///
-/// # Errors
-/// A camera the tracer refuses.
-pub fn object_ids(scene: &Scene, accel: &Accel) -> Result<Vec<Option<usize>>, ReportError> {
-    let cam = PinholeCamera::new(&scene.camera)?;
-    let (w, h) = (cam.width(), cam.height());
-    let eye = cam.eye();
-    Ok((0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            let dir = cam.direction(f64::from(i % w) + 0.5, f64::from(i / w) + 0.5);
-            accel
-                .closest_hit(eye, dir, f32::INFINITY)
-                .map(|hit| hit.mesh as usize)
-        })
-        .collect())
-}
+pub use crate::imaging::object_ids;
 
 /// Per object, the PSNR (8-bit view, its pixels) of full-order relighting of `bake` at each of
 /// `orders` against `reference`, and the lowest order that reaches `target` dB.
