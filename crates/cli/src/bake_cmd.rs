@@ -109,11 +109,11 @@ const TARGET_HIGHEST_ORDER: usize = 13;
 fn choose_orders(
     scene: &prt_scene::Scene,
     accel: &prt_tracer::Accel,
-    bake: &prt_bakefile::Bake,
+    vertex: prt_bake::BakeOutput,
     settings: &BakeSettings,
     target: f64,
     scene_path: &std::path::Path,
-) -> Result<prt_bakefile::Bake> {
+) -> Result<prt_bake::BakeOutput> {
     let highest = settings.order.unwrap_or(TARGET_HIGHEST_ORDER);
     eprintln!(
         "target {target} dB: path-tracing a reference to a {} dB noise ceiling",
@@ -135,23 +135,65 @@ fn choose_orders(
         pixels: reference.radiance.iter().map(|v| v.to_array()).collect(),
     };
     let orders: Vec<usize> = (1..=highest).collect();
-    let quality = prt_report::recommend::object_quality(scene, accel, bake, &img, &orders, target)?;
-    let short: Vec<String> = quality
+    let short = |quality: &[prt_report::recommend::ObjectQuality]| -> Vec<String> {
+        quality
+            .iter()
+            .filter(|q| q.pixels > 0 && q.chosen.is_none())
+            .map(|q| {
+                format!(
+                    "{} reaches at most {:.2} dB (order {})",
+                    q.object, q.best_psnr, q.best_order
+                )
+            })
+            .collect()
+    };
+    let mut chosen = vertex;
+    let mut quality =
+        prt_report::recommend::object_quality(scene, accel, &chosen.bake, &img, &orders, target)?;
+    let vertex_short = short(&quality);
+    let vertex_short_names: Vec<String> = quality
         .iter()
         .filter(|q| q.pixels > 0 && q.chosen.is_none())
-        .map(|q| {
-            format!(
-                "{} reaches at most {:.2} dB (order {})",
-                q.object, q.best_psnr, q.best_order
-            )
-        })
+        .map(|q| q.object.clone())
         .collect();
-    if !short.is_empty() {
-        bail!(
-            "{}: --target-psnr {target} cannot be met by a per-vertex bake up to order {highest}: {} (reference {} spp, noise ceiling {ceiling:.1} dB); `prt report` splits that error into its terms",
-            scene_path.display(),
-            short.join("; "),
-            reference.settings.spp
+    // Empty for a per-vertex result; else why the bake is per pixel.
+    let mut kind = String::new();
+    if !vertex_short.is_empty() {
+        // Per-vertex transfer cannot: try per-pixel transfer (no interpolation across
+        // triangles, the pixel footprint averaged), which a bake file holds for every object.
+        eprintln!(
+            "target: per-vertex falls short ({}); trying a per-pixel bake",
+            vertex_short.join("; ")
+        );
+        let pixel_settings = BakeSettings {
+            points: PointKind::Pixel,
+            progress: true,
+            ..settings.clone()
+        };
+        let pixel = prt_bake::bake(scene, accel, &pixel_settings)?;
+        let pixel_quality = prt_report::recommend::object_quality(
+            scene,
+            accel,
+            &pixel.bake,
+            &img,
+            &orders,
+            target,
+        )?;
+        let pixel_short = short(&pixel_quality);
+        if !pixel_short.is_empty() {
+            bail!(
+                "{}: --target-psnr {target} cannot be met up to order {highest}: per vertex {}; per pixel {} (reference {} spp, noise ceiling {ceiling:.1} dB); `prt report` splits that error into its terms",
+                scene_path.display(),
+                vertex_short.join(", "),
+                pixel_short.join(", "),
+                reference.settings.spp
+            );
+        }
+        chosen = pixel;
+        quality = pixel_quality;
+        kind = format!(
+            ", in a per-pixel bake (per-vertex transfer falls short on {})",
+            vertex_short_names.join(", ")
         );
     }
     let mut orders_out = Vec::new();
@@ -161,8 +203,9 @@ fn choose_orders(
             Some(n) => (
                 n,
                 format!(
-                    "lowest order whose PSNR against a path-traced reference over its {} pixels reaches {target} dB: {:.2} dB (order {highest}: {:.2} dB)",
+                    "lowest order whose PSNR against a path-traced reference over its {} pixels reaches {target} dB{}: {:.2} dB (order {highest}: {:.2} dB)",
                     q.pixels,
+                    kind,
                     q.psnr_by_order.iter().find(|(o, _)| *o == n).map_or(f64::NAN, |x| x.1),
                     q.psnr_by_order.last().map_or(f64::NAN, |x| x.1)
                 ),
@@ -176,12 +219,18 @@ fn choose_orders(
         orders_out.push(n);
         reasons.push(reason);
     }
-    let mut out = prt_report::recommend::truncate_bake(bake, &orders_out, &reasons)?;
+    let mut out = prt_report::recommend::truncate_bake(&chosen.bake, &orders_out, &reasons)?;
     if let serde_json::Value::Object(m) = &mut out.meta.settings {
         m.insert("target_psnr".into(), target.into());
         m.insert("order".into(), serde_json::Value::Null);
     }
-    Ok(out)
+    // The log's per-object lines and decisions follow the chosen kind and orders.
+    for (o, obj) in chosen.report.objects.iter_mut().zip(&out.objects) {
+        o.order = obj.order as usize;
+    }
+    chosen.report.decisions = out.meta.decisions.clone();
+    chosen.bake = out;
+    Ok(chosen)
 }
 
 /// Runs `prt bake`.
@@ -219,21 +268,14 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build()?;
-    let mut out = pool.install(|| -> Result<_> {
+    let out = pool.install(|| -> Result<_> {
         let accel = prt_tracer::Accel::build(&scene)?;
-        let mut out = prt_bake::bake(&scene, &accel, &settings)?;
-        if let Some(p) = args.target_psnr {
-            out.bake = choose_orders(&scene, &accel, &out.bake, &settings, p, &args.scene)?;
-        }
-        Ok(out)
+        let out = prt_bake::bake(&scene, &accel, &settings)?;
+        Ok(match args.target_psnr {
+            Some(p) => choose_orders(&scene, &accel, out, &settings, p, &args.scene)?,
+            None => out,
+        })
     })?;
-    if args.target_psnr.is_some() {
-        // The report's per-object lines and decisions follow the chosen orders.
-        for (o, obj) in out.report.objects.iter_mut().zip(&out.bake.objects) {
-            o.order = obj.order as usize;
-        }
-        out.report.decisions = out.bake.meta.decisions.clone();
-    }
     let scalar = if args.f16 {
         ScalarType::F16
     } else {
