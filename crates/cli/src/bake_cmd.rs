@@ -283,14 +283,14 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
     };
     prt_bakefile::write_bake(&args.out, &out.bake, scalar)?;
     if args.json {
-        println!("{}", serde_json::to_string(&out.report)?);
+        outln!("{}", serde_json::to_string(&out.report)?);
     } else {
         for d in &out.report.decisions {
             let who = d.object.as_deref().unwrap_or("bake");
             eprintln!("decision: {who}: {} ({})", d.decision, d.reason);
         }
         for o in &out.report.objects {
-            println!(
+            outln!(
                 "{:<24} order {:>2}  points {:>8}  ray hits {:>5.1}%  back faces {:>4.1}%  started inside {:>4.1}%  kinds {}",
                 o.name,
                 o.order,
@@ -301,7 +301,7 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
                 o.kinds.join(", ")
             );
         }
-        println!(
+        outln!(
             "{} rays in {:.2} s ({:.2} Mrays/s); wrote {}",
             out.report.rays_traced,
             out.report.seconds,
@@ -319,17 +319,17 @@ pub fn run_inspect(args: &InspectArgs) -> Result<()> {
     let view = BakeView::new(&bytes).map_err(|e| e.in_file(&args.file))?;
     let summary = view.summary();
     if args.json {
-        println!("{}", serde_json::to_string(&summary)?);
+        outln!("{}", serde_json::to_string(&summary)?);
     } else {
-        print_summary(&args.file, &summary);
+        print_summary(&args.file, &summary)?;
     }
     Ok(())
 }
 
-fn print_summary(path: &std::path::Path, s: &Summary) {
-    println!("{}", path.display());
+fn print_summary(path: &std::path::Path, s: &Summary) -> Result<()> {
+    outln!("{}", path.display());
     if let Some(f) = &s.file {
-        println!(
+        outln!(
             "  format {}.{}, {}, {} bytes, {} sections",
             f.version[0],
             f.version[1],
@@ -338,7 +338,7 @@ fn print_summary(path: &std::path::Path, s: &Summary) {
             f.sections.len()
         );
     }
-    println!(
+    outln!(
         "  {:?}; {} rays per point, {} bounces, seed {}, shard {}/{}; made by {} {}",
         s.sample_kind,
         s.rays_per_point,
@@ -350,16 +350,16 @@ fn print_summary(path: &std::path::Path, s: &Summary) {
         s.tool.version
     );
     if let Some((order, precision)) = s.environment {
-        println!("  environment: order {order} ({precision:?})");
+        outln!("  environment: order {order} ({precision:?})");
     }
     for (m, lobe, order) in &s.brdfs {
-        println!("  BRDF {m}: {lobe}, order {order}");
+        outln!("  BRDF {m}: {lobe}, order {order}");
     }
     for (m, order, n) in &s.glossy {
-        println!("  glossy table {m}: order {order}, {n} view elevations");
+        outln!("  glossy table {m}: order {order}, {n} view elevations");
     }
     for o in &s.objects {
-        println!(
+        outln!(
             "  object {}: order {}, {} channel(s), points {}..{} of {}, geometry {}",
             o.name,
             o.order,
@@ -370,7 +370,7 @@ fn print_summary(path: &std::path::Path, s: &Summary) {
             o.geometry_hash
         );
         for b in &o.blocks {
-            println!(
+            outln!(
                 "    {:<24} {:>10} scalars  min {:>12}  max {:>12}  NaN {}  inf {}",
                 b.kind,
                 b.scalars,
@@ -381,17 +381,18 @@ fn print_summary(path: &std::path::Path, s: &Summary) {
             );
         }
         if let Some(r) = &o.ray_stats {
-            println!("    {r}");
+            outln!("    {r}");
         }
     }
     for d in &s.decisions {
-        println!(
+        outln!(
             "  decision: {}: {} ({})",
             d.object.as_deref().unwrap_or("bake"),
             d.decision,
             d.reason
         );
     }
+    Ok(())
 }
 
 /// Runs `prt merge`.
@@ -415,6 +416,6 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
     }
     let merged = prt_bakefile::merge(&shards)?;
     prt_bakefile::write_bake(&args.out, &merged, scalar.unwrap_or(ScalarType::F32))?;
-    println!("merged {} shards into {}", shards.len(), args.out.display());
+    outln!("merged {} shards into {}", shards.len(), args.out.display());
     Ok(())
 }

@@ -132,7 +132,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
         )
         .context("writing the error image")?;
         if !args.json {
-            println!(
+            outln!(
                 "error image: {} (viridis, 0 … {})",
                 path.display(),
                 prt_compare::format_number(picture.scale_max)
@@ -141,9 +141,9 @@ pub fn run(args: CompareArgs) -> Result<()> {
     }
 
     if args.json {
-        println!("{}", report_json(&metrics, noise.as_ref()));
+        outln!("{}", report_json(&metrics, noise.as_ref()));
     } else {
-        println!(
+        outln!(
             "{} against reference {}",
             args.test.display(),
             args.reference.display()

@@ -2,6 +2,20 @@
 //!
 //! Each subcommand lives in its own module with a clap `Args` struct and a `run` function.
 
+/// `println!` that returns the write error instead of panicking (a closed pipe, e.g.
+/// `prt inspect F | head`, ends the command quietly; see `main`).
+macro_rules! outln {
+    () => {
+        std::io::Write::write_all(&mut std::io::stdout(), b"\n")?
+    };
+    ($($arg:tt)*) => {{
+        let line = format!($($arg)*);
+        let mut out = std::io::stdout().lock();
+        std::io::Write::write_all(&mut out, line.as_bytes())?;
+        std::io::Write::write_all(&mut out, b"\n")?;
+    }};
+}
+
 mod bake_cmd;
 mod common;
 mod compare_cmd;
@@ -56,6 +70,15 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // The reader of our standard output went away (`prt inspect F | head`): nothing is
+        // wrong with the command, and nobody is left to read a message.
+        Err(err)
+            if err
+                .downcast_ref::<std::io::Error>()
+                .is_some_and(|e| e.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            ExitCode::SUCCESS
+        }
         Err(err) => {
             eprintln!("error: {}", error_message(&err));
             ExitCode::FAILURE

@@ -233,17 +233,20 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             "fps": fps,
             "notes": s.notes,
         });
-        println!("{}", serde_json::to_string(&obj)?);
+        outln!("{}", serde_json::to_string(&obj)?);
     } else {
         for n in &s.notes {
             eprintln!("note: {n}");
         }
-        println!(
+        outln!(
             "order {}  points {}  shading {:.3} ms/frame (median of 5)  image {:.1} ms",
-            s.order, s.points, s.shade_ms, image_ms
+            s.order,
+            s.points,
+            s.shade_ms,
+            image_ms
         );
         if let Some(f) = &full_stats {
-            println!(
+            outln!(
                 "adaptive: threshold {:.4}, diffuse ROI {:.1}%, specular ROI {}, full order {:.3} ms ⇒ speed-up {:.2}×",
                 s.threshold.unwrap_or(0.0),
                 100.0 * s.roi_fraction_diffuse.unwrap_or(0.0),
@@ -253,7 +256,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             );
         }
         if let Some(fps) = fps {
-            println!(
+            outln!(
                 "{} frames of a rotating environment: {fps:.1} frames/s",
                 args.frames
             );
@@ -286,16 +289,16 @@ fn run_target(
     let study = prt_report::target::relight_to_target(scene, accel, bake, &opt)
         .with_context(|| format!("{}", args.bake.display()))?;
     if args.json {
-        println!("{}", serde_json::to_string(&study)?);
+        outln!("{}", serde_json::to_string(&study)?);
         return Ok(());
     }
-    println!(
+    outln!(
         "target {target} dB against full order; probe: {} of {} object pixels, {} vertices at full order per frame",
         study.probe_pixels, study.candidate_pixels, study.probe_points
     );
-    println!("rotate°  threshold  tries  PSNR est.  lower   actual   shade ms  probe ms  full ms");
+    outln!("rotate°  threshold  tries  PSNR est.  lower   actual   shade ms  probe ms  full ms");
     for f in &study.frames {
-        println!(
+        outln!(
             "{:>7.1} {:>10.4} {:>6} {:>10.2} {:>6.2} {:>8} {:>10.3} {:>9.3} {:>8}",
             f.rotate_y_deg,
             f.threshold,
@@ -314,12 +317,12 @@ fn run_target(
         study.uniform_speedup,
         study.min_psnr_actual,
     ) {
-        println!(
+        outln!(
             "median {:.3} ms/frame: {s:.2}× faster than full order, lowest PSNR reached {min:.2} dB; uniform truncation at order {} meets the target at {:.3} ms ({us:.2}×, lowest {:.2} dB)",
             study.median_shade_ms, u.order, u.ms, u.min_psnr
         );
     } else {
-        println!("median {:.3} ms/frame", study.median_shade_ms);
+        outln!("median {:.3} ms/frame", study.median_shade_ms);
     }
     Ok(())
 }

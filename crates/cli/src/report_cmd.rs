@@ -112,9 +112,9 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         progress: true,
     };
     let data = prt_report::run_report(&args.scene, &scene, &args.out, &settings)?;
-    println!("order  full ms  adaptive ms  speed-up  PSNR ad/full  PSNR full/PT  PSNR ad/PT  ROI diff %  ROI spec %");
+    outln!("order  full ms  adaptive ms  speed-up  PSNR ad/full  PSNR full/PT  PSNR ad/PT  ROI diff %  ROI spec %");
     for r in &data.orders {
-        println!(
+        outln!(
             "{:>5} {:>8.3} {:>12.3} {:>9.2} {:>13.2} {:>13.2} {:>11.2} {:>11} {:>11}",
             r.order,
             r.full_ms,
@@ -130,8 +130,8 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         );
     }
     if !data.error_budget.is_empty() {
-        println!("\nerror budget (what each approximation costs; MSE over object pixels, linear radiance):");
-        println!(
+        outln!("\nerror budget (what each approximation costs; MSE over object pixels, linear radiance):");
+        outln!(
             "order  total       {}  cross %",
             prt_report::budget::TERMS
                 .iter()
@@ -139,7 +139,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
                 .collect::<String>()
         );
         for b in &data.error_budget {
-            println!(
+            outln!(
                 "{:>5}  {:<10.3e}  {}  {:>6.1}",
                 b.order,
                 b.total_mse,
@@ -150,9 +150,9 @@ pub fn run(args: &ReportArgs) -> Result<()> {
                 100.0 * b.cross_terms / b.total_mse.max(f64::MIN_POSITIVE)
             );
         }
-        println!("{}", data.error_budget_summary);
+        outln!("{}", data.error_budget_summary);
     }
-    println!(
+    outln!(
         "reference: {} spp, noise ceiling {:.1} dB{}",
         data.reference.spp,
         data.reference.noise_psnr_ldr,
@@ -167,7 +167,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
                 }
             ))
     );
-    println!(
+    outln!(
         "wrote {}/report.md, index.html, report.csv, report.json, plots and images",
         args.out.display()
     );

@@ -100,23 +100,30 @@ fn project(args: &ProjectArgs) -> Result<()> {
         .with_context(|| format!("projecting {}", args.map.display()))?;
     if args.json {
         let obj = serde_json::json!({ "order": args.order, "coefficients": coeffs });
-        println!("{}", serde_json::to_string(&obj)?);
+        outln!("{}", serde_json::to_string(&obj)?);
     } else {
-        println!(
+        outln!(
             "# SH projection of {} to order {} ({} coefficients)",
             args.map.display(),
             args.order,
             coeffs.len()
         );
-        println!(
+        outln!(
             "{:>5} {:>4} {:>5} {:>16} {:>16} {:>16}",
-            "index", "l", "m", "red", "green", "blue"
+            "index",
+            "l",
+            "m",
+            "red",
+            "green",
+            "blue"
         );
         for (i, c) in coeffs.iter().enumerate() {
             let (l, m) = prt_sh::degree_and_order(i);
-            println!(
+            outln!(
                 "{i:>5} {l:>4} {m:>5} {:>16.9e} {:>16.9e} {:>16.9e}",
-                c[0], c[1], c[2]
+                c[0],
+                c[1],
+                c[2]
             );
         }
     }
@@ -150,11 +157,11 @@ fn eval(args: &EvalArgs) -> Result<()> {
     let values = prt_sh::eval_basis(args.order, d)?;
     if args.json {
         let obj = serde_json::json!({ "order": args.order, "values": values });
-        println!("{}", serde_json::to_string(&obj)?);
+        outln!("{}", serde_json::to_string(&obj)?);
     } else {
         for (i, v) in values.iter().enumerate() {
             let (l, m) = prt_sh::degree_and_order(i);
-            println!("{i:>5} {l:>4} {m:>5} {v:>24.17e}");
+            outln!("{i:>5} {l:>4} {m:>5} {v:>24.17e}");
         }
     }
     Ok(())
