@@ -167,6 +167,8 @@ fn choose_orders(
         );
         let pixel_settings = BakeSettings {
             points: PointKind::Pixel,
+            // Every footprint sample needs one of the pixel's rays.
+            pixel_samples: settings.pixel_samples.min(settings.rays).max(1),
             progress: true,
             ..settings.clone()
         };
