@@ -650,6 +650,8 @@ pub fn bake(
         "unshadowed": settings.unshadowed,
     });
     let mut settings_json = settings_json;
+    // The diffuse transfer excludes the receiving point's albedo/π (SPEC §3.4).
+    settings_json["albedo_in_transfer"] = false.into();
     if !vertex_mode {
         settings_json["pixel_samples"] = settings.pixel_samples.into();
     }

@@ -387,6 +387,9 @@ fn pixel_bake_has_one_point_per_pixel_and_furnace_value() {
     let obj = &out.bake.objects[0];
     assert_eq!(obj.point_count, 16 * 12);
     assert_eq!(out.bake.meta.settings["pixel_samples"], 1);
+    // The file says the albedo/π factor is not in the transfer, and the check below (which
+    // applies it itself) agrees with the path tracer only if that is so.
+    assert_eq!(out.bake.meta.settings["albedo_in_transfer"], false);
     let radiance = relit(&out, 0, 1.0);
     let covered: Vec<f64> = radiance
         .iter()
