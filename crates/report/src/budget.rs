@@ -222,7 +222,18 @@ pub fn masked_mse(a: &[Vec3], b: &[Vec3], mask: &[bool]) -> f64 {
 /// difference `(A − B) / 2`).
 #[must_use]
 pub fn masked_mean_square(d: &[Vec3], mask: &[bool]) -> f64 {
-    masked_mse(d, &vec![Vec3::ZERO; d.len()], mask)
+    let (sum, n) = d
+        .iter()
+        .zip(mask)
+        .filter(|(_, &m)| m)
+        .fold((0.0f64, 0usize), |(s, n), (v, _)| {
+            (s + v.as_dvec3().length_squared(), n + 3)
+        });
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
 }
 
 /// The PSNR ceiling (dB, 8-bit view at exposure 0, peak 255) that an image's noise sets on

@@ -1,7 +1,10 @@
 //! The `prt` pipeline end to end, on top of the stage crates: relighting a scene from its bake
 //! into an image comparable with the path tracer's ([`relit`], [`imaging`]), and the
 //! speed-against-error report that answers "how much accuracy does the faster method give away,
-//! and how much time does it save?" ([`report`]).
+//! and how much time does it save?" ([`report`]), with its error budget ([`budget`]: each
+//! approximation's cost measured by a controlled experiment), adaptive relighting to a PSNR
+//! target ([`target`]) and the per-object choice of what a scene needs ([`recommend`], behind
+//! `prt bake --target-psnr`).
 //!
 //! The relighting follows Sloan, Kautz & Snyder 2002 (diffuse PRT) and Lee & Kim 2014 (specular
 //! PRT through SH products and locally adaptive SH), as implemented by `prt-relight`, and, for

@@ -49,18 +49,13 @@ pub fn object_psnr(
     image: &Image,
     reference: &Image,
 ) -> Result<Vec<f64>, ReportError> {
-    let ids = object_ids(scene, accel)?;
-    (0..scene.meshes.len())
-        .map(|o| {
-            let m = Mask::from_bools(
-                reference.width,
-                reference.height,
-                ids.iter().map(|&i| i == Some(o)).collect(),
-            )?;
+    object_masks(scene, accel, reference)?
+        .iter()
+        .map(|m| {
             if m.count() == 0 {
                 return Ok(f64::NAN);
             }
-            Ok(compare(image, reference, Some(&m))?
+            Ok(compare(image, reference, Some(m))?
                 .masked
                 .map_or(f64::NAN, |s| s.psnr_ldr))
         })
@@ -82,14 +77,40 @@ pub fn object_quality(
     orders: &[usize],
     target: f64,
 ) -> Result<Vec<ObjectQuality>, ReportError> {
+    object_quality_with(scene, accel, bake, reference, orders, target, |order| {
+        let r = relight(
+            scene,
+            accel,
+            bake,
+            &RelightOptions {
+                order: Some(order),
+                timing_frames: 1,
+                warmup_frames: 0,
+                ..RelightOptions::default()
+            },
+        )?;
+        Ok(to_compare_image(&form_image(scene, accel, &r, 0.0)?))
+    })
+}
+
+/// [`object_quality`] with the image of each order from `image_at` (a caller that already
+/// relit every order passes its images instead of relighting again).
+///
+/// # Errors
+/// Errors of `image_at` or of the comparison; an empty order list.
+pub fn object_quality_with(
+    scene: &Scene,
+    accel: &Accel,
+    bake: &Bake,
+    reference: &Image,
+    orders: &[usize],
+    target: f64,
+    mut image_at: impl FnMut(usize) -> Result<Image, ReportError>,
+) -> Result<Vec<ObjectQuality>, ReportError> {
     if orders.is_empty() {
         return Err(ReportError::Invalid("no order to evaluate".into()));
     }
-    let ids = object_ids(scene, accel)?;
-    let (w, h) = (reference.width, reference.height);
-    let masks: Vec<Mask> = (0..bake.objects.len())
-        .map(|o| Mask::from_bools(w, h, ids.iter().map(|&i| i == Some(o)).collect()))
-        .collect::<Result<_, _>>()?;
+    let masks = object_masks(scene, accel, reference)?;
     let mut quality: Vec<ObjectQuality> = bake
         .objects
         .iter()
@@ -105,18 +126,7 @@ pub fn object_quality(
         })
         .collect();
     for &order in orders {
-        let r = relight(
-            scene,
-            accel,
-            bake,
-            &RelightOptions {
-                order: Some(order),
-                timing_frames: 1,
-                warmup_frames: 0,
-                ..RelightOptions::default()
-            },
-        )?;
-        let img = to_compare_image(&form_image(scene, accel, &r, 0.0)?);
+        let img = image_at(order)?;
         for (q, m) in quality.iter_mut().zip(&masks) {
             if q.pixels == 0 {
                 continue;
@@ -135,6 +145,20 @@ pub fn object_quality(
         }
     }
     Ok(quality)
+}
+
+/// Per object, the mask of the pixels whose centre ray hits it.
+fn object_masks(scene: &Scene, accel: &Accel, like: &Image) -> Result<Vec<Mask>, ReportError> {
+    let ids = object_ids(scene, accel)?;
+    (0..scene.meshes.len())
+        .map(|o| {
+            Ok(Mask::from_bools(
+                like.width,
+                like.height,
+                ids.iter().map(|&i| i == Some(o)).collect(),
+            )?)
+        })
+        .collect()
 }
 
 /// `bake` with object `o` truncated to `orders[o]` (≤ its baked order) and a decision

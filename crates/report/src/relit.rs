@@ -155,16 +155,28 @@ fn environment(bake: &Bake) -> (usize, Vec<[f64; 3]>) {
     (order, c)
 }
 
-/// The rows (of `stride` values) of `data` listed in `subset`, in that order; all of `data`
-/// without a subset.
-fn gather_rows(data: Vec<f32>, stride: usize, subset: Option<&[u32]>) -> Vec<f32> {
+/// [`truncate`] of the points listed in `subset` only (in that order), or of all of them
+/// without a subset; the listed rows are picked before truncating, so a small subset costs
+/// little.
+fn select(
+    data: &[f32],
+    from: usize,
+    to: usize,
+    channels: usize,
+    channels_out: usize,
+    subset: Option<&[u32]>,
+) -> Vec<f32> {
     match subset {
-        None => data,
-        Some(sub) => sub
-            .iter()
-            .flat_map(|&i| &data[i as usize * stride..(i as usize + 1) * stride])
-            .copied()
-            .collect(),
+        None => truncate(data, from, to, channels, channels_out),
+        Some(sub) => {
+            let stride = channels * from * from;
+            let rows: Vec<f32> = sub
+                .iter()
+                .flat_map(|&i| &data[i as usize * stride..(i as usize + 1) * stride])
+                .copied()
+                .collect();
+            truncate(&rows, from, to, channels, channels_out)
+        }
     }
 }
 
@@ -274,9 +286,12 @@ pub fn relight(
                 obj.name
             )));
         }
-        let diffuse_data = gather_rows(
-            truncate(&diffuse_block.data, baked, order, channels, channels),
-            channels * order * order,
+        let diffuse_data = select(
+            &diffuse_block.data,
+            baked,
+            order,
+            channels,
+            channels,
             subset,
         );
         // Compact copies of the low bands for the adaptive path's level-by-level reading
@@ -335,11 +350,7 @@ pub fn relight(
             .find(|b| b.kind == TransferKind::Visibility);
         let wants_visibility = phong.is_some() || glossy_table.is_some();
         let vis_data = match (wants_visibility, vis_block) {
-            (true, Some(b)) => Some(gather_rows(
-                truncate(&b.data, baked, order, channels, 1),
-                order * order,
-                subset,
-            )),
+            (true, Some(b)) => Some(select(&b.data, baked, order, channels, 1, subset)),
             (true, None) => {
                 stats.notes.push(format!(
                     "{}: no visibility transfer in the bake; specular not relit",

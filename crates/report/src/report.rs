@@ -648,6 +648,11 @@ pub fn run_report(
             ..full_opt.clone()
         };
         let adaptive = relight(scene, &accel, &bake, &ad_opt)?;
+        notes.extend(full.stats.notes.iter().cloned());
+        let full_img = form_image(scene, &accel, &full, 0.0)?;
+        let ad_img = form_image(scene, &accel, &adaptive, 0.0)?;
+        full_images.push(linear(&full_img));
+        let (fi, ai) = (to_compare_image(&full_img), to_compare_image(&ad_img));
         let target = match s.target_psnr {
             Some(p) => {
                 let params = ad_opt.adaptive.expect("adaptive options");
@@ -667,21 +672,8 @@ pub fn run_report(
                     },
                 )?;
                 let f = &study.frames[0];
-                // The frame's image again (the run is deterministic) to measure its PSNR.
-                let again = relight(
-                    scene,
-                    &accel,
-                    &bake,
-                    &RelightOptions {
-                        adaptive: (f.threshold > 0.0)
-                            .then(|| crate::target::with_threshold(&params, f.threshold)),
-                        timing_frames: 1,
-                        warmup_frames: 0,
-                        ..full_opt.clone()
-                    },
-                )?;
-                let img = form_image(scene, &accel, &again, 0.0)?;
-                let fi = to_compare_image(&form_image(scene, &accel, &full, 0.0)?);
+                let shaded = study.last_frame.as_ref().expect("one frame shaded");
+                let img = form_image(scene, &accel, shaded, 0.0)?;
                 let m = compare(&to_compare_image(&img), &fi, None)?.whole;
                 Some(TargetColumn {
                     target_psnr: p,
@@ -694,11 +686,6 @@ pub fn run_report(
             }
             None => None,
         };
-        notes.extend(full.stats.notes.iter().cloned());
-        let full_img = form_image(scene, &accel, &full, 0.0)?;
-        let ad_img = form_image(scene, &accel, &adaptive, 0.0)?;
-        full_images.push(linear(&full_img));
-        let (fi, ai) = (to_compare_image(&full_img), to_compare_image(&ad_img));
         let m_full = compare(&fi, &reference, Some(&mask))?.masked.expect("mask");
         let m_ad = compare(&ai, &reference, Some(&mask))?.masked.expect("mask");
         let m_af = compare(&ai, &fi, None)?.whole;
@@ -830,13 +817,18 @@ pub fn run_report(
 
     let error_budget_summary = summary_sentence(&error_budget);
     // Per object: quality against the path tracer at every order, and what meets the target.
-    let mut recommendation = crate::recommend::object_quality(
+    // (from the full-order images of step 3, not relit again)
+    let mut recommendation = crate::recommend::object_quality_with(
         scene,
         &accel,
         &bake,
         &reference,
         &s.orders,
         s.target_psnr.unwrap_or(f64::INFINITY),
+        |order| {
+            let k = s.orders.iter().position(|&o| o == order).expect("listed");
+            Ok(to_image(&full_images[k], w, h))
+        },
     )?;
     if let Some((p1, p2, _)) = &budget_images {
         let p_mean = to_image(

@@ -123,6 +123,9 @@ pub struct TargetStudy {
     pub uniform: Option<UniformBaseline>,
     /// `--verify`: median full-order time over the uniform baseline's.
     pub uniform_speedup: Option<f64>,
+    /// The radiance of the last frame as shaded (what a caller shows or measures).
+    #[serde(skip)]
+    pub last_frame: Option<crate::relit::Relit>,
 }
 
 /// One probe pixel: the vertices its value is made of and its background directions.
@@ -339,6 +342,7 @@ pub fn relight_to_target(
     let mut full_images: Vec<(RgbImage, f64)> = Vec::new();
     // Frames shaded straight at full order since adaptive last had to fall back to it.
     let mut full_streak: Option<usize> = None;
+    let mut last_frame = None;
     for &deg in &opt.rotations {
         // Adaptive did not pay on the last attempt: stay at full order (no probe needed, it
         // is exact) and try adaptive again every `RETRY_ADAPTIVE_EVERY` frames.
@@ -361,6 +365,7 @@ pub fn relight_to_target(
                 let fi = crate::imaging::form_image(scene, accel, &f, deg)?;
                 full_images.push((fi, ms));
             }
+            last_frame = Some(f);
             continue;
         }
         let full_probe = relight(
@@ -439,6 +444,7 @@ pub fn relight_to_target(
             full_images.push((fi, full.stats.shade_ms));
         }
         frames.push(frame);
+        last_frame = Some(adaptive);
     }
     let median = |mut v: Vec<f64>| {
         v.sort_by(f64::total_cmp);
@@ -517,5 +523,6 @@ pub fn relight_to_target(
         min_psnr_actual,
         uniform,
         uniform_speedup,
+        last_frame,
     })
 }
