@@ -36,10 +36,10 @@ pub use settings::{BakeSettings, PointKind, DEFAULT_PIXEL_SAMPLES, MAX_PIXEL_SAM
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use prt_bakefile::{
-    Bake, BakeMeta, Decision, EnvCoefficients, EnvPrecision, ObjectBake, RayStats, SampleKind,
-    ShardInfo, ToolInfo, TransferBlock, TransferKind,
+    Bake, BakeMeta, CameraInfo, Coverage, Decision, EnvCoefficients, EnvPrecision, MeshGeometry,
+    ObjectBake, RayStats, SampleKind, ShardInfo, ToolInfo, TransferBlock, TransferKind,
 };
-use prt_scene::{Mapping, Material, Scene};
+use prt_scene::{Camera, Mapping, Material, Mesh, Scene};
 use prt_sh::{Basis, EnvMapping, ImageRef};
 use prt_tracer::Accel;
 use rayon::prelude::*;
@@ -419,6 +419,8 @@ pub fn bake(
                 order: plan.order as u32,
                 channels: channels as u32,
                 blocks,
+                mesh: Some(mesh_geometry(mesh)),
+                coverage: None,
             });
         }
     } else {
@@ -576,6 +578,19 @@ pub fn bake(
                 order: plan.order as u32,
                 channels: channels as u32,
                 blocks,
+                mesh: Some(mesh_geometry(mesh)),
+                // The object's share of each pixel's footprint samples (SPEC §3.11).
+                coverage: Some(Coverage {
+                    pixel_samples: k,
+                    hits: (first as usize..(first + count) as usize)
+                        .map(|px| {
+                            let samples = footprints.pixel(px).iter();
+                            samples
+                                .filter(|s| s.hit.is_some_and(|(m, _)| m == plan.mesh))
+                                .count() as u32
+                        })
+                        .collect(),
+                }),
             });
         }
     }
@@ -645,7 +660,8 @@ pub fn bake(
         "error_target": settings.error_target,
         "rays": settings.rays,
         "bounces": settings.bounces,
-        "seed": settings.seed,
+        // A string, like the JSON `seed` (SPEC §3.9): exact in every JSON parser.
+        "seed": settings.seed.to_string(),
         "points": if vertex_mode { "vertex" } else { "pixel" },
         "unshadowed": settings.unshadowed,
     });
@@ -673,6 +689,7 @@ pub fn bake(
                 count,
             }),
         ray_stats,
+        camera: (!vertex_mode).then(|| camera_info(&scene.camera)),
     };
     let bake = Bake {
         meta,
@@ -815,4 +832,34 @@ pub fn diffuse_block(obj: &ObjectBake) -> Option<&TransferBlock> {
                 .iter()
                 .find(|b| b.kind == TransferKind::ShadowedDiffuse)
         })
+}
+
+/// The mesh section of a bake (SPEC §3.10): the world-space positions and triangles the
+/// geometry hash covers, and the unit normals the bake used at the vertices (the loader's
+/// normal, renormalised; +Y where it is degenerate, as [`points::vertex_points`] does).
+#[must_use]
+pub fn mesh_geometry(mesh: &Mesh) -> MeshGeometry {
+    MeshGeometry {
+        positions: mesh.positions.iter().map(|p| p.to_array()).collect(),
+        normals: mesh
+            .normals
+            .iter()
+            .map(|n| n.normalize_or(Vec3::Y).to_array())
+            .collect(),
+        triangles: mesh.indices.clone(),
+    }
+}
+
+/// The camera of a per-pixel bake (SPEC §3.9), as the renderer uses it.
+#[must_use]
+pub fn camera_info(c: &Camera) -> CameraInfo {
+    CameraInfo {
+        model: CameraInfo::PINHOLE.into(),
+        eye: c.eye.to_array(),
+        target: c.target.to_array(),
+        up: c.up.to_array(),
+        fov_y_degrees: c.fov_y_deg,
+        width: c.width,
+        height: c.height,
+    }
 }

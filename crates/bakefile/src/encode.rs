@@ -1,14 +1,14 @@
-//! The writer: `Bake` → bytes of format 1.0, canonical layout (SPEC.md, "Canonical files").
+//! The writer: `Bake` → bytes of format 1.1, canonical layout (SPEC.md §3 and §7).
 
 use crate::error::BakeFileError;
 use crate::layout::{
-    align_up, Tag, BLKT_RECORD, BRDF_RECORD, GLSY_RECORD, HEADER_SIZE, MAGIC, OBJT_RECORD,
-    PAYLOAD_ALIGNMENT, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE, VERSION_MAJOR,
-    VERSION_MINOR,
+    align_up, Tag, BLKT_RECORD, BRDF_RECORD, GLSY_RECORD, HEADER_SIZE, MAGIC, NO_SECTION,
+    OBJT_RECORD, PAYLOAD_ALIGNMENT, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE,
+    VERSION_MAJOR, VERSION_MINOR,
 };
 use crate::meta::{
-    hash_string, BlockJson, BrdfJson, EnvJson, GlossyJson, MetaJson, ObjectJson, ShConvention,
-    COLOUR_SPACE, FORMAT_NAME,
+    hash_string, BlockJson, BrdfJson, CoverageJson, EnvJson, GlossyJson, MeshJson, MetaJson,
+    ObjectJson, ShConvention, COLOUR_SPACE, FORMAT_NAME,
 };
 use crate::model::{Bake, BrdfLobe, EnvPrecision, SampleKind, ScalarType};
 
@@ -62,7 +62,7 @@ struct Planned {
     length: u64,
 }
 
-/// Encodes a bake into the bytes of a format-1.0 file, transfer coefficients stored as
+/// Encodes a bake into the bytes of a format-1.1 file, transfer coefficients stored as
 /// `scalar`.
 ///
 /// The output is canonical: the same `Bake` and `scalar` always give the same bytes, and
@@ -101,6 +101,9 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
 
     // OBJT and BLKT
     let block_count: usize = bake.objects.iter().map(|o| o.blocks.len()).sum();
+    let mesh_count = bake.objects.iter().filter(|o| o.mesh.is_some()).count();
+    let mut meshes = Vec::with_capacity(mesh_count);
+    let mut coverages = Vec::new();
     let mut objt = Buf::default();
     objt.table_header(bake.objects.len(), OBJT_RECORD)?;
     let mut blkt = Buf::default();
@@ -119,6 +122,40 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
         objt.u32(o.channels);
         objt.u32(u32_of(xfer.len(), "block count")?);
         objt.u32(u32_of(o.blocks.len(), "block count")?);
+        let object_index = u32_of(oi, "object count")?;
+        let mesh_json = match &o.mesh {
+            Some(m) => {
+                let section = u32_of(fixed_sections + block_count + meshes.len(), "sections")?;
+                meshes.push(bytes_of_mesh(object_index, m));
+                Some(MeshJson {
+                    section,
+                    vertices: m.positions.len() as u32,
+                    triangles: m.triangles.len() as u32,
+                })
+            }
+            None => None,
+        };
+        let coverage_json = match &o.coverage {
+            Some(c) => {
+                let section = u32_of(
+                    fixed_sections + block_count + mesh_count + coverages.len(),
+                    "sections",
+                )?;
+                let mut b = Buf::default();
+                b.u32(object_index);
+                b.u32(c.pixel_samples);
+                b.u64(c.hits.len() as u64);
+                c.hits.iter().for_each(|&h| b.u32(h));
+                coverages.push(b.0);
+                Some(CoverageJson {
+                    section,
+                    pixel_samples: c.pixel_samples,
+                })
+            }
+            None => None,
+        };
+        objt.u32(mesh_json.as_ref().map_or(NO_SECTION, |m| m.section));
+        objt.u32(coverage_json.as_ref().map_or(NO_SECTION, |c| c.section));
         let mut blocks_json = Vec::with_capacity(o.blocks.len());
         for (bi, b) in o.blocks.iter().enumerate() {
             let section = u32_of(fixed_sections + xfer.len(), "section count")?;
@@ -158,6 +195,8 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
             order: o.order,
             channels: o.channels,
             blocks: blocks_json,
+            mesh: mesh_json,
+            coverage: coverage_json,
         });
     }
 
@@ -243,6 +282,7 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
         seed: m.seed,
         shard: m.shard,
         tool: m.tool.clone(),
+        camera: m.camera.clone(),
         settings: m.settings.clone(),
         decisions: m.decisions.clone(),
         ray_stats: m.ray_stats.clone(),
@@ -286,6 +326,7 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
         length: v.len() as u64,
         payload: Payload::Bytes(v),
     };
+    let optional = |tag: Tag| tag == Tag::MESH || tag == Tag::CVRG;
     let mut plan = vec![
         bytes(Tag::BINF, binf.0),
         bytes(Tag::STRS, strings.0),
@@ -304,6 +345,8 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
     plan.push(bytes(Tag::META, meta_bytes));
     debug_assert_eq!(plan.len(), fixed_sections);
     plan.extend(xfer);
+    plan.extend(meshes.into_iter().map(|v| bytes(Tag::MESH, v)));
+    plan.extend(coverages.into_iter().map(|v| bytes(Tag::CVRG, v)));
     let section_count = u32_of(plan.len(), "section count")?;
 
     // Offsets.
@@ -338,7 +381,13 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
         let e = HEADER_SIZE + i * SECTION_ENTRY_SIZE;
         let entry = &mut out[e..e + SECTION_ENTRY_SIZE];
         entry[0..4].copy_from_slice(&p.tag.0);
-        entry[4..8].copy_from_slice(&SECTION_FLAG_REQUIRED.to_le_bytes());
+        // MESH and CVRG (1.1) are not REQUIRED: a 1.0 reader skips them.
+        let flags = if optional(p.tag) {
+            0
+        } else {
+            SECTION_FLAG_REQUIRED
+        };
+        entry[4..8].copy_from_slice(&flags.to_le_bytes());
         entry[8..16].copy_from_slice(&off.to_le_bytes());
         entry[16..24].copy_from_slice(&p.length.to_le_bytes());
         entry[24..28].copy_from_slice(&crc.to_le_bytes());
@@ -360,6 +409,24 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
     let crc = header_crc(&out[..HEADER_SIZE], &out[HEADER_SIZE..table_end as usize]);
     out[60..64].copy_from_slice(&crc.to_le_bytes());
     Ok(out)
+}
+
+/// The payload of a MESH section (SPEC.md §3.10); counts were checked by `validate`.
+fn bytes_of_mesh(object: u32, m: &crate::model::MeshGeometry) -> Vec<u8> {
+    let mut b = Buf::default();
+    b.0.reserve(16 + 24 * m.positions.len() + 12 * m.triangles.len());
+    b.u32(object);
+    b.u32(m.positions.len() as u32);
+    b.u32(m.triangles.len() as u32);
+    b.u32(0);
+    for v in m.positions.iter().chain(&m.normals) {
+        v.iter()
+            .for_each(|x| b.0.extend_from_slice(&x.to_le_bytes()));
+    }
+    for t in &m.triangles {
+        t.iter().for_each(|&i| b.u32(i));
+    }
+    b.0
 }
 
 /// CRC-32 of header bytes `[0, 60)` followed by the section table.

@@ -1,11 +1,11 @@
-//! Byte-level constants of format version 1.0: every number here is in SPEC.md.
+//! Byte-level constants of format version 1.1: every number here is in SPEC.md.
 
 /// The 8 magic bytes that open every bake file.
 pub const MAGIC: [u8; 8] = *b"PRTBAKE\0";
 /// Major format version written and read by this crate. Readers refuse any other.
 pub const VERSION_MAJOR: u32 = 1;
 /// Minor format version written by this crate. Readers accept any minor of their major.
-pub const VERSION_MINOR: u32 = 0;
+pub const VERSION_MINOR: u32 = 1;
 /// Size of the file header in bytes.
 pub const HEADER_SIZE: usize = 64;
 /// Size of one section-table entry in bytes.
@@ -16,8 +16,16 @@ pub const PAYLOAD_ALIGNMENT: usize = 64;
 pub(crate) const TABLE_HEADER_SIZE: usize = 16;
 /// Minimum size of the BINF section.
 pub(crate) const BINF_SIZE: usize = 40;
-/// Size of an OBJT record.
-pub(crate) const OBJT_RECORD: usize = 56;
+/// Size of an OBJT record written by this crate (1.1: with the mesh and coverage sections).
+pub(crate) const OBJT_RECORD: usize = 64;
+/// Size of a 1.0 OBJT record, the smallest a reader accepts (no mesh or coverage fields).
+pub(crate) const OBJT_RECORD_V10: usize = 56;
+/// `OBJT.mesh_section` / `coverage_section` value for "none".
+pub(crate) const NO_SECTION: u32 = u32::MAX;
+/// Size of the header of a MESH section.
+pub(crate) const MESH_HEADER: usize = 16;
+/// Size of the header of a CVRG section.
+pub(crate) const CVRG_HEADER: usize = 16;
 /// Size of a BLKT record.
 pub(crate) const BLKT_RECORD: usize = 48;
 /// Size of the ENVL header.
@@ -56,6 +64,10 @@ impl Tag {
     pub const GLSY: Tag = Tag(*b"GLSY");
     /// One transfer block's coefficients.
     pub const XFER: Tag = Tag(*b"XFER");
+    /// One object's mesh: positions, normals, triangles (1.1).
+    pub const MESH: Tag = Tag(*b"MESH");
+    /// One object's per-pixel coverage (1.1).
+    pub const CVRG: Tag = Tag(*b"CVRG");
 
     /// The tag as the little-endian u32 stored in the section table.
     #[must_use]
@@ -63,7 +75,7 @@ impl Tag {
         u32::from_le_bytes(self.0)
     }
 
-    /// Is this one of the tags of format 1.0?
+    /// Is this one of the tags of format 1.1?
     #[must_use]
     pub fn is_known(self) -> bool {
         [
@@ -76,6 +88,8 @@ impl Tag {
             Tag::BRDF,
             Tag::GLSY,
             Tag::XFER,
+            Tag::MESH,
+            Tag::CVRG,
         ]
         .contains(&self)
     }

@@ -1,10 +1,13 @@
-//! The binary file format of PRT bakes (`.prtbake`), format version 1.0.
+//! The binary file format of PRT bakes (`.prtb`), format version 1.1.
 //!
 //! A bake file holds, per object of a scene, blocks of spherical-harmonic transfer
 //! coefficients (unshadowed, shadowed, visibility, interreflected), plus the environment
 //! lighting, BRDF projections and everything needed to interpret them: the SH convention,
-//! colour space, seed, tool, settings and the baker's decisions. `SPEC.md` beside this crate
-//! describes every byte so that an engine can read bakes without this code.
+//! colour space, seed, tool, settings and the baker's decisions; and what an engine needs to
+//! bind the numbers to its own data: each object's mesh (positions, normals, triangles, whose
+//! hash is the object's geometry hash) and, for per-pixel bakes, the camera and each object's
+//! coverage of every pixel. `SPEC.md` beside this crate describes every byte so that an engine
+//! can read bakes without this code; `tools/prtb_reader.py` is a reader written from it alone.
 //!
 //! - [`encode`] / [`write_bake`] (atomic) write a [`Bake`] with f32 or f16 coefficients.
 //! - [`decode`] / [`read_bake`] validate everything and return an owned [`Bake`].
@@ -30,6 +33,7 @@
 //!             kind: TransferKind::ShadowedDiffuse,
 //!             data: vec![0.5; 2 * 4],
 //!         }],
+//!         ..ObjectBake::default()
 //!     }],
 //!     ..Bake::default()
 //! };
@@ -62,9 +66,12 @@ pub use layout::{
 pub use merge::{merge, split};
 pub use meta::ShConvention;
 pub use model::{
-    Bake, BakeMeta, BrdfLobe, BrdfProjection, Decision, EnvCoefficients, EnvPrecision,
-    GlossyBrdfTable, ObjectBake, RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo,
-    TransferBlock, TransferKind,
+    Bake, BakeMeta, BrdfLobe, BrdfProjection, CameraInfo, Coverage, Decision, EnvCoefficients,
+    EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, RayStats, SampleKind, ScalarType,
+    ShardInfo, ToolInfo, TransferBlock, TransferKind,
 };
-pub use summary::{summary, BlockSummary, FileSummary, ObjectSummary, SectionSummary, Summary};
+pub use summary::{
+    camera_line, summary, BlockSummary, CoverageSummary, FileSummary, MeshSummary, ObjectSummary,
+    SectionSummary, Summary,
+};
 pub use view::{decode, BakeView, BlockInfo, Coefficients, ObjectInfo, SectionEntry};

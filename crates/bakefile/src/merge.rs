@@ -1,7 +1,7 @@
 //! Sharded bakes: splitting a bake into shards and merging shards back.
 
 use crate::error::BakeFileError;
-use crate::model::{Bake, ObjectBake, RayStats, ShardInfo, TransferBlock};
+use crate::model::{Bake, Coverage, ObjectBake, RayStats, ShardInfo, TransferBlock};
 
 fn fail(msg: impl Into<String>) -> BakeFileError {
     BakeFileError::Merge(msg.into())
@@ -87,10 +87,13 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
                 && o.blocks
                     .iter()
                     .zip(&o0.blocks)
-                    .all(|(a, b)| a.kind == b.kind);
+                    .all(|(a, b)| a.kind == b.kind)
+                && o.mesh == o0.mesh
+                && o.coverage.as_ref().map(|c| c.pixel_samples)
+                    == o0.coverage.as_ref().map(|c| c.pixel_samples);
             if !same {
                 return Err(fail(format!(
-                    "object {oi} ({:?}) differs between shards (name, geometry, counts, order, channels or kinds)",
+                    "object {oi} ({:?}) differs between shards (name, geometry, mesh, counts, order, channels, kinds or coverage)",
                     o0.name
                 )));
             }
@@ -132,6 +135,15 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
                     .collect(),
             })
             .collect();
+        // Every shard carries the whole mesh (checked equal above); coverage is per point,
+        // concatenated like the transfer.
+        let coverage = o0.coverage.as_ref().map(|c| Coverage {
+            pixel_samples: c.pixel_samples,
+            hits: parts
+                .iter()
+                .flat_map(|p| p.coverage.iter().flat_map(|c| c.hits.iter().copied()))
+                .collect(),
+        });
         objects.push(ObjectBake {
             name: o0.name.clone(),
             geometry_hash: o0.geometry_hash,
@@ -141,6 +153,8 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
             order: o0.order,
             channels: o0.channels,
             blocks,
+            mesh: o0.mesh.clone(),
+            coverage,
         });
     }
     // Ray statistics are counts over each shard's points: they add up (all shards or none
@@ -230,6 +244,10 @@ pub fn split(bake: &Bake, shard_count: u32) -> Result<Vec<Bake>, BakeFileError> 
                                 data: b.data[start as usize * per..end as usize * per].to_vec(),
                             })
                             .collect(),
+                        coverage: o.coverage.as_ref().map(|c| Coverage {
+                            pixel_samples: c.pixel_samples,
+                            hits: c.hits[start as usize..end as usize].to_vec(),
+                        }),
                         ..o.clone_without_data()
                     }
                 })
@@ -256,6 +274,8 @@ impl ObjectBake {
             order: self.order,
             channels: self.channels,
             blocks: Vec::new(),
+            mesh: self.mesh.clone(),
+            coverage: None,
         }
     }
 }

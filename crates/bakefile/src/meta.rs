@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::BakeFileError;
-use crate::model::{Decision, RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo};
+use crate::model::{CameraInfo, Decision, RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo};
 
 /// Value of `"format"`.
 pub(crate) const FORMAT_NAME: &str = "prt-bake";
@@ -57,6 +57,25 @@ pub(crate) struct ObjectJson {
     pub order: u32,
     pub channels: u32,
     pub blocks: Vec<BlockJson>,
+    /// 1.1; absent in 1.0 files (read as `None`), always written.
+    #[serde(default)]
+    pub mesh: Option<MeshJson>,
+    /// 1.1; absent in 1.0 files (read as `None`), always written.
+    #[serde(default)]
+    pub coverage: Option<CoverageJson>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct MeshJson {
+    pub section: u32,
+    pub vertices: u32,
+    pub triangles: u32,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct CoverageJson {
+    pub section: u32,
+    pub pixel_samples: u32,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -91,9 +110,13 @@ pub(crate) struct MetaJson {
     pub sample_kind: SampleKind,
     pub rays_per_point: u32,
     pub bounces: u32,
+    #[serde(with = "seed_json")]
     pub seed: u64,
     pub shard: ShardInfo,
     pub tool: ToolInfo,
+    /// 1.1; absent in 1.0 files (read as `None`), always written.
+    #[serde(default)]
+    pub camera: Option<CameraInfo>,
     pub settings: serde_json::Value,
     pub decisions: Vec<Decision>,
     pub objects: Vec<ObjectJson>,
@@ -102,6 +125,97 @@ pub(crate) struct MetaJson {
     pub glossy: Vec<GlossyJson>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ray_stats: Vec<RayStats>,
+}
+
+/// `seed` in the JSON: a decimal string since 1.1 (exact in every JSON parser), a number in
+/// 1.0 files (still read).
+mod seed_json {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(seed: &u64, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&seed.to_string())
+    }
+
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Seed {
+        Number(u64),
+        Text(String),
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+        match Seed::deserialize(d)? {
+            Seed::Number(n) => Ok(n),
+            Seed::Text(t) => {
+                let canonical = !t.is_empty()
+                    && t.bytes().all(|b| b.is_ascii_digit())
+                    && (t == "0" || !t.starts_with('0'));
+                t.parse::<u64>().ok().filter(|_| canonical).ok_or_else(|| {
+                    serde::de::Error::custom(format!(
+                        "seed {t:?} is not a decimal u64 without sign or leading zeros"
+                    ))
+                })
+            }
+        }
+    }
+}
+
+/// The fields every file's metadata has (SPEC.md §3.9, "Mandatory fields"), top level and per
+/// object: a reader refuses a file missing one (serde alone would read a missing optional
+/// value as `null`).
+pub(crate) const MANDATORY_FIELDS: [&str; 17] = [
+    "format",
+    "format_version",
+    "sh",
+    "colour_space",
+    "scalar_type",
+    "sample_kind",
+    "rays_per_point",
+    "bounces",
+    "seed",
+    "shard",
+    "tool",
+    "settings",
+    "decisions",
+    "objects",
+    "environment",
+    "brdfs",
+    "glossy",
+];
+
+/// Mandatory fields of each `objects[]` entry.
+pub(crate) const MANDATORY_OBJECT_FIELDS: [&str; 8] = [
+    "name",
+    "geometry_hash",
+    "point_count",
+    "point_first",
+    "points_in_file",
+    "order",
+    "channels",
+    "blocks",
+];
+
+/// Checks that the metadata has every mandatory field (types are checked by parsing it).
+pub(crate) fn check_mandatory(value: &serde_json::Value) -> Result<(), BakeFileError> {
+    let missing = |what: String| BakeFileError::Metadata(format!("missing mandatory field {what}"));
+    let obj = value
+        .as_object()
+        .ok_or_else(|| BakeFileError::Metadata("the metadata is not a JSON object".into()))?;
+    for f in MANDATORY_FIELDS {
+        if !obj.contains_key(f) {
+            return Err(missing(format!("`{f}`")));
+        }
+    }
+    if let Some(objects) = obj.get("objects").and_then(serde_json::Value::as_array) {
+        for (i, o) in objects.iter().enumerate() {
+            for f in MANDATORY_OBJECT_FIELDS {
+                if o.get(f).is_none() {
+                    return Err(missing(format!("`objects[{i}].{f}`")));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 pub(crate) fn hash_string(h: u64) -> String {

@@ -266,6 +266,58 @@ pub struct BakeMeta {
     /// Per object, what its rays met (empty when the writer did not record it; otherwise one
     /// entry per object, in object order).
     pub ray_stats: Vec<RayStats>,
+    /// Per-pixel bakes: the camera whose image the pixel grid is (format 1.1; `None` in 1.0
+    /// files and in per-vertex bakes).
+    pub camera: Option<CameraInfo>,
+}
+
+/// The pinhole camera of a per-pixel bake (SPEC.md §3.9, "Camera"): the ray through
+/// image-plane position `(x, y)` (pixels, `(0, 0)` the top-left corner, `y` down) leaves `eye`
+/// in direction `normalize(f + (2x/w − 1)·t·(w/h)·r + (1 − 2y/h)·t·u)` with
+/// `f = normalize(target − eye)`, `r = normalize(f × up)`, `u = r × f`, `t = tan(fov_y/2)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CameraInfo {
+    /// `"pinhole"`, the only model.
+    pub model: String,
+    /// Eye position (world space).
+    pub eye: [f64; 3],
+    /// Point looked at.
+    pub target: [f64; 3],
+    /// Up vector (need not be unit or orthogonal to the view direction).
+    pub up: [f64; 3],
+    /// Vertical field of view, degrees, in (0, 180).
+    pub fov_y_degrees: f64,
+    /// Image width in pixels (= the bake's image width).
+    pub width: u32,
+    /// Image height in pixels (= the bake's image height).
+    pub height: u32,
+}
+
+impl CameraInfo {
+    /// The camera model name of format 1.1.
+    pub const PINHOLE: &'static str = "pinhole";
+}
+
+/// An object's geometry exactly as the baker saw it (format 1.1, section `MESH`): world-space
+/// positions, unit shading normals and triangles. For per-vertex bakes, vertex `p` is point
+/// `p`; [`crate::geometry_hash`] of `positions` and `triangles` is the object's hash.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MeshGeometry {
+    /// Vertex positions, world space.
+    pub positions: Vec<[f32; 3]>,
+    /// Unit shading normals, one per vertex (the hemisphere of the bake's cosine term).
+    pub normals: Vec<[f32; 3]>,
+    /// Triangles as vertex index triples, counter-clockwise seen from the front.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// How much of each pixel's footprint an object covers (format 1.1, section `CVRG`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Coverage {
+    /// Footprint samples per pixel `K` (the bake's `settings.pixel_samples`).
+    pub pixel_samples: u32,
+    /// Per point held in the file: how many of the `K` samples first hit this object.
+    pub hits: Vec<u32>,
 }
 
 impl Default for BakeMeta {
@@ -280,6 +332,7 @@ impl Default for BakeMeta {
             decisions: Vec::new(),
             shard: ShardInfo::default(),
             ray_stats: Vec::new(),
+            camera: None,
         }
     }
 }
@@ -296,7 +349,7 @@ pub struct TransferBlock {
 }
 
 /// The transfer of one object (mesh).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct ObjectBake {
     /// Object name, unique within the bake, not empty.
     pub name: String,
@@ -314,6 +367,12 @@ pub struct ObjectBake {
     pub channels: u32,
     /// The transfer blocks; each kind (with its bounce count) at most once.
     pub blocks: Vec<TransferBlock>,
+    /// The mesh the object was baked on (format 1.1; `None` in 1.0 files). Every shard
+    /// carries the whole mesh.
+    pub mesh: Option<MeshGeometry>,
+    /// Per-pixel bakes: the object's coverage of each pixel held here (format 1.1; `None` in
+    /// 1.0 files, never in per-vertex bakes).
+    pub coverage: Option<Coverage>,
 }
 
 impl ObjectBake {
@@ -403,7 +462,7 @@ pub struct GlossyBrdfTable {
     pub projection_error: Vec<f64>,
 }
 
-/// A whole bake: what a `.prtbake` file holds.
+/// A whole bake: what a `.prtb` file holds.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Bake {
     /// Bake-wide metadata.
@@ -442,6 +501,48 @@ pub(crate) fn check_finite32(section: &str, values: &[f32]) -> Result<(), BakeFi
     }
 }
 
+/// The rules of an object's mesh (SPEC.md §3.10).
+fn check_mesh(o: &ObjectBake, kind: SampleKind, what: &str) -> Result<(), BakeFileError> {
+    let Some(mesh) = &o.mesh else { return Ok(()) };
+    let v = mesh.positions.len();
+    if mesh.normals.len() != v || u32::try_from(v).is_err() {
+        return Err(bad(format!(
+            "{what}: mesh with {v} positions and {} normals",
+            mesh.normals.len()
+        )));
+    }
+    if u32::try_from(mesh.triangles.len()).is_err() {
+        return Err(bad(format!("{what}: more than 2^32 - 1 triangles")));
+    }
+    if kind == SampleKind::Vertex && v as u64 != o.point_count {
+        return Err(bad(format!(
+            "{what}: mesh of {v} vertices for {} points of a per-vertex bake",
+            o.point_count
+        )));
+    }
+    let finite = |a: &[[f32; 3]]| a.iter().position(|p| !p.iter().all(|x| x.is_finite()));
+    if let Some(i) = finite(&mesh.positions).or(finite(&mesh.normals)) {
+        return Err(bad(format!("{what}: mesh vertex {i} is not finite")));
+    }
+    if let Some(t) = mesh
+        .triangles
+        .iter()
+        .position(|t| t.iter().any(|&i| i as usize >= v))
+    {
+        return Err(bad(format!(
+            "{what}: mesh triangle {t} indexes beyond its {v} vertices"
+        )));
+    }
+    let h = crate::hash::geometry_hash(&mesh.positions, &mesh.triangles);
+    if h != o.geometry_hash {
+        return Err(bad(format!(
+            "{what}: the mesh hashes to {h:#018x}, the object says {:#018x}",
+            o.geometry_hash
+        )));
+    }
+    Ok(())
+}
+
 fn sq(order: u32) -> u64 {
     u64::from(order) * u64::from(order)
 }
@@ -457,6 +558,69 @@ impl Bake {
     /// whose data was checked in place).
     pub(crate) fn validate_structure(&self) -> Result<(), BakeFileError> {
         self.check(false)
+    }
+
+    /// The camera of a per-pixel bake (SPEC.md §3.9): present only there, the image's size,
+    /// a pinhole with finite values.
+    fn check_camera(&self) -> Result<(), BakeFileError> {
+        let Some(c) = &self.meta.camera else {
+            return Ok(());
+        };
+        let SampleKind::Pixel { width, height } = self.meta.sample_kind else {
+            return Err(bad("a per-vertex bake with a camera"));
+        };
+        if c.model != CameraInfo::PINHOLE {
+            return Err(bad(format!(
+                "camera model {:?} (only \"pinhole\")",
+                c.model
+            )));
+        }
+        if (c.width, c.height) != (width, height) {
+            return Err(bad(format!(
+                "camera image {}×{} for a {width}×{height} bake",
+                c.width, c.height
+            )));
+        }
+        let all = c.eye.iter().chain(&c.target).chain(&c.up);
+        let finite = all.copied().chain([c.fov_y_degrees]).all(f64::is_finite);
+        if !(finite && c.fov_y_degrees > 0.0 && c.fov_y_degrees < 180.0) {
+            return Err(bad(
+                "camera values not finite, or fov_y outside (0, 180) degrees",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Per pixel, the hits of all objects' coverage add up to at most `K`, and every object's
+    /// `K` is the bake's `settings.pixel_samples` (SPEC.md §3.11).
+    fn check_coverage_sums(&self) -> Result<(), BakeFileError> {
+        let k = self
+            .meta
+            .settings
+            .get("pixel_samples")
+            .and_then(serde_json::Value::as_u64)
+            .unwrap_or(1);
+        let mut sums: std::collections::HashMap<u64, u64> = std::collections::HashMap::new();
+        for o in &self.objects {
+            let Some(c) = &o.coverage else { continue };
+            if u64::from(c.pixel_samples) != k {
+                return Err(bad(format!(
+                    "object {:?}: coverage of K = {} samples, the bake's pixel_samples is {k}",
+                    o.name, c.pixel_samples
+                )));
+            }
+            for (p, &h) in c.hits.iter().enumerate() {
+                let pixel = o.point_first + p as u64;
+                let s = sums.entry(pixel).or_default();
+                *s += u64::from(h);
+                if *s > k {
+                    return Err(bad(format!(
+                        "pixel {pixel}: the objects' coverage adds up to more than {k} samples"
+                    )));
+                }
+            }
+        }
+        Ok(())
     }
 
     fn check(&self, with_data: bool) -> Result<(), BakeFileError> {
@@ -496,6 +660,7 @@ impl Bake {
                 return Err(bad("pixel bake with an empty image"));
             }
         }
+        self.check_camera()?;
         let mut names = BTreeSet::new();
         for (oi, o) in self.objects.iter().enumerate() {
             let what = format!("object {oi} ({:?})", o.name);
@@ -526,6 +691,28 @@ impl Bake {
             if m.shard.count == 1 && (o.point_first != 0 || o.points_in_file != o.point_count) {
                 return Err(bad(format!("{what}: unsharded bake holds a partial range")));
             }
+            check_mesh(o, m.sample_kind, &what)?;
+            if let Some(c) = &o.coverage {
+                let SampleKind::Pixel { .. } = m.sample_kind else {
+                    return Err(bad(format!("{what}: coverage in a per-vertex bake")));
+                };
+                if c.pixel_samples == 0 || c.hits.len() as u64 != o.points_in_file {
+                    return Err(bad(format!(
+                        "{what}: coverage of {} points with K = {} ({} points held)",
+                        c.hits.len(),
+                        c.pixel_samples,
+                        o.points_in_file
+                    )));
+                }
+                if let Some(p) = c.hits.iter().position(|&h| h > c.pixel_samples) {
+                    return Err(bad(format!(
+                        "{what}: point {} is hit by {} of {} footprint samples",
+                        o.point_first + p as u64,
+                        c.hits[p],
+                        c.pixel_samples
+                    )));
+                }
+            }
             let expected_len = o.points_in_file.checked_mul(o.scalars_per_point());
             let mut kinds = BTreeSet::new();
             for (bi, b) in o.blocks.iter().enumerate() {
@@ -553,6 +740,7 @@ impl Bake {
                 check_finite32(&format!("{what} block {bi}"), &b.data)?;
             }
         }
+        self.check_coverage_sums()?;
         if let Some(env) = &self.environment {
             if env.order == 0 || env.order > u32::from(u16::MAX) {
                 return Err(bad(format!("environment order {}", env.order)));

@@ -4,7 +4,7 @@ use serde::Serialize;
 
 use crate::meta::hash_string;
 use crate::model::{
-    Bake, BrdfLobe, Decision, EnvPrecision, SampleKind, ScalarType, ShardInfo, ToolInfo,
+    Bake, BrdfLobe, CameraInfo, Decision, EnvPrecision, SampleKind, ScalarType, ShardInfo, ToolInfo,
 };
 use crate::view::{BakeView, Coefficients};
 
@@ -72,6 +72,30 @@ pub struct ObjectSummary {
     pub blocks: Vec<BlockSummary>,
     /// What its rays met, when the bake recorded it.
     pub ray_stats: Option<crate::model::RayStats>,
+    /// Its mesh (format 1.1), when the file carries it.
+    pub mesh: Option<MeshSummary>,
+    /// Its per-pixel coverage (format 1.1 per-pixel bakes).
+    pub coverage: Option<CoverageSummary>,
+}
+
+/// An object's mesh, in counts.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MeshSummary {
+    /// Vertices.
+    pub vertices: u64,
+    /// Triangles.
+    pub triangles: u64,
+}
+
+/// An object's coverage of the pixels held.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CoverageSummary {
+    /// Footprint samples per pixel.
+    pub pixel_samples: u32,
+    /// Pixels it covers at least partly (hits > 0).
+    pub covered_points: u64,
+    /// Its mean coverage over the pixels held (Σ hits / (K × points)).
+    pub mean_coverage: f64,
 }
 
 /// Summary of a bake: header facts, per-object orders, kinds, counts and value statistics.
@@ -101,6 +125,8 @@ pub struct Summary {
     pub brdfs: Vec<(String, String, u32)>,
     /// Glossy tables: `(material, order, elevation count)`.
     pub glossy: Vec<(String, u32, usize)>,
+    /// The camera of a per-pixel bake (format 1.1).
+    pub camera: Option<CameraInfo>,
 }
 
 fn block_stats(values: impl Iterator<Item = f32>) -> (u64, Option<f32>, Option<f32>, u64, u64) {
@@ -179,6 +205,16 @@ fn summarise(
                     })
                     .collect(),
                 ray_stats: m.ray_stats.get(oi).cloned(),
+                mesh: o.mesh.as_ref().map(|g| MeshSummary {
+                    vertices: g.positions.len() as u64,
+                    triangles: g.triangles.len() as u64,
+                }),
+                coverage: o.coverage.as_ref().map(|c| CoverageSummary {
+                    pixel_samples: c.pixel_samples,
+                    covered_points: c.hits.iter().filter(|&&h| h > 0).count() as u64,
+                    mean_coverage: c.hits.iter().map(|&h| f64::from(h)).sum::<f64>()
+                        / (f64::from(c.pixel_samples) * c.hits.len().max(1) as f64),
+                }),
             })
             .collect(),
         environment: bake.environment.as_ref().map(|e| (e.order, e.precision)),
@@ -192,6 +228,7 @@ fn summarise(
             .iter()
             .map(|g| (g.material.clone(), g.order, g.elevations.len()))
             .collect(),
+        camera: m.camera.clone(),
     }
 }
 
@@ -278,6 +315,15 @@ impl std::fmt::Display for Summary {
             if let Some(r) = &o.ray_stats {
                 writeln!(f, "  {r}")?;
             }
+            if let Some(m) = &o.mesh {
+                writeln!(f, "  {m}")?;
+            }
+            if let Some(c) = &o.coverage {
+                writeln!(f, "  {c}")?;
+            }
+        }
+        if let Some(c) = &self.camera {
+            writeln!(f, "{}", camera_line(c))?;
         }
         if let Some((order, precision)) = self.environment {
             writeln!(f, "environment: order {order}, {precision:?}")?;
@@ -294,4 +340,35 @@ impl std::fmt::Display for Summary {
         }
         Ok(())
     }
+}
+
+impl std::fmt::Display for MeshSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "mesh: {} vertices, {} triangles (its hash is the geometry hash)",
+            self.vertices, self.triangles
+        )
+    }
+}
+
+impl std::fmt::Display for CoverageSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "coverage: {} pixels touched, mean {:.2} % of the pixels held ({} footprint samples per pixel)",
+            self.covered_points,
+            100.0 * self.mean_coverage,
+            self.pixel_samples
+        )
+    }
+}
+
+/// One line describing a per-pixel bake's camera.
+#[must_use]
+pub fn camera_line(c: &CameraInfo) -> String {
+    format!(
+        "camera: {} {}×{}, eye {:?}, target {:?}, up {:?}, vertical field of view {}°",
+        c.model, c.width, c.height, c.eye, c.target, c.up, c.fov_y_degrees
+    )
 }

@@ -8,14 +8,17 @@ use half::f16;
 use crate::encode::header_crc;
 use crate::error::{inconsistent, invalid, BakeFileError};
 use crate::layout::{
-    Tag, BINF_SIZE, BLKT_RECORD, BRDF_RECORD, ENVL_HEADER, GLSY_RECORD, HEADER_SIZE, MAGIC,
-    MUST_UNDERSTAND_FLAGS, OBJT_RECORD, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED,
-    TABLE_HEADER_SIZE, VERSION_MAJOR,
+    Tag, BINF_SIZE, BLKT_RECORD, BRDF_RECORD, CVRG_HEADER, ENVL_HEADER, GLSY_RECORD, HEADER_SIZE,
+    MAGIC, MESH_HEADER, MUST_UNDERSTAND_FLAGS, NO_SECTION, OBJT_RECORD_V10, SECTION_ENTRY_SIZE,
+    SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE, VERSION_MAJOR,
 };
-use crate::meta::{agree, hash_string, MetaJson, ShConvention, COLOUR_SPACE, FORMAT_NAME};
+use crate::meta::{
+    agree, check_mandatory, hash_string, MetaJson, ShConvention, COLOUR_SPACE, FORMAT_NAME,
+};
 use crate::model::{
-    check_finite64, Bake, BakeMeta, BrdfLobe, BrdfProjection, EnvCoefficients, EnvPrecision,
-    GlossyBrdfTable, ObjectBake, SampleKind, ScalarType, ShardInfo, TransferBlock, TransferKind,
+    check_finite64, Bake, BakeMeta, BrdfLobe, BrdfProjection, Coverage, EnvCoefficients,
+    EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, SampleKind, ScalarType, ShardInfo,
+    TransferBlock, TransferKind,
 };
 
 /// One entry of the section table, as read (and checked) from the file.
@@ -65,6 +68,10 @@ pub struct ObjectInfo {
     pub channels: u32,
     /// Its transfer blocks.
     pub blocks: Vec<BlockInfo>,
+    /// Index of its MESH section (1.1), if it has one.
+    pub mesh_section: Option<u32>,
+    /// Index of its CVRG section (1.1, per-pixel bakes), if it has one.
+    pub coverage_section: Option<u32>,
 }
 
 /// Coefficients of one block, borrowed from the file bytes when they are suitably aligned
@@ -125,6 +132,8 @@ pub struct BakeView<'a> {
     sections: Vec<SectionEntry>,
     meta: BakeMeta,
     objects: Vec<ObjectInfo>,
+    meshes: Vec<Option<MeshGeometry>>,
+    coverages: Vec<Option<Coverage>>,
     environment: Option<EnvCoefficients>,
     brdfs: Vec<BrdfProjection>,
     glossy: Vec<GlossyBrdfTable>,
@@ -227,6 +236,54 @@ fn f64s(
         .collect();
     check_finite64(name, &v)?;
     Ok(v)
+}
+
+/// Reads a MESH payload (SPEC.md §3.10) whose object index was checked; the semantic rules
+/// (vertex count, finite values, index range, hash) are `Bake::validate`'s.
+fn read_mesh(p: &[u8], object: usize) -> Result<MeshGeometry, BakeFileError> {
+    let (v, t) = (u64::from(rd_u32(p, 4)), u64::from(rd_u32(p, 8)));
+    let expected = MESH_HEADER as u64 + 24 * v + 12 * t;
+    if expected != p.len() as u64 {
+        return Err(inconsistent(
+            format!("object {object} MESH length (16 + 24 × vertices + 12 × triangles)"),
+            expected,
+            p.len() as u64,
+        ));
+    }
+    let (v, t) = (v as usize, t as usize);
+    let vec3 = |off: usize| -> [f32; 3] { [0, 4, 8].map(|k| f32::from_bits(rd_u32(p, off + k))) };
+    let positions = (0..v).map(|i| vec3(MESH_HEADER + 12 * i)).collect();
+    let normals = (0..v).map(|i| vec3(MESH_HEADER + 12 * (v + i))).collect();
+    let triangles = (0..t)
+        .map(|i| [0, 4, 8].map(|k| rd_u32(p, MESH_HEADER + 24 * v + 12 * i + k)))
+        .collect();
+    Ok(MeshGeometry {
+        positions,
+        normals,
+        triangles,
+    })
+}
+
+/// Reads a CVRG payload (SPEC.md §3.11) whose object index was checked.
+fn read_coverage(p: &[u8], object: usize) -> Result<Coverage, BakeFileError> {
+    let n = rd_u64(p, 8);
+    let expected = n
+        .checked_mul(4)
+        .and_then(|b| b.checked_add(CVRG_HEADER as u64));
+    if expected != Some(p.len() as u64) {
+        return Err(inconsistent(
+            format!("object {object} CVRG length (16 + 4 × points)"),
+            expected.unwrap_or(u64::MAX),
+            p.len() as u64,
+        ));
+    }
+    Ok(Coverage {
+        pixel_samples: rd_u32(p, 4),
+        hits: p[CVRG_HEADER..]
+            .chunks_exact(4)
+            .map(|c| rd_u32(c, 0))
+            .collect(),
+    })
 }
 
 fn sample_kind(code: u32, width: u32, height: u32) -> Result<SampleKind, BakeFileError> {
@@ -438,7 +495,9 @@ impl<'a> BakeView<'a> {
                     return Err(BakeFileError::DuplicateSection(s.tag.to_string()));
                 }
                 slot.1 = Some(i);
-            } else if s.tag != Tag::XFER && s.flags & SECTION_FLAG_REQUIRED != 0 {
+            } else if ![Tag::XFER, Tag::MESH, Tag::CVRG].contains(&s.tag)
+                && s.flags & SECTION_FLAG_REQUIRED != 0
+            {
                 return Err(BakeFileError::UnknownRequiredSection(section_name(
                     s.tag, i,
                 )));
@@ -480,7 +539,7 @@ impl<'a> BakeView<'a> {
         let seed = rd_u64(binf, 32);
 
         // OBJT, BLKT
-        let (object_count, orec) = table(objt, "OBJT", OBJT_RECORD)?;
+        let (object_count, orec) = table(objt, "OBJT", OBJT_RECORD_V10)?;
         let (block_count, brec) = table(blkt, "BLKT", BLKT_RECORD)?;
         let mut used_sections = BTreeSet::new();
         let mut objects = Vec::with_capacity(object_count);
@@ -502,6 +561,13 @@ impl<'a> BakeView<'a> {
                 order: rd_u32(r, 40),
                 channels: rd_u32(r, 44),
                 blocks: Vec::new(),
+                // 1.1 records (64 bytes) name the object's MESH and CVRG sections.
+                mesh_section: (orec >= 64)
+                    .then(|| rd_u32(r, 56))
+                    .filter(|&i| i != NO_SECTION),
+                coverage_section: (orec >= 64)
+                    .then(|| rd_u32(r, 60))
+                    .filter(|&i| i != NO_SECTION),
             };
             let first_block = u64::from(rd_u32(r, 48));
             let n_blocks = u64::from(rd_u32(r, 52));
@@ -622,6 +688,59 @@ impl<'a> BakeView<'a> {
                 used_sections.len() as u64,
                 xfer_count as u64,
             ));
+        }
+
+        // MESH, CVRG (1.1): each referenced by exactly its own object.
+        let mut meshes = Vec::with_capacity(objects.len());
+        let mut coverages = Vec::with_capacity(objects.len());
+        for (oi, o) in objects.iter().enumerate() {
+            let located = |index: Option<u32>, tag: Tag| -> Result<Option<&[u8]>, BakeFileError> {
+                let Some(i) = index else { return Ok(None) };
+                let what = format!("object {oi} {tag} section");
+                if sections.get(i as usize).is_none_or(|s| s.tag != tag) {
+                    return Err(invalid(what, format!("{i} is not a {tag} section")));
+                }
+                let p = payload(i as usize);
+                if p.len() < 16 || rd_u32(p, 0) as usize != oi {
+                    return Err(invalid(
+                        what,
+                        format!("section {i} does not belong to object {oi}"),
+                    ));
+                }
+                Ok(Some(p))
+            };
+            meshes.push(match located(o.mesh_section, Tag::MESH)? {
+                Some(p) => Some(read_mesh(p, oi)?),
+                None => None,
+            });
+            coverages.push(match located(o.coverage_section, Tag::CVRG)? {
+                Some(p) => Some(read_coverage(p, oi)?),
+                None => None,
+            });
+        }
+        for (tag, refs) in [
+            (
+                Tag::MESH,
+                objects
+                    .iter()
+                    .filter_map(|o| o.mesh_section)
+                    .collect::<Vec<_>>(),
+            ),
+            (
+                Tag::CVRG,
+                objects.iter().filter_map(|o| o.coverage_section).collect(),
+            ),
+        ] {
+            // Distinct objects cannot share a section (each checks the section's own object
+            // index), so counting the references counts the sections used.
+            let present = sections.iter().filter(|s| s.tag == tag).count();
+            if present != refs.len() {
+                return Err(inconsistent(
+                    format!("{tag} sections (referenced by objects / present)"),
+                    refs.len() as u64,
+                    present as u64,
+                ));
+            }
         }
 
         // ENVL
@@ -758,7 +877,10 @@ impl<'a> BakeView<'a> {
         }
 
         // META, and its agreement with everything above.
-        let json: MetaJson = serde_json::from_slice(meta_bytes)
+        let value: serde_json::Value = serde_json::from_slice(meta_bytes)
+            .map_err(|e| BakeFileError::Metadata(format!("not valid JSON: {e}")))?;
+        check_mandatory(&value)?;
+        let json: MetaJson = serde_json::from_value(value)
             .map_err(|e| BakeFileError::Metadata(format!("not valid metadata JSON: {e}")))?;
         agree("format", &json.format.as_str(), &FORMAT_NAME)?;
         agree("format_version", &json.format_version, &[major, minor])?;
@@ -803,6 +925,30 @@ impl<'a> BakeView<'a> {
                 agree(&f("blocks[].bounces"), &jb.bounces, &b.kind.bounces())?;
                 agree(&f("blocks[].section"), &jb.section, &b.section_index)?;
             }
+        }
+        for ((j, o), (mesh, coverage)) in json
+            .objects
+            .iter()
+            .zip(&objects)
+            .zip(meshes.iter().zip(&coverages))
+        {
+            let f = |x: &str| format!("objects[{:?}].{x}", o.name);
+            agree(
+                &f("mesh"),
+                &j.mesh
+                    .as_ref()
+                    .map(|m| (m.section, m.vertices, m.triangles)),
+                &o.mesh_section
+                    .zip(mesh.as_ref())
+                    .map(|(s, m)| (s, m.positions.len() as u32, m.triangles.len() as u32)),
+            )?;
+            agree(
+                &f("coverage"),
+                &j.coverage.as_ref().map(|c| (c.section, c.pixel_samples)),
+                &o.coverage_section
+                    .zip(coverage.as_ref())
+                    .map(|(s, c)| (s, c.pixel_samples)),
+            )?;
         }
         let env_json = environment.as_ref().map(|e| (e.order, e.precision));
         agree(
@@ -851,8 +997,11 @@ impl<'a> BakeView<'a> {
                 decisions: json.decisions,
                 shard,
                 ray_stats: json.ray_stats,
+                camera: json.camera,
             },
             objects,
+            meshes,
+            coverages,
             environment,
             brdfs,
             glossy,
@@ -869,7 +1018,8 @@ impl<'a> BakeView<'a> {
             objects: self
                 .objects
                 .iter()
-                .map(|o| ObjectBake {
+                .zip(self.meshes.iter().zip(&self.coverages))
+                .map(|(o, (mesh, coverage))| ObjectBake {
                     name: o.name.clone(),
                     geometry_hash: o.geometry_hash,
                     point_count: o.point_count,
@@ -885,6 +1035,8 @@ impl<'a> BakeView<'a> {
                             data: Vec::new(),
                         })
                         .collect(),
+                    mesh: mesh.clone(),
+                    coverage: coverage.clone(),
                 })
                 .collect(),
             environment: self.environment.clone(),
@@ -921,6 +1073,20 @@ impl<'a> BakeView<'a> {
     #[must_use]
     pub fn objects(&self) -> &[ObjectInfo] {
         &self.objects
+    }
+
+    /// The mesh of object `object` (1.1 files), `None` when it has none or the index is out
+    /// of range.
+    #[must_use]
+    pub fn mesh(&self, object: usize) -> Option<&MeshGeometry> {
+        self.meshes.get(object)?.as_ref()
+    }
+
+    /// The per-pixel coverage of object `object` (1.1 per-pixel bakes), `None` when it has
+    /// none or the index is out of range.
+    #[must_use]
+    pub fn coverage(&self, object: usize) -> Option<&Coverage> {
+        self.coverages.get(object)?.as_ref()
     }
 
     /// Environment lighting, if present.

@@ -23,7 +23,8 @@ fn err(bytes: &[u8]) -> BakeFileError {
 fn test01_flipped_byte_in_each_section_is_a_checksum_error() {
     let bytes = valid(ScalarType::F32);
     let secs = sections(&bytes);
-    assert_eq!(secs.len(), 16);
+    // 8 fixed sections, 8 XFER, a MESH per object (2).
+    assert_eq!(secs.len(), 18);
     for (i, (tag, off, len, _)) in secs.iter().enumerate() {
         for pos in [*off, off + len / 2, off + len - 1] {
             let mut b = bytes.clone();
@@ -124,7 +125,7 @@ fn test03_magic_and_version() {
         match err(&b) {
             BakeFileError::UnsupportedVersion {
                 major: m,
-                minor: 0,
+                minor: 1,
                 supported: 1,
             } => assert_eq!(m, major),
             e => panic!("{e}"),
@@ -138,10 +139,10 @@ fn test03_magic_and_version() {
     let mut b = bytes.clone();
     let (off, len) = find(&b, b"META");
     let text = std::str::from_utf8(&b[off..off + len]).unwrap().to_owned();
-    let needle = "\"format_version\": [\n    1,\n    0\n  ]";
+    let needle = "\"format_version\": [\n    1,\n    1\n  ]";
     let at = off + text.find(needle).expect("pretty-printed version");
     let zero = at + needle.len() - 5;
-    assert_eq!(b[zero], b'0');
+    assert_eq!(b[zero], b'1');
     b[zero] = b'3';
     put_u32(&mut b, 12, 3);
     fix_crcs(&mut b);
@@ -439,4 +440,99 @@ fn test09_errors_name_the_file() {
     let e = read_bake(&dir.path().join("missing.prtbake")).unwrap_err();
     assert!(e.to_string().contains("missing.prtbake"), "{e}");
     assert!(matches!(e.root(), BakeFileError::Io(_)));
+}
+
+/// Format 1.1's MESH and CVRG sections: every rule of SPEC.md §3.10–3.11 that a file can
+/// break, each caught with a message that says what is wrong.
+#[test]
+fn test10_mesh_and_coverage_rules() {
+    let bytes = valid(ScalarType::F32);
+    let secs = sections(&bytes);
+    let mesh_of = |i: usize| secs.iter().filter(|s| &s.0 == b"MESH").nth(i).unwrap().1;
+    let (objt, _) = find(&bytes, b"OBJT");
+    let record = |o: usize| objt + 16 + 64 * o;
+    let message = |b: &mut Vec<u8>| {
+        fix_crcs(b);
+        err(b).to_string()
+    };
+
+    // A moved vertex no longer hashes to the object's geometry hash.
+    let mut b = bytes.clone();
+    b[mesh_of(0) + 16] ^= 0x01;
+    assert!(message(&mut b).contains("hashes to"));
+    // A triangle index beyond the vertices.
+    let mut b = bytes.clone();
+    let v = u32_at(&b, mesh_of(1) + 4) as usize;
+    put_u32(&mut b, mesh_of(1) + 16 + 24 * v, v as u32);
+    assert!(message(&mut b).contains("beyond its"));
+    // A non-finite normal.
+    let mut b = bytes.clone();
+    put_u32(&mut b, mesh_of(1) + 16 + 12 * v, 0x7fc0_0000);
+    assert!(message(&mut b).contains("not finite"));
+    // Object 1 pointing at object 0's mesh; a mesh no object points at.
+    let mut b = bytes.clone();
+    let m0 = u32_at(&b, record(0) + 56);
+    put_u32(&mut b, record(1) + 56, m0);
+    assert!(message(&mut b).contains("does not belong"));
+    let mut b = bytes.clone();
+    put_u32(&mut b, record(0) + 56, u32::MAX);
+    let e = message(&mut b);
+    assert!(e.contains("MESH sections"), "{e}");
+    // A MESH index that names an XFER section.
+    let mut b = bytes.clone();
+    put_u32(&mut b, record(0) + 56, 8);
+    assert!(message(&mut b).contains("is not a MESH section"));
+    // Coverage in a per-vertex bake: point object 0's coverage field at its mesh.
+    let mut b = bytes.clone();
+    put_u32(&mut b, record(0) + 60, m0);
+    assert!(message(&mut b).contains("is not a CVRG section"));
+    // The vertex count of a per-vertex bake's mesh must be its point count.
+    let mut b = bytes.clone();
+    put_u32(&mut b, mesh_of(0) + 4, 1);
+    assert!(message(&mut b).contains("MESH length"));
+
+    // Per-pixel: hits beyond K, and objects whose hits add up to more than K.
+    let mut bake = sample_bake();
+    bake.meta.sample_kind = SampleKind::Pixel {
+        width: 1,
+        height: 1,
+    };
+    bake.meta.settings["pixel_samples"] = serde_json::json!(4);
+    bake.objects.truncate(1);
+    bake.meta.ray_stats.truncate(1);
+    let o = &mut bake.objects[0];
+    o.point_count = 1;
+    o.points_in_file = 1;
+    for b in &mut o.blocks {
+        b.data.truncate(25);
+    }
+    o.coverage = Some(Coverage {
+        pixel_samples: 4,
+        hits: vec![3],
+    });
+    let mut second = o.clone();
+    second.name = "second".into();
+    let ok = encode(&bake, ScalarType::F32).unwrap();
+    assert_eq!(decode(&ok).unwrap(), bake);
+    let (cvrg, _) = find(&ok, b"CVRG");
+    let mut b = ok.clone();
+    put_u32(&mut b, cvrg + 16, 5);
+    assert!(message(&mut b).contains("is hit by 5 of 4"));
+    let mut b = ok.clone();
+    put_u32(&mut b, cvrg + 4, 3);
+    // The JSON still says K = 4: caught as a disagreement of the tables and the JSON.
+    let e = message(&mut b);
+    assert!(
+        e.contains("coverage is Some((") && e.contains(", 4))"),
+        "{e}"
+    );
+    bake.objects.push(second);
+    bake.meta.ray_stats.clear();
+    let e = encode(&bake, ScalarType::F32).unwrap_err().to_string();
+    assert!(e.contains("adds up to more than 4"), "{e}");
+    // K must be the bake's settings.pixel_samples.
+    bake.objects.pop();
+    bake.objects[0].coverage.as_mut().unwrap().pixel_samples = 3;
+    let e = encode(&bake, ScalarType::F32).unwrap_err().to_string();
+    assert!(e.contains("the bake's pixel_samples is 4"), "{e}");
 }

@@ -96,7 +96,19 @@ fn test03_incomplete_overlapping_or_mismatched_shards_are_refused() {
     assert!(merge_err(&other).contains("metadata"));
     let mut other = shards.clone();
     other[0].objects[1].geometry_hash ^= 1;
+    other[0].objects[1].mesh = None;
     assert!(merge_err(&other).contains("differs"));
+    // A mesh that differs (one vertex moved, hash kept consistent) is refused too.
+    let mut other = shards.clone();
+    let o = &mut other[1].objects[0];
+    let m = o.mesh.as_mut().unwrap();
+    m.positions[0][1] += 1.0;
+    o.geometry_hash = geometry_hash(&m.positions, &m.triangles);
+    assert!(merge_err(&other).contains("differs"));
+    // The shard's mesh must hash to the object's geometry hash.
+    let mut other = shards.clone();
+    other[2].objects[0].mesh.as_mut().unwrap().positions[0][0] += 1.0;
+    assert!(merge_err(&other).contains("mesh hashes to"));
     let mut other = shards.clone();
     other[0].environment = None;
     assert!(merge_err(&other).contains("environment"));

@@ -149,7 +149,7 @@ fn test05_zero_copy_view_agrees_with_decode() {
         let view = BakeView::new(aligned).unwrap();
         let decoded = decode(&bytes).unwrap();
         assert_eq!(view.scalar_type(), scalar);
-        assert_eq!(view.version(), (1, 0));
+        assert_eq!(view.version(), (1, 1));
         assert_eq!(view.meta(), &decoded.meta);
         assert_eq!(view.to_bake().unwrap(), decoded);
         for (oi, o) in decoded.objects.iter().enumerate() {
@@ -201,7 +201,7 @@ fn test06_summary_counts_and_serialises() {
     assert_eq!(fs.objects, summary(&bake).objects);
     let file = fs.file.as_ref().unwrap();
     assert_eq!(file.file_size, bytes.len() as u64);
-    assert_eq!(file.sections.len(), 8 + 8);
+    assert_eq!(file.sections.len(), 8 + 8 + 2);
     let json = serde_json::to_value(&fs).unwrap();
     assert_eq!(json["objects"][1]["order"], 3);
     assert_eq!(
@@ -222,14 +222,23 @@ fn test07_metadata_json_is_self_describing() {
     let (off, len) = find(&bytes, b"META");
     let meta: serde_json::Value = serde_json::from_slice(&bytes[off..off + len]).unwrap();
     assert_eq!(meta["format"], "prt-bake");
-    assert_eq!(meta["format_version"], serde_json::json!([1, 0]));
+    assert_eq!(meta["format_version"], serde_json::json!([1, 1]));
     assert_eq!(meta["sh"]["basis"], "real-orthonormal");
     assert_eq!(meta["sh"]["phase"], "condon-shortley");
     assert_eq!(meta["sh"]["index_order"], "l(l+1)+m");
     assert_eq!(meta["colour_space"], "linear-rec709");
     assert_eq!(meta["scalar_type"], "f16");
-    assert_eq!(meta["seed"], 0x0123_4567_89ab_cdef_u64);
+    // 1.1: the u64 seed as a decimal string (a double cannot hold it: 0x0123456789abcdef
+    // as f64 is 81985529216486896).
+    assert_eq!(meta["seed"], "81985529216486895");
+    assert_eq!(meta["camera"], serde_json::Value::Null);
     assert_eq!(meta["objects"][0]["blocks"][0]["section"], 8);
+    // The meshes follow the 8 XFER sections; no coverage in a per-vertex bake.
+    assert_eq!(
+        meta["objects"][1]["mesh"],
+        serde_json::json!({"section": 17, "vertices": 11, "triangles": meta["objects"][1]["mesh"]["triangles"]})
+    );
+    assert_eq!(meta["objects"][1]["coverage"], serde_json::Value::Null);
     assert_eq!(meta["settings"]["weights"][2], 0.30000000000000004);
     assert_eq!(
         meta["decisions"][0]["reason"],
@@ -246,4 +255,89 @@ fn test08_geometry_hash_worked_example() {
     );
     assert_eq!(h, 0x8810_ae12_e1b0_c5a6);
     assert_eq!(geometry_hash(&[], &[]), 0xcbf2_9ce4_8422_2325);
+}
+
+/// Files written by the 1.0 writer (commit 9e5754a, `sample_bake()` of that commit with
+/// `settings.albedo_in_transfer = false`, in `tests/data/`) still read: 56-byte OBJT records,
+/// a numeric JSON seed, no meshes, coverage or camera.
+#[test]
+fn test09_format_1_0_files_still_read() {
+    for (name, scalar) in [
+        ("v1_0_sample_f32.prtb", ScalarType::F32),
+        ("v1_0_sample_f16.prtb", ScalarType::F16),
+    ] {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data")
+            .join(name);
+        let bytes = std::fs::read(&path).unwrap();
+        let view = BakeView::new(&bytes).unwrap();
+        assert_eq!(view.version(), (1, 0), "{name}");
+        assert_eq!(view.scalar_type(), scalar);
+        let old = view.to_bake().unwrap();
+        let new = sample_bake();
+        assert_eq!(old.meta.seed, new.meta.seed);
+        assert_eq!(old.meta.camera, None);
+        assert_eq!(old.environment, new.environment);
+        assert_eq!(old.brdfs, new.brdfs);
+        assert_eq!(old.glossy, new.glossy);
+        for (o, n) in old.objects.iter().zip(&new.objects) {
+            assert_eq!((o.mesh.as_ref(), o.coverage.as_ref()), (None, None));
+            assert_eq!(
+                (&o.name, o.point_count, o.order),
+                (&n.name, n.point_count, n.order)
+            );
+            if scalar == ScalarType::F32 {
+                // The same generator made the coefficients (its stream also drew the 1.0
+                // geometry hash, so the values differ; their count and kinds agree).
+                assert_eq!(o.blocks.len(), n.blocks.len());
+            }
+        }
+        // Re-encoding writes 1.1 and reads back to the same bake.
+        let again = decode(&encode(&old, scalar).unwrap()).unwrap();
+        assert_eq!(again, old);
+    }
+}
+
+/// The JSON `seed`: a canonical decimal string in 1.1; a number is still read (1.0); a
+/// string with a sign, leading zero or beyond u64 is refused; and it must equal BINF's.
+#[test]
+fn test10_seed_forms() {
+    let bytes = encode(&sample_bake(), ScalarType::F32).unwrap();
+    // Replaces the seed in place, keeping META's length (JSON whitespace absorbs the
+    // difference), so that no section moves.
+    let with_seed = |text: &str| {
+        let mut b = bytes.clone();
+        let (off, len) = find(&b, b"META");
+        let meta = std::str::from_utf8(&b[off..off + len]).unwrap();
+        let mut new = meta.replace(
+            "\"seed\": \"81985529216486895\"",
+            &format!("\"seed\": {text}"),
+        );
+        assert!(new.contains(&format!("\"seed\": {text}")));
+        while new.len() > len {
+            new = new.replacen("\n  ", "\n ", 1);
+        }
+        while new.len() < len {
+            new.push(' ');
+        }
+        b[off..off + len].copy_from_slice(new.as_bytes());
+        fix_crcs(&mut b);
+        b
+    };
+    for (text, ok) in [
+        ("\"81985529216486895\"", true),
+        ("81985529216486895", true),
+        ("\"081985529216486895\"", false),
+        ("\"+81985529216486895\"", false),
+        ("\"81985529216486896\"", false),
+        ("\"99999999999999999999\"", false),
+        ("81985529216486896", false),
+    ] {
+        let b = with_seed(text);
+        let r = decode(&b);
+        assert_eq!(r.is_ok(), ok, "seed {text}: {r:?}");
+        if let Err(e) = r {
+            assert!(e.to_string().contains("seed"), "{e}");
+        }
+    }
 }

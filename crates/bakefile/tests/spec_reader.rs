@@ -96,6 +96,8 @@ fn spec_read(bytes: &[u8]) -> Bake {
                 .unwrap_or(serde_json::json!([])),
         )
         .unwrap(),
+        // 1.1: null for per-vertex bakes, the camera object for per-pixel ones.
+        camera: serde_json::from_value(meta["camera"].clone()).unwrap(),
     };
     // §3.3, §3.4, §3.5
     let objt = sec(b"OBJT").unwrap();
@@ -137,6 +139,50 @@ fn spec_read(bytes: &[u8]) -> Bake {
                     TransferBlock { kind, data }
                 })
                 .collect();
+            // §3.3 (1.1 fields), §3.10, §3.11
+            assert_eq!(orec, 64);
+            let section = |field: usize, tag: &[u8; 4]| {
+                let i = u32_(objt, r + field);
+                (i != 0xFFFF_FFFF).then(|| {
+                    let s = &sections[i as usize];
+                    assert_eq!(&s.tag, tag);
+                    let p = &bytes[s.offset..s.offset + s.length];
+                    assert_eq!(u32_(p, 0) as usize, o);
+                    p
+                })
+            };
+            let mesh = section(56, b"MESH").map(|p| {
+                let (v, t) = (u32_(p, 4) as usize, u32_(p, 8) as usize);
+                assert_eq!(p.len(), 16 + 24 * v + 12 * t);
+                let f = |at: usize| f32::from_bits(u32_(p, at));
+                let vec3s = |base: usize| {
+                    (0..v)
+                        .map(|i| [0, 4, 8].map(|k| f(base + 12 * i + k)))
+                        .collect()
+                };
+                // §5: the hash is FNV-1a over the position bytes, then the triangle bytes.
+                let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+                for &b in p[16..16 + 12 * v].iter().chain(&p[16 + 24 * v..]) {
+                    h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+                }
+                assert_eq!(h, u64_(objt, r + 8), "geometry hash of object {o}");
+                MeshGeometry {
+                    positions: vec3s(16),
+                    normals: vec3s(16 + 12 * v),
+                    triangles: (0..t)
+                        .map(|i| [0, 4, 8].map(|k| u32_(p, 16 + 24 * v + 12 * i + k)))
+                        .collect(),
+                }
+            });
+            let coverage = section(60, b"CVRG").map(|p| {
+                let n = u64_(p, 8) as usize;
+                assert_eq!(n as u64, points);
+                assert_eq!(p.len(), 16 + 4 * n);
+                Coverage {
+                    pixel_samples: u32_(p, 4),
+                    hits: (0..n).map(|i| u32_(p, 16 + 4 * i)).collect(),
+                }
+            });
             ObjectBake {
                 name: string(u32_(objt, r), u32_(objt, r + 4)),
                 geometry_hash: u64_(objt, r + 8),
@@ -146,6 +192,8 @@ fn spec_read(bytes: &[u8]) -> Bake {
                 order,
                 channels,
                 blocks,
+                mesh,
+                coverage,
             }
         })
         .collect();

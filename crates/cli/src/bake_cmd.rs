@@ -385,6 +385,15 @@ fn print_summary(path: &std::path::Path, s: &Summary) -> Result<()> {
         if let Some(r) = &o.ray_stats {
             outln!("    {r}");
         }
+        if let Some(m) = &o.mesh {
+            outln!("    {m}");
+        }
+        if let Some(c) = &o.coverage {
+            outln!("    {c}");
+        }
+    }
+    if let Some(c) = &s.camera {
+        outln!("  {}", prt_bakefile::camera_line(c));
     }
     for d in &s.decisions {
         outln!(

@@ -10,11 +10,43 @@ pub fn rng(seed: u64) -> Pcg64 {
     Pcg64::seed_from_u64(seed)
 }
 
+/// A random mesh of `vertices` vertices (with some triangles when it has any), its normals
+/// unit vectors, and the geometry hash that goes with it.
+pub fn random_mesh(r: &mut Pcg64, vertices: usize) -> (MeshGeometry, u64) {
+    let positions: Vec<[f32; 3]> = (0..vertices)
+        .map(|_| [0; 3].map(|_| r.random_range(-10.0f32..10.0)))
+        .collect();
+    let normals = (0..vertices)
+        .map(|_| {
+            let v = [0; 3].map(|_| r.random_range(-1.0f32..1.0));
+            let l = v.iter().map(|x| x * x).sum::<f32>().sqrt().max(1e-3);
+            v.map(|x| x / l)
+        })
+        .collect();
+    let triangles = if vertices == 0 {
+        Vec::new()
+    } else {
+        (0..r.random_range(1..2 * vertices + 2))
+            .map(|_| [0; 3].map(|_| r.random_range(0..vertices as u32)))
+            .collect()
+    };
+    let hash = geometry_hash(&positions, &triangles);
+    (
+        MeshGeometry {
+            positions,
+            normals,
+            triangles,
+        },
+        hash,
+    )
+}
+
 /// A small bake with every section and every transfer kind.
 pub fn sample_bake() -> Bake {
     let mut r = rng(7);
     let object = |name: &str, points: u64, order: u32, channels: u32, r: &mut Pcg64| {
         let n = (points * u64::from(channels * order * order)) as usize;
+        let (mesh, geometry_hash) = random_mesh(r, points as usize);
         let kinds = [
             TransferKind::UnshadowedDiffuse,
             TransferKind::ShadowedDiffuse,
@@ -23,7 +55,7 @@ pub fn sample_bake() -> Bake {
         ];
         ObjectBake {
             name: name.into(),
-            geometry_hash: r.random(),
+            geometry_hash,
             point_count: points,
             point_first: 0,
             points_in_file: points,
@@ -36,6 +68,8 @@ pub fn sample_bake() -> Bake {
                     data: (0..n).map(|_| r.random_range(-4.0f32..4.0)).collect(),
                 })
                 .collect(),
+            mesh: Some(mesh),
+            coverage: None,
         }
     };
     Bake {
@@ -83,6 +117,7 @@ pub fn sample_bake() -> Bake {
                     ..RayStats::default()
                 },
             ],
+            camera: None,
         },
         objects: vec![
             object("bunny", 37, 5, 1, &mut r),
@@ -123,6 +158,10 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
     let (w, h) = (r.random_range(1..6u32), r.random_range(1..6u32));
     let bounces = r.random_range(0..4u32);
     let object_count = r.random_range(0..4usize);
+    // Per-pixel bakes: K footprint samples, shared out so the objects' hits of a pixel add up
+    // to at most K.
+    let k = r.random_range(1..9u32);
+    let share = k / object_count.max(1) as u32;
     let objects = (0..object_count)
         .map(|i| {
             let points = if pixel {
@@ -145,9 +184,20 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
             kinds.retain(|_| r.random_bool(0.6));
             let n = (points * u64::from(channels * order * order)) as usize;
             let scale = [1e-6f32, 1.0, 1e3][r.random_range(0..3)];
+            let vertices = if pixel {
+                r.random_range(0..8usize)
+            } else {
+                points as usize
+            };
+            let (mesh, hash) = random_mesh(r, vertices);
+            let with_mesh = r.random_bool(0.7);
+            let coverage = (pixel && r.random_bool(0.7)).then(|| Coverage {
+                pixel_samples: k,
+                hits: (0..points).map(|_| r.random_range(0..=share)).collect(),
+            });
             ObjectBake {
                 name: format!("object-{i}-{}", ["a", "ü", "名"][r.random_range(0..3)]),
-                geometry_hash: r.random(),
+                geometry_hash: if with_mesh { hash } else { r.random() },
                 point_count: points,
                 point_first: 0,
                 points_in_file: points,
@@ -162,9 +212,20 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
                             .collect(),
                     })
                     .collect(),
+                mesh: with_mesh.then_some(mesh),
+                coverage,
             }
         })
         .collect();
+    let camera = (pixel && r.random_bool(0.7)).then(|| CameraInfo {
+        model: "pinhole".into(),
+        eye: [r.random(), r.random(), r.random()],
+        target: [r.random::<f64>() + 2.0, 0.5, -1.0],
+        up: [0.0, 1.0, 0.0],
+        fov_y_degrees: r.random_range(1.0..179.0),
+        width: w,
+        height: h,
+    });
     let environment = r.random_bool(0.5).then(|| {
         let order = r.random_range(1..5u32);
         let precision = if r.random_bool(0.5) {
@@ -237,10 +298,15 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
                 name: "random".into(),
                 version: format!("{}", r.random::<u16>()),
             },
-            settings: serde_json::json!({ "x": r.random::<f64>(), "n": r.random::<u32>() }),
+            settings: if pixel {
+                serde_json::json!({ "x": r.random::<f64>(), "pixel_samples": k })
+            } else {
+                serde_json::json!({ "x": r.random::<f64>(), "n": r.random::<u32>() })
+            },
             decisions: vec![],
             ray_stats: vec![],
             shard: ShardInfo::default(),
+            camera,
         },
         objects,
         environment,
@@ -249,7 +315,7 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
     }
 }
 
-fn u32_at(b: &[u8], o: usize) -> u32 {
+pub fn u32_at(b: &[u8], o: usize) -> u32 {
     u32::from_le_bytes(b[o..o + 4].try_into().unwrap())
 }
 
