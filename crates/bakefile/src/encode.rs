@@ -76,6 +76,11 @@ struct Planned {
 pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError> {
     bake.validate()?;
     let m = &bake.meta;
+    if matches!(m.sample_kind, SampleKind::Pixel { .. }) && m.camera.is_none() {
+        return Err(BakeFileError::InvalidBake(
+            "a per-pixel bake of format 1.1 records its camera, and this one has none (a bake read from a 1.0 file: re-bake it)".into(),
+        ));
+    }
     let mut strings = Strings::default();
 
     let fixed_sections = 5

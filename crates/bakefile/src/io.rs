@@ -24,10 +24,16 @@ fn write_inner(path: &Path, bake: &Bake, scalar: ScalarType) -> Result<(), BakeF
         _ => Path::new("."),
     };
     // Dropping `tmp` on any early return deletes the temporary file.
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".prtbake-")
-        .suffix(".tmp")
-        .tempfile_in(dir)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".prtbake-").suffix(".tmp");
+    #[cfg(unix)]
+    {
+        // A temporary file is private (0600) by default; the bake is an ordinary output file,
+        // readable like any other the user creates (0644 less the umask).
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o644));
+    }
+    let mut tmp = builder.tempfile_in(dir)?;
     tmp.write_all(&bytes)?;
     tmp.as_file().sync_all()?;
     tmp.persist(path).map_err(|e| BakeFileError::Io(e.error))?;

@@ -501,6 +501,27 @@ pub(crate) fn check_finite32(section: &str, values: &[f32]) -> Result<(), BakeFi
     }
 }
 
+/// How far a MESH normal's length may be from 1 (SPEC.md §3.10): a unit vector rounded to
+/// f32 is within ~2·10⁻⁷ of it.
+pub(crate) const MAX_NORMAL_LENGTH_ERROR: f64 = 1e-5;
+
+/// The first point of `o` whose transfer is not zero although its coverage says no footprint
+/// sample hit it (SPEC.md §3.11), as `(block, point)`.
+pub(crate) fn uncovered_nonzero(
+    o: &ObjectBake,
+    is_zero: impl Fn(usize, usize) -> bool,
+) -> Option<(usize, u64)> {
+    let c = o.coverage.as_ref()?;
+    for (bi, _) in o.blocks.iter().enumerate() {
+        for (p, &h) in c.hits.iter().enumerate() {
+            if h == 0 && !is_zero(bi, p) {
+                return Some((bi, o.point_first + p as u64));
+            }
+        }
+    }
+    None
+}
+
 /// The rules of an object's mesh (SPEC.md §3.10).
 fn check_mesh(o: &ObjectBake, kind: SampleKind, what: &str) -> Result<(), BakeFileError> {
     let Some(mesh) = &o.mesh else { return Ok(()) };
@@ -523,6 +544,17 @@ fn check_mesh(o: &ObjectBake, kind: SampleKind, what: &str) -> Result<(), BakeFi
     let finite = |a: &[[f32; 3]]| a.iter().position(|p| !p.iter().all(|x| x.is_finite()));
     if let Some(i) = finite(&mesh.positions).or(finite(&mesh.normals)) {
         return Err(bad(format!("{what}: mesh vertex {i} is not finite")));
+    }
+    let length = |n: &[f32; 3]| n.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>().sqrt();
+    if let Some(i) = mesh
+        .normals
+        .iter()
+        .position(|n| (length(n) - 1.0).abs() > MAX_NORMAL_LENGTH_ERROR)
+    {
+        return Err(bad(format!(
+            "{what}: mesh normal {i} has length {}, not 1",
+            length(&mesh.normals[i])
+        )));
     }
     if let Some(t) = mesh
         .triangles
@@ -738,6 +770,19 @@ impl Bake {
                     });
                 }
                 check_finite32(&format!("{what} block {bi}"), &b.data)?;
+            }
+            if with_data {
+                let per = o.scalars_per_point() as usize;
+                let zero = |bi: usize, p: usize| {
+                    o.blocks[bi].data[p * per..(p + 1) * per]
+                        .iter()
+                        .all(|&v| v == 0.0)
+                };
+                if let Some((bi, p)) = uncovered_nonzero(o, zero) {
+                    return Err(bad(format!(
+                        "{what} block {bi}: transfer at point {p}, which its coverage says no sample hit"
+                    )));
+                }
             }
         }
         self.check_coverage_sums()?;

@@ -876,6 +876,45 @@ impl<'a> BakeView<'a> {
             }
         }
 
+        // The coverage is the object's mask: no transfer where no sample hit it.
+        for (oi, (o, coverage)) in objects.iter().zip(&coverages).enumerate() {
+            let Some(c) = coverage else { continue };
+            let per = usize::try_from(u64::from(o.channels) * u64::from(o.order).pow(2))
+                .unwrap_or(usize::MAX);
+            let size = scalar.size();
+            let zero = |bi: usize, p: usize| {
+                let b = &o.blocks[bi];
+                let data = &bytes[b.offset as usize..(b.offset + b.length) as usize];
+                // Both storage types: zero is all bits clear but the sign.
+                let at = p * per * size;
+                data.get(at..at + per * size).is_some_and(|d| match scalar {
+                    ScalarType::F32 => d.chunks_exact(4).all(|v| rd_u32(v, 0) << 1 == 0),
+                    ScalarType::F16 => d.chunks_exact(2).all(|v| (v[0] | (v[1] & 0x7f)) == 0),
+                })
+            };
+            let probe = ObjectBake {
+                point_first: o.point_first,
+                blocks: o
+                    .blocks
+                    .iter()
+                    .map(|b| TransferBlock {
+                        kind: b.kind,
+                        data: Vec::new(),
+                    })
+                    .collect(),
+                coverage: Some(c.clone()),
+                ..ObjectBake::default()
+            };
+            if c.hits.len() as u64 == o.points_in_file {
+                if let Some((bi, p)) = crate::model::uncovered_nonzero(&probe, zero) {
+                    return Err(invalid(
+                        format!("object {oi} block {bi}"),
+                        format!("transfer at point {p}, which its coverage says no sample hit"),
+                    ));
+                }
+            }
+        }
+
         // META, and its agreement with everything above.
         let value: serde_json::Value = serde_json::from_slice(meta_bytes)
             .map_err(|e| BakeFileError::Metadata(format!("not valid JSON: {e}")))?;
@@ -892,6 +931,11 @@ impl<'a> BakeView<'a> {
         agree("bounces", &json.bounces, &bounces)?;
         agree("seed", &json.seed, &seed)?;
         agree("shard", &json.shard, &shard)?;
+        if minor >= 1 && matches!(sample, SampleKind::Pixel { .. }) && json.camera.is_none() {
+            return Err(BakeFileError::Metadata(
+                "a per-pixel bake of format 1.1 must record its camera".into(),
+            ));
+        }
         agree("objects.len()", &json.objects.len(), &objects.len())?;
         if !json.ray_stats.is_empty() {
             agree("ray_stats.len()", &json.ray_stats.len(), &objects.len())?;

@@ -32,6 +32,15 @@ fn test01_write_then_read() {
     write_bake(&path, &smaller, ScalarType::F16).unwrap();
     assert_eq!(entries(dir.path()), ["scene.prtbake"]);
     assert_eq!(read_bake(&path).unwrap().objects.len(), 1);
+    // An output file, not a private temporary one: others may read it (the umask allowing;
+    // test runners use 022 or 002, which both keep the read bits).
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode & 0o444, 0o444, "mode {mode:o}");
+        assert_eq!(mode & 0o111, 0, "mode {mode:o}");
+    }
 }
 
 #[test]

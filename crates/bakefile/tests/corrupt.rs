@@ -469,6 +469,10 @@ fn test10_mesh_and_coverage_rules() {
     let mut b = bytes.clone();
     put_u32(&mut b, mesh_of(1) + 16 + 12 * v, 0x7fc0_0000);
     assert!(message(&mut b).contains("not finite"));
+    // A normal that is not unit length (normals are not hashed).
+    let mut b = bytes.clone();
+    put_u32(&mut b, mesh_of(1) + 16 + 12 * v, 2.0f32.to_bits());
+    assert!(message(&mut b).contains("not 1"));
     // Object 1 pointing at object 0's mesh; a mesh no object points at.
     let mut b = bytes.clone();
     let m0 = u32_at(&b, record(0) + 56);
@@ -498,6 +502,15 @@ fn test10_mesh_and_coverage_rules() {
         height: 1,
     };
     bake.meta.settings["pixel_samples"] = serde_json::json!(4);
+    let camera = CameraInfo {
+        model: "pinhole".into(),
+        eye: [0.0, 1.0, 3.0],
+        target: [0.0; 3],
+        up: [0.0, 1.0, 0.0],
+        fov_y_degrees: 40.0,
+        width: 1,
+        height: 1,
+    };
     bake.objects.truncate(1);
     bake.meta.ray_stats.truncate(1);
     let o = &mut bake.objects[0];
@@ -512,12 +525,19 @@ fn test10_mesh_and_coverage_rules() {
     });
     let mut second = o.clone();
     second.name = "second".into();
+    let no_camera = encode(&bake, ScalarType::F32).unwrap_err().to_string();
+    assert!(no_camera.contains("records its camera"), "{no_camera}");
+    bake.meta.camera = Some(camera);
     let ok = encode(&bake, ScalarType::F32).unwrap();
     assert_eq!(decode(&ok).unwrap(), bake);
     let (cvrg, _) = find(&ok, b"CVRG");
     let mut b = ok.clone();
     put_u32(&mut b, cvrg + 16, 5);
     assert!(message(&mut b).contains("is hit by 5 of 4"));
+    // Transfer in a pixel its coverage says no sample hit.
+    let mut b = ok.clone();
+    put_u32(&mut b, cvrg + 16, 0);
+    assert!(message(&mut b).contains("which its coverage says no sample hit"));
     let mut b = ok.clone();
     put_u32(&mut b, cvrg + 4, 3);
     // The JSON still says K = 4: caught as a disagreement of the tables and the JSON.

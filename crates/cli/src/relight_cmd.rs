@@ -65,6 +65,12 @@ pub struct RelightArgs {
     /// PNG of the region of interest (ROI vertices red), adaptive only.
     #[arg(long)]
     pub roi_png: Option<PathBuf>,
+    /// Write the relit radiance of every point as CSV (`object,point,r,g,b`, linear RGB, each
+    /// value the shortest decimal that reads back to the same f32): per vertex, or per pixel
+    /// and object for per-pixel bakes. What an engine computes from the bake alone, for
+    /// checking a reader of the format (tools/prtb_reader.py --relight).
+    #[arg(long)]
+    pub vertex_colours: Option<PathBuf>,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -193,6 +199,9 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         let roi = prt_report::roi_image(&scene, &accel, &relit)?;
         prt_report::io::write_png(p, &roi, 0.0)?;
     }
+    if let Some(p) = &args.vertex_colours {
+        write_point_colours(p, &bake, &relit.radiance)?;
+    }
     // Rotating-environment frames: one SH rotation per frame, then shading.
     let mut fps = None;
     if args.frames > 1 {
@@ -262,6 +271,34 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             );
         }
     }
+    Ok(())
+}
+
+/// Writes `object,point,r,g,b` rows for `--vertex-colours`, atomically.
+fn write_point_colours(
+    path: &std::path::Path,
+    bake: &prt_bakefile::Bake,
+    radiance: &[Vec<[f32; 3]>],
+) -> Result<()> {
+    use std::io::Write;
+    prt_tracer::output::write_atomically(path, |w| {
+        let mut rows = || -> std::io::Result<()> {
+            writeln!(w, "object,point,r,g,b")?;
+            for (o, values) in bake.objects.iter().zip(radiance) {
+                // Names are written as they are unless they need CSV quoting.
+                let name = if o.name.contains([',', '"', '\n', '\r']) {
+                    format!("\"{}\"", o.name.replace('"', "\"\""))
+                } else {
+                    o.name.clone()
+                };
+                for (p, [r, g, b]) in values.iter().enumerate() {
+                    writeln!(w, "{name},{},{r},{g},{b}", o.point_first + p as u64)?;
+                }
+            }
+            Ok(())
+        };
+        rows().map_err(|e| e.to_string())
+    })?;
     Ok(())
 }
 

@@ -195,6 +195,26 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
                 pixel_samples: k,
                 hits: (0..points).map(|_| r.random_range(0..=share)).collect(),
             });
+            let mut blocks: Vec<TransferBlock> = kinds
+                .into_iter()
+                .map(|kind| TransferBlock {
+                    kind,
+                    data: (0..n)
+                        .map(|_| r.random_range(-1.0f32..1.0) * scale)
+                        .collect(),
+                })
+                .collect();
+            // No transfer where the coverage says no sample hit (SPEC §3.11).
+            if let Some(c) = &coverage {
+                let per = (channels * order * order) as usize;
+                for b in &mut blocks {
+                    for (p, &h) in c.hits.iter().enumerate() {
+                        if h == 0 {
+                            b.data[p * per..(p + 1) * per].fill(0.0);
+                        }
+                    }
+                }
+            }
             ObjectBake {
                 name: format!("object-{i}-{}", ["a", "ü", "名"][r.random_range(0..3)]),
                 geometry_hash: if with_mesh { hash } else { r.random() },
@@ -203,21 +223,13 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
                 points_in_file: points,
                 order,
                 channels,
-                blocks: kinds
-                    .into_iter()
-                    .map(|kind| TransferBlock {
-                        kind,
-                        data: (0..n)
-                            .map(|_| r.random_range(-1.0f32..1.0) * scale)
-                            .collect(),
-                    })
-                    .collect(),
+                blocks,
                 mesh: with_mesh.then_some(mesh),
                 coverage,
             }
         })
         .collect();
-    let camera = (pixel && r.random_bool(0.7)).then(|| CameraInfo {
+    let camera = pixel.then(|| CameraInfo {
         model: "pinhole".into(),
         eye: [r.random(), r.random(), r.random()],
         target: [r.random::<f64>() + 2.0, 0.5, -1.0],

@@ -1,0 +1,1413 @@
+#!/usr/bin/env python3
+"""Independent reader and validator for PRT bake files (`.prtb`, format 1.x).
+
+This reader was written from `crates/bakefile/SPEC.md` (format version 1.1) ALONE: it does not
+import, call or mirror the Rust crate `prt-bakefile`, and no Rust source was read while writing
+it. Its value is that it is a second, clean-room implementation of the specification, so that a
+disagreement between it and the crate points at a bug in one of them or at an ambiguity of
+SPEC.md. Section numbers (§n) below refer to SPEC.md.
+
+Requirements: Python 3.11 standard library + numpy (`tools/requirements-reader.txt`).
+
+Usage
+-----
+    python3 tools/prtb_reader.py FILE.prtb
+        Parse and validate the whole file (every rule of §4, in that order, and the section
+        rules of §2/§3). Exit 0 if valid; otherwise print ONE line
+        `prtb_reader: FILE: <what is wrong>` to stderr and exit 1.
+
+    python3 tools/prtb_reader.py FILE.prtb --dump OUT.json
+        Also write a JSON summary of the file (see `dump()`).
+
+    python3 tools/prtb_reader.py FILE.prtb --relight OBJECT --albedo R,G,B [--order N] \
+            --colours OUT.csv
+        Also relight OBJECT's points under the file's environment (ENVL) with its diffuse
+        transfer (§3.4, §3.6) and write `point,r,g,b` rows (float64, repr() precision).
+
+    python3 tools/prtb_reader.py --self-test FILE.prtb [--seed S]
+        Corruption self-check on a VALID file: single-byte flips (every header/table byte, every
+        payload edge, zero padding, random positions), truncations and extensions, and mutations
+        whose CRCs are repaired (so the semantic checks are exercised). Prints the figures and
+        exits 1 if a corruption that must be refused was accepted, or if any input crashed the
+        reader (any exception other than a clean validation error).
+
+Exit status: 0 valid / done, 1 invalid file or bad arguments (one line on stderr).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import random
+import re
+import struct
+import subprocess
+import sys
+import tempfile
+import traceback
+import zlib
+
+try:
+    import numpy as np
+except ImportError:  # a clean one-line message, never a traceback
+    sys.stderr.write("prtb_reader: numpy is required (pip install -r tools/requirements-reader.txt)\n")
+    sys.exit(1)
+
+PROG = "prtb_reader"
+
+MAGIC = b"PRTBAKE\x00"
+KNOWN_MAJOR = 1
+HEADER_SIZE = 64
+ENTRY_SIZE = 32
+NONE_INDEX = 0xFFFFFFFF
+U32_MAX = 2**32 - 1
+U64_MAX = 2**64 - 1
+FLAG_REQUIRED = 1
+UNDERSTOOD_MASK = 0xFFFF  # §6: bits 0-15 must be understood, bits 16-31 are ignorable hints
+
+SCALAR_TYPES = {1: ("f32", "<f4", 4), 2: ("f16", "<f2", 2)}
+ENV_PRECISIONS = {1: ("f32", "<f4", 4), 3: ("f64", "<f8", 8)}
+KIND_NAMES = {
+    1: "unshadowed-diffuse",
+    2: "shadowed-diffuse",
+    3: "visibility",
+    4: "interreflected-diffuse",
+}
+LOBE_NAMES = {1: "clamped-cosine", 2: "phong"}
+SAMPLE_KINDS = {1: "vertex", 2: "pixel"}
+
+TAGS_ONCE = (b"BINF", b"STRS", b"OBJT", b"BLKT", b"META")  # required, exactly once
+TAGS_OPTIONAL = (b"ENVL", b"BRDF", b"GLSY")  # at most once
+TAGS_MANY = (b"XFER", b"MESH", b"CVRG")  # found through BLKT / OBJT
+KNOWN_TAGS = set(TAGS_ONCE) | set(TAGS_OPTIONAL) | set(TAGS_MANY)
+
+# Minimum record sizes of the table sections (§3); later minors may append fields.
+OBJT_RECORD_10 = 56
+OBJT_RECORD_11 = 64
+BLKT_RECORD = 48
+BRDF_RECORD = 32
+GLSY_RECORD = 40
+BINF_SIZE = 40
+
+SH_FIXED = {
+    "basis": "real-orthonormal",
+    "phase": "condon-shortley",
+    "index_order": "l(l+1)+m",
+    "angles": "theta-from-+Z, phi=atan2(y,x)",
+    "order": "band-count",
+}
+
+# Tolerance for "unit shading normal, length 1 within f32 rounding" (§3.10).
+NORMAL_TOLERANCE = 1e-5
+
+
+class PrtbError(Exception):
+    """A violation of SPEC.md: the message is the one line printed after `FILE: `."""
+
+
+def fail(message: str) -> None:
+    raise PrtbError(message)
+
+
+# --------------------------------------------------------------------------------------------
+# Small helpers
+# --------------------------------------------------------------------------------------------
+
+
+def fnv1a64(*chunks) -> int:
+    """FNV-1a 64 (§5) over the concatenation of the byte chunks."""
+    h = 0xCBF29CE484222325
+    prime = 0x100000001B3
+    mask = 0xFFFFFFFFFFFFFFFF
+    for chunk in chunks:
+        for b in bytes(chunk):
+            h = ((h ^ b) * prime) & mask
+    return h
+
+
+def tag_text(tag: bytes) -> str:
+    return "".join(chr(b) if 0x20 <= b < 0x7F else "\\x%02x" % b for b in tag)
+
+
+def short(value, limit: int = 60) -> str:
+    text = json.dumps(value) if not isinstance(value, (bytes, memoryview)) else repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def is_number(v) -> bool:
+    return (isinstance(v, (int, float)) and not isinstance(v, bool)
+            and (not isinstance(v, float) or math.isfinite(v)))
+
+
+class Section:
+    __slots__ = ("index", "tag", "flags", "offset", "length", "crc", "payload")
+
+    def __init__(self, index, tag, flags, offset, length, crc):
+        self.index = index
+        self.tag = tag
+        self.flags = flags
+        self.offset = offset
+        self.length = length
+        self.crc = crc
+        self.payload = None  # memoryview, set once bounds are checked
+
+    def __str__(self):
+        return "section %d (%s)" % (self.index, tag_text(self.tag))
+
+
+class Obj:
+    """One OBJT record plus what it references."""
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+        self.blocks = []
+        self.mesh = None
+        self.coverage = None
+
+
+class Bake:
+    """The parsed, validated file."""
+
+    def __init__(self):
+        self.major = self.minor = 0
+        self.scalar_type = 1
+        self.sections = []
+        self.binf = {}
+        self.objects = []
+        self.blocks = []
+        self.env = None
+        self.brdfs = []
+        self.glossy = []
+        self.meta = None
+
+
+# --------------------------------------------------------------------------------------------
+# Parsing and validation (§4 order)
+# --------------------------------------------------------------------------------------------
+
+
+def parse(data: bytes) -> Bake:
+    """Parse and validate `data` (the whole file). Raises PrtbError on any violation."""
+    bake = Bake()
+    mv = memoryview(data)
+    n = len(data)
+
+    # ---- §4.1 magic ------------------------------------------------------------------------
+    if n < len(MAGIC):
+        if MAGIC.startswith(bytes(data)):
+            fail("truncated: %d bytes, shorter than the magic" % n)
+        fail("bad magic (not a PRTBAKE file)")
+    if bytes(mv[:8]) != MAGIC:
+        fail("bad magic (not a PRTBAKE file)")
+
+    # ---- §4.2 header size, major version -----------------------------------------------------
+    if n < HEADER_SIZE:
+        fail("truncated: %d bytes, shorter than the 64-byte header" % n)
+    major, minor, header_size, hflags = struct.unpack_from("<4I", data, 8)
+    file_size, table_offset = struct.unpack_from("<QQ", data, 24)
+    (section_count, entry_size, alignment, scalar_type, _reserved,
+     header_crc) = struct.unpack_from("<6I", data, 40)
+    if major != KNOWN_MAJOR:
+        fail("unsupported version %d.%d (this reader knows major version %d)"
+             % (major, minor, KNOWN_MAJOR))
+    bake.major, bake.minor = major, minor
+
+    # ---- §4.3 file_size ------------------------------------------------------------------------
+    if file_size > n:
+        fail("truncated: header says file_size %d, file has %d bytes" % (file_size, n))
+    if file_size < n:
+        fail("trailing bytes: header says file_size %d, file has %d bytes" % (file_size, n))
+
+    # ---- §4.4 section table bounds, header CRC ---------------------------------------------------
+    table_len = ENTRY_SIZE * section_count
+    if table_offset < HEADER_SIZE or table_offset % 8 or table_offset + table_len > n:
+        fail("section table out of bounds (offset %d, %d entries, file %d bytes)"
+             % (table_offset, section_count, n))
+    crc = zlib.crc32(mv[table_offset:table_offset + table_len], zlib.crc32(mv[0:60]))
+    if crc != header_crc:
+        fail("header checksum mismatch (stored 0x%08x, computed 0x%08x)" % (header_crc, crc))
+
+    # ---- §4.5 header fields ------------------------------------------------------------------------
+    if header_size != HEADER_SIZE:
+        fail("header_size is %d, expected 64" % header_size)
+    if entry_size != ENTRY_SIZE:
+        fail("section_entry_size is %d, expected 32" % entry_size)
+    if not (16 <= alignment <= 4096 and alignment & (alignment - 1) == 0):
+        fail("payload_alignment %d is not a power of two in 16..4096" % alignment)
+    if scalar_type not in SCALAR_TYPES:
+        fail("scalar_type %d is not 1 (f32) or 2 (f16)" % scalar_type)
+    if hflags & UNDERSTOOD_MASK:
+        fail("header flags 0x%08x set bits this reader does not know" % hflags)
+    bake.scalar_type = scalar_type
+
+    # ---- §4.6 every section: flags, alignment, bounds, overlap, padding, CRC ----------------------
+    sections = []
+    for i in range(section_count):
+        tag, flags, offset, length, scrc, _res = struct.unpack_from(
+            "<4sIQQII", data, table_offset + ENTRY_SIZE * i)
+        sections.append(Section(i, tag, flags, offset, length, scrc))
+    for s in sections:
+        unknown = s.flags & UNDERSTOOD_MASK & ~FLAG_REQUIRED
+        if unknown:
+            fail("%s: flags 0x%08x set bits this reader does not know" % (s, s.flags))
+        if s.offset % alignment:
+            fail("%s: offset %d is not a multiple of payload_alignment %d"
+                 % (s, s.offset, alignment))
+        if s.offset > file_size or s.length > file_size - s.offset:
+            fail("%s: payload [%d, +%d) runs past the end of the file (%d bytes)"
+                 % (s, s.offset, s.length, file_size))
+    regions = [(0, HEADER_SIZE, "the header")]
+    if table_len:
+        regions.append((table_offset, table_offset + table_len, "the section table"))
+    for s in sections:
+        if s.length:  # an empty payload occupies no byte and so overlaps nothing
+            regions.append((s.offset, s.offset + s.length, str(s)))
+    regions.sort(key=lambda r: (r[0], r[1]))
+    for a, b in zip(regions, regions[1:]):
+        if b[0] < a[1]:
+            fail("%s overlaps %s" % (b[2], a[2]))
+    cursor = 0
+    for start, end, _name in regions + [(n, n, "end of file")]:
+        if start > cursor and data.count(0, cursor, start) != start - cursor:
+            pos = next(k for k in range(cursor, start) if data[k])
+            fail("padding byte at offset %d is 0x%02x, not zero" % (pos, data[pos]))
+        cursor = max(cursor, end)
+    for s in sections:
+        s.payload = mv[s.offset:s.offset + s.length]
+        c = zlib.crc32(s.payload)
+        if c != s.crc:
+            fail("%s: checksum mismatch (stored 0x%08x, computed 0x%08x)" % (s, s.crc, c))
+    bake.sections = sections
+
+    # ---- §4.7 required / optional / unknown tags -------------------------------------------------
+    by_tag = {}
+    for s in sections:
+        if s.tag in KNOWN_TAGS:
+            by_tag.setdefault(s.tag, []).append(s)
+        elif s.flags & FLAG_REQUIRED:
+            fail("%s: unknown section tag with the REQUIRED flag" % s)
+        # unknown, not required: skipped
+    for tag in TAGS_ONCE:
+        found = by_tag.get(tag, [])
+        if not found:
+            fail("required section %s missing" % tag_text(tag))
+        if len(found) > 1:
+            fail("section %s present %d times (must be once)" % (tag_text(tag), len(found)))
+    for tag in TAGS_OPTIONAL:
+        if len(by_tag.get(tag, [])) > 1:
+            fail("section %s present %d times (at most once)"
+                 % (tag_text(tag), len(by_tag[tag])))
+    one = {tag: by_tag[tag][0] for tag in TAGS_ONCE}
+    opt = {tag: by_tag[tag][0] for tag in TAGS_OPTIONAL if tag in by_tag}
+
+    # ---- §4.8 table lengths, checked before use ----------------------------------------------------
+    binf = one[b"BINF"]
+    if binf.length < BINF_SIZE:
+        fail("BINF: length %d, shorter than %d" % (binf.length, BINF_SIZE))
+    objt_min = OBJT_RECORD_10 if minor == 0 else OBJT_RECORD_11
+    objt_count, objt_rs = table_header(one[b"OBJT"], "OBJT", objt_min)
+    blkt_count, blkt_rs = table_header(one[b"BLKT"], "BLKT", BLKT_RECORD)
+    brdf_count = brdf_rs = glsy_count = glsy_rs = 0
+    if b"BRDF" in opt:
+        brdf_count, brdf_rs = table_header(opt[b"BRDF"], "BRDF", BRDF_RECORD)
+    if b"GLSY" in opt:
+        glsy_count, glsy_rs = table_header(opt[b"GLSY"], "GLSY", GLSY_RECORD)
+    if b"ENVL" in opt:
+        envl = opt[b"ENVL"]
+        if envl.length < 16:
+            fail("ENVL: length %d, shorter than its 16-byte header" % envl.length)
+        env_order, env_channels, env_precision, _r = struct.unpack_from("<4I", envl.payload, 0)
+        if not 1 <= env_order <= 65535:
+            fail("ENVL: order %d not in 1..65535" % env_order)
+        if env_channels != 3:
+            fail("ENVL: channels %d, expected 3" % env_channels)
+        if env_precision not in ENV_PRECISIONS:
+            fail("ENVL: precision %d is not 1 (f32) or 3 (f64)" % env_precision)
+        pname, pdtype, psize = ENV_PRECISIONS[env_precision]
+        expect = 16 + 3 * env_order * env_order * psize
+        if envl.length != expect:
+            fail("ENVL: length %d, expected 16 + 3n²×%d = %d" % (envl.length, psize, expect))
+        bake.env = {
+            "order": env_order,
+            "precision": pname,
+            "values": np.frombuffer(envl.payload, dtype=pdtype, offset=16),
+            "section": envl.index,
+        }
+
+    # ---- §4.9 cross references and counts of §3 ------------------------------------------------------
+    # BINF (§3.1)
+    (sample_kind, bounces, width, height, rays, shard_index, shard_count, _r,
+     seed) = struct.unpack_from("<8IQ", binf.payload, 0)
+    if sample_kind not in SAMPLE_KINDS:
+        fail("BINF: sample_kind %d is not 1 (per-vertex) or 2 (per-pixel)" % sample_kind)
+    if sample_kind == 2 and (width < 1 or height < 1):
+        fail("BINF: per-pixel bake with image size %dx%d" % (width, height))
+    if sample_kind == 1 and (width != 0 or height != 0):
+        fail("BINF: per-vertex bake with image size %dx%d (must be 0x0)" % (width, height))
+    if not shard_index < shard_count:
+        fail("BINF: shard_index %d not below shard_count %d" % (shard_index, shard_count))
+    per_pixel = sample_kind == 2
+    bake.binf = dict(sample_kind=sample_kind, bounces=bounces, width=width, height=height,
+                     rays_per_point=rays, shard_index=shard_index, shard_count=shard_count,
+                     seed=seed)
+
+    strs = one[b"STRS"].payload
+
+    def string(offset, length, what):
+        if offset + length > len(strs):
+            fail("%s: string reference (%d, %d) outside the %d-byte STRS pool"
+                 % (what, offset, length, len(strs)))
+        try:
+            return bytes(strs[offset:offset + length]).decode("utf-8")
+        except UnicodeDecodeError:
+            fail("%s: string (%d, %d) is not valid UTF-8" % (what, offset, length))
+
+    def section_ref(index, tag, what):
+        if index >= len(sections):
+            fail("%s: section index %d out of range (%d sections)" % (what, index, len(sections)))
+        s = sections[index]
+        if s.tag != tag:
+            fail("%s: section %d has tag %s, expected %s"
+                 % (what, index, tag_text(s.tag), tag_text(tag)))
+        return s
+
+    # OBJT (§3.3)
+    objt = one[b"OBJT"].payload
+    names = set()
+    mesh_owner = {}
+    cov_owner = {}
+    block_cursor = 0
+    for o in range(objt_count):
+        base = 16 + o * objt_rs
+        (name_off, name_len, ghash, point_count, point_first, points_in_file, order,
+         channels, first_block, block_count) = struct.unpack_from("<IIQQQQIIII", objt, base)
+        mesh_index = cov_index = NONE_INDEX
+        if objt_rs >= OBJT_RECORD_11:
+            mesh_index, cov_index = struct.unpack_from("<II", objt, base + 56)
+        what = "OBJT record %d" % o
+        name = string(name_off, name_len, what)
+        if not name:
+            fail("%s: empty object name" % what)
+        if name in names:
+            fail("%s: duplicate object name %s" % (what, short(name)))
+        names.add(name)
+        what = "object %d (%s)" % (o, short(name))
+        if point_first + points_in_file > point_count:
+            fail("%s: point_first %d + points_in_file %d > point_count %d"
+                 % (what, point_first, points_in_file, point_count))
+        if not 1 <= order <= 65535:
+            fail("%s: order %d not in 1..65535" % (what, order))
+        if channels not in (1, 3):
+            fail("%s: channels %d is not 1 or 3" % (what, channels))
+        if first_block != block_cursor:
+            fail("%s: first_block %d, expected %d (block runs must be consecutive)"
+                 % (what, first_block, block_cursor))
+        if block_count > blkt_count - block_cursor:
+            fail("%s: blocks [%d, +%d) run past the %d BLKT records"
+                 % (what, first_block, block_count, blkt_count))
+        block_cursor += block_count
+        if per_pixel and point_count != width * height:
+            fail("%s: point_count %d != image %dx%d" % (what, point_count, width, height))
+        if mesh_index != NONE_INDEX:
+            section_ref(mesh_index, b"MESH", what + " mesh_section")
+            if mesh_index in mesh_owner:
+                fail("%s: MESH section %d already referenced by object %d"
+                     % (what, mesh_index, mesh_owner[mesh_index]))
+            mesh_owner[mesh_index] = o
+        if cov_index != NONE_INDEX:
+            section_ref(cov_index, b"CVRG", what + " coverage_section")
+            if not per_pixel:
+                fail("%s: coverage section in a per-vertex bake" % what)
+            if cov_index in cov_owner:
+                fail("%s: CVRG section %d already referenced by object %d"
+                     % (what, cov_index, cov_owner[cov_index]))
+            cov_owner[cov_index] = o
+        bake.objects.append(Obj(index=o, name=name, geometry_hash=ghash,
+                                point_count=point_count, point_first=point_first,
+                                points_in_file=points_in_file, order=order, channels=channels,
+                                first_block=first_block, block_count=block_count,
+                                mesh_section=mesh_index, coverage_section=cov_index))
+    if block_cursor != blkt_count:
+        fail("OBJT: the objects' block runs cover %d of the %d BLKT records"
+             % (block_cursor, blkt_count))
+    for s in by_tag.get(b"MESH", []):
+        if s.index not in mesh_owner:
+            fail("%s is referenced by no object" % s)
+    for s in by_tag.get(b"CVRG", []):
+        if s.index not in cov_owner:
+            fail("%s is referenced by no object" % s)
+
+    # BLKT (§3.4) and XFER lengths (§3.5)
+    blkt = one[b"BLKT"].payload
+    _sname, sdtype, ssize = SCALAR_TYPES[scalar_type]
+    xfer_user = {}
+    for obj in bake.objects:
+        kinds_seen = set()
+        for b in range(obj.first_block, obj.first_block + obj.block_count):
+            base = 16 + b * blkt_rs
+            (object_index, kind, bbounces, bchannels, border, bscalar, bpoints, section_index,
+             _res, data_length) = struct.unpack_from("<6IQIIQ", blkt, base)
+            what = "BLKT record %d" % b
+            if object_index != obj.index:
+                fail("%s: object_index %d, but it lies in object %d's run"
+                     % (what, object_index, obj.index))
+            if kind not in KIND_NAMES:
+                fail("%s: unknown transfer kind %d" % (what, kind))
+            if kind == 4:
+                if not 1 <= bbounces <= bounces:
+                    fail("%s: interreflected-diffuse with bounces %d, not in 1..%d (BINF)"
+                         % (what, bbounces, bounces))
+            elif bbounces != 0:
+                fail("%s: kind %s with bounces %d (must be 0)"
+                     % (what, KIND_NAMES[kind], bbounces))
+            key = (kind, bbounces)
+            if key in kinds_seen:
+                fail("%s: object %d has kind %s%s twice" % (
+                    what, obj.index, KIND_NAMES[kind],
+                    " (bounces %d)" % bbounces if kind == 4 else ""))
+            kinds_seen.add(key)
+            if bchannels != obj.channels:
+                fail("%s: channels %d != object's %d" % (what, bchannels, obj.channels))
+            if border != obj.order:
+                fail("%s: order %d != object's %d" % (what, border, obj.order))
+            if bscalar != scalar_type:
+                fail("%s: scalar_type %d != header's %d" % (what, bscalar, scalar_type))
+            if bpoints != obj.points_in_file:
+                fail("%s: point_count %d != object's points_in_file %d"
+                     % (what, bpoints, obj.points_in_file))
+            xs = section_ref(section_index, b"XFER", what)
+            if section_index in xfer_user:
+                fail("%s: XFER section %d already used by BLKT record %d"
+                     % (what, section_index, xfer_user[section_index]))
+            xfer_user[section_index] = b
+            expect = bpoints * bchannels * border * border * ssize
+            if data_length != expect:
+                fail("%s: data_length %d != points×channels×order²×%d = %d"
+                     % (what, data_length, ssize, expect))
+            if xs.length != data_length:
+                fail("%s: data_length %d != length %d of %s" % (what, data_length, xs.length, xs))
+            block = dict(index=b, object_index=object_index, kind=kind, bounces=bbounces,
+                         section=section_index, data=xs.payload, dtype=sdtype)
+            obj.blocks.append(block)
+            bake.blocks.append(block)
+    for s in by_tag.get(b"XFER", []):
+        if s.index not in xfer_user:
+            fail("%s is used by no BLKT record" % s)
+
+    # BRDF (§3.7)
+    if b"BRDF" in opt:
+        payload = opt[b"BRDF"].payload
+        cursor = 16 + brdf_count * brdf_rs
+        materials = set()
+        for k in range(brdf_count):
+            mo, ml, lobe, order, exponent, values_offset = struct.unpack_from(
+                "<IIIIdQ", payload, 16 + k * brdf_rs)
+            what = "BRDF record %d" % k
+            material = string(mo, ml, what)
+            if not material:
+                fail("%s: empty material name" % what)
+            if material in materials:
+                fail("%s: duplicate material %s" % (what, short(material)))
+            materials.add(material)
+            if lobe not in LOBE_NAMES:
+                fail("%s: unknown lobe %d" % (what, lobe))
+            if not math.isfinite(exponent):
+                fail("%s: exponent is not finite" % what)
+            if lobe == 1 and exponent != 0.0:
+                fail("%s: clamped-cosine lobe with exponent %r (must be 0)" % (what, exponent))
+            if lobe == 2 and not exponent >= 0.0:
+                fail("%s: phong exponent %r < 0" % (what, exponent))
+            if order > 65535:
+                fail("%s: order %d > 65535" % (what, order))
+            if values_offset != cursor:
+                fail("%s: values_offset %d, expected %d (packed arrays)"
+                     % (what, values_offset, cursor))
+            end = cursor + 8 * order
+            if end > len(payload):
+                fail("%s: values [%d, %d) run past the section (%d bytes)"
+                     % (what, cursor, end, len(payload)))
+            bake.brdfs.append(dict(material=material, lobe=lobe, order=order,
+                                   exponent=exponent,
+                                   values=np.frombuffer(payload[cursor:end], dtype="<f8")))
+            cursor = end
+        if cursor != len(payload):
+            fail("BRDF: section is %d bytes, its arrays end at %d" % (len(payload), cursor))
+
+    # GLSY (§3.8)
+    if b"GLSY" in opt:
+        payload = opt[b"GLSY"].payload
+        cursor = 16 + glsy_count * glsy_rs
+        materials = set()
+        for k in range(glsy_count):
+            mo, ml, count_e, order, eo, vo, ro = struct.unpack_from(
+                "<IIIIQQQ", payload, 16 + k * glsy_rs)
+            what = "GLSY record %d" % k
+            material = string(mo, ml, what)
+            if material in materials:
+                fail("%s: duplicate material %s" % (what, short(material)))
+            materials.add(material)
+            if count_e < 1:
+                fail("%s: elevation_count is 0" % what)
+            if not 1 <= order <= 65535:
+                fail("%s: order %d not in 1..65535" % (what, order))
+            arrays = {}
+            for label, offset, count in (("elevations", eo, count_e),
+                                         ("values", vo, count_e * order * order),
+                                         ("errors", ro, order)):
+                if offset != cursor:
+                    fail("%s: %s_offset %d, expected %d (packed arrays)"
+                         % (what, label, offset, cursor))
+                end = cursor + 8 * count
+                if end > len(payload):
+                    fail("%s: %s [%d, %d) run past the section (%d bytes)"
+                         % (what, label, cursor, end, len(payload)))
+                arrays[label] = (payload[cursor:end], np.frombuffer(payload[cursor:end], "<f8"))
+                cursor = end
+            bake.glossy.append(dict(material=material, order=order, elevation_count=count_e,
+                                    elevations=arrays["elevations"][1],
+                                    values_raw=arrays["values"][0],
+                                    values=arrays["values"][1], errors=arrays["errors"][1]))
+        if cursor != len(payload):
+            fail("GLSY: section is %d bytes, its arrays end at %d" % (len(payload), cursor))
+
+    # MESH (§3.10) structure
+    for obj in bake.objects:
+        if obj.mesh_section == NONE_INDEX:
+            continue
+        s = sections[obj.mesh_section]
+        what = "object %d (%s) MESH %s" % (obj.index, short(obj.name), s)
+        if s.length < 16:
+            fail("%s: length %d, shorter than its 16-byte header" % (what, s.length))
+        object_index, V, T, _r = struct.unpack_from("<4I", s.payload, 0)
+        if object_index != obj.index:
+            fail("%s: object_index %d != %d" % (what, object_index, obj.index))
+        expect = 16 + 24 * V + 12 * T
+        if s.length != expect:
+            fail("%s: length %d != 16 + 24V + 12T = %d (V=%d, T=%d)"
+                 % (what, s.length, expect, V, T))
+        if not per_pixel and V != obj.point_count:
+            fail("%s: vertex_count %d != point_count %d of a per-vertex bake"
+                 % (what, V, obj.point_count))
+        p = s.payload
+        triangles = np.frombuffer(p[16 + 24 * V:expect], dtype="<u4")
+        if T and int(triangles.max()) >= V:
+            bad = int(np.argmax(triangles >= V))
+            fail("%s: triangle %d corner %d has vertex index %d >= V=%d"
+                 % (what, bad // 3, bad % 3, int(triangles[bad]), V))
+        obj.mesh = dict(section=s.index, V=V, T=T,
+                        positions_raw=p[16:16 + 12 * V], normals_raw=p[16 + 12 * V:16 + 24 * V],
+                        triangles_raw=p[16 + 24 * V:expect])
+
+    # CVRG (§3.11) structure, hits <= K, per-pixel sums <= K
+    covered = []
+    common_k = None
+    for obj in bake.objects:
+        if obj.coverage_section == NONE_INDEX:
+            continue
+        s = sections[obj.coverage_section]
+        what = "object %d (%s) CVRG %s" % (obj.index, short(obj.name), s)
+        if s.length < 16:
+            fail("%s: length %d, shorter than its 16-byte header" % (what, s.length))
+        object_index, K, cpoints = struct.unpack_from("<IIQ", s.payload, 0)
+        if object_index != obj.index:
+            fail("%s: object_index %d != %d" % (what, object_index, obj.index))
+        if K < 1:
+            fail("%s: pixel_samples is 0" % what)
+        if cpoints != obj.points_in_file:
+            fail("%s: point_count %d != object's points_in_file %d"
+                 % (what, cpoints, obj.points_in_file))
+        if s.length != 16 + 4 * cpoints:
+            fail("%s: length %d != 16 + 4×point_count = %d" % (what, s.length, 16 + 4 * cpoints))
+        if common_k is not None and K != common_k:
+            fail("%s: pixel_samples %d differs from another CVRG's %d" % (what, K, common_k))
+        common_k = K
+        hits = np.frombuffer(s.payload, dtype="<u4", offset=16)
+        if hits.size and int(hits.max()) > K:
+            bad = int(np.argmax(hits > K))
+            fail("%s: hits[%d] = %d > pixel_samples %d" % (what, bad, int(hits[bad]), K))
+        obj.coverage = dict(section=s.index, K=K, hits=hits)
+        covered.append(obj)
+    if covered:
+        check_pixel_sums(covered, common_k)
+
+    # ---- §4.10 finite values, recomputed geometry hashes -----------------------------------------
+    for obj in bake.objects:
+        for block in obj.blocks:
+            values = np.frombuffer(block["data"], dtype=sdtype)
+            check_finite(values, "XFER %s of BLKT record %d (object %d)"
+                         % (sections[block["section"]], block["index"], obj.index))
+    if bake.env is not None:
+        check_finite(bake.env["values"], "ENVL values")
+    for k, brdf in enumerate(bake.brdfs):
+        check_finite(brdf["values"], "BRDF record %d values" % k)
+    for k, g in enumerate(bake.glossy):
+        for label in ("elevations", "values", "errors"):
+            check_finite(g[label], "GLSY record %d %s" % (k, label))
+    for obj in bake.objects:
+        if obj.mesh is None:
+            continue
+        m = obj.mesh
+        what = "object %d (%s) MESH" % (obj.index, short(obj.name))
+        positions = np.frombuffer(m["positions_raw"], dtype="<f4")
+        normals = np.frombuffer(m["normals_raw"], dtype="<f4")
+        check_finite(positions, what + " positions")
+        check_finite(normals, what + " normals")
+        if m["V"]:
+            lengths = np.sqrt((normals.astype(np.float64).reshape(-1, 3) ** 2).sum(axis=1))
+            off = np.abs(lengths - 1.0)
+            if off.max() > NORMAL_TOLERANCE:
+                bad = int(np.argmax(off))
+                fail("%s: normal of vertex %d has length %r, not 1"
+                     % (what, bad, float(lengths[bad])))
+        h = fnv1a64(m["positions_raw"], m["triangles_raw"])
+        m["hash"] = h
+        if h != obj.geometry_hash:
+            fail("%s: recomputed geometry hash 0x%016x != OBJT geometry_hash 0x%016x"
+                 % (what, h, obj.geometry_hash))
+    for obj in covered:
+        # §3.11: an object's transfer is zero in every pixel where its hits is 0.
+        hits = obj.coverage["hits"]
+        empty = hits == 0
+        if not empty.any():
+            continue
+        width_per_point = obj.channels * obj.order * obj.order
+        for block in obj.blocks:
+            values = np.frombuffer(block["data"], dtype=sdtype).reshape(-1, width_per_point)
+            nonzero = (values[empty] != 0).any(axis=1)
+            if nonzero.any():
+                bad = int(np.flatnonzero(empty)[int(np.argmax(nonzero))])
+                fail("object %d (%s): %s transfer is non-zero at point %d (pixel %d) "
+                     "whose coverage hits are 0" % (
+                         obj.index, short(obj.name), KIND_NAMES[block["kind"]], bad,
+                         obj.point_first + bad))
+
+    # ---- §4.11 metadata JSON ------------------------------------------------------------------------
+    bake.meta = check_meta(bake, one[b"META"].payload)
+    return bake
+
+
+def table_header(section: Section, name: str, min_record: int):
+    """§3 table header + §4.8: returns (record_count, record_size)."""
+    if section.length < 16:
+        fail("%s: length %d, shorter than its 16-byte table header" % (name, section.length))
+    count, record_size = struct.unpack_from("<II", section.payload, 0)
+    if record_size < min_record:
+        fail("%s: record_size %d < %d" % (name, record_size, min_record))
+    if 16 + count * record_size > section.length:
+        fail("%s: %d records of %d bytes do not fit in %d bytes"
+             % (name, count, record_size, section.length))
+    return count, record_size
+
+
+def check_finite(values: np.ndarray, what: str) -> None:
+    ok = np.isfinite(values)
+    if not ok.all():
+        bad = int(np.argmin(ok))
+        fail("%s: element %d is not finite (%r)" % (what, bad, float(values[bad])))
+
+
+def check_pixel_sums(covered, K) -> None:
+    """§3.11: over all objects the hits of one pixel add up to at most K."""
+    ranges = {(o.point_first, o.points_in_file) for o in covered}
+    if len(ranges) == 1:
+        total = np.zeros(covered[0].points_in_file, dtype=np.uint64)
+        for o in covered:
+            total += o.coverage["hits"].astype(np.uint64)
+        first = covered[0].point_first
+        pixels = None
+    else:  # objects hold different point ranges (a shard): sum by absolute pixel index
+        idx = np.concatenate([np.arange(o.points_in_file, dtype=np.uint64)
+                              + np.uint64(o.point_first) for o in covered])
+        hits = np.concatenate([o.coverage["hits"].astype(np.int64) for o in covered])
+        pixels, inverse = np.unique(idx, return_inverse=True)
+        total = np.zeros(pixels.size, dtype=np.int64)
+        np.add.at(total, inverse, hits)
+        first = 0
+    if total.size and int(total.max()) > K:
+        bad = int(np.argmax(total > K))
+        pixel = first + bad if pixels is None else int(pixels[bad])
+        fail("CVRG: hits of pixel %d add up to %d over all objects > pixel_samples %d"
+             % (pixel, int(total[bad]), K))
+
+
+# --------------------------------------------------------------------------------------------
+# META JSON (§3.9, §4.11)
+# --------------------------------------------------------------------------------------------
+
+
+def _reject_constant(name):
+    raise ValueError("%s is not JSON" % name)
+
+
+class Meta:
+    """Typed access to the META JSON with one-line errors."""
+
+    def field(self, obj, key, where):
+        if not isinstance(obj, dict):
+            fail("META: %s is not an object" % where)
+        if key not in obj:
+            fail("META: %s: missing field '%s'" % (where, key))
+        return obj[key]
+
+    def typed(self, value, kind, where, lo=None, hi=None):
+        ok = True
+        if kind == "u32":
+            ok = is_int(value) and 0 <= value <= U32_MAX
+        elif kind == "u64":
+            ok = is_int(value) and 0 <= value <= U64_MAX
+        elif kind == "string":
+            ok = isinstance(value, str)
+        elif kind == "number":
+            ok = is_number(value)
+        elif kind == "object":
+            ok = isinstance(value, dict)
+        elif kind == "array":
+            ok = isinstance(value, list)
+        elif kind == "bool":
+            ok = isinstance(value, bool)
+        if not ok:
+            desc = {"u32": "a u32 integer", "u64": "a u64 integer", "string": "a string",
+                    "number": "a finite number", "object": "an object", "array": "an array",
+                    "bool": "a boolean"}[kind]
+            fail("META: %s must be %s, got %s" % (where, desc, short(value)))
+        return value
+
+    def get(self, obj, key, kind, where):
+        return self.typed(self.field(obj, key, where), kind, "%s.%s" % (where, key))
+
+    def equal(self, value, expected, where, source):
+        if value != expected or type(value) is bool:
+            fail("META: %s is %s, but %s says %s" % (where, short(value), source, short(expected)))
+
+
+def check_meta(bake: Bake, payload) -> dict:
+    try:
+        text = bytes(payload).decode("utf-8")
+    except UnicodeDecodeError as e:
+        fail("META: not valid UTF-8 (%s)" % e.reason)
+    try:
+        meta = json.loads(text, parse_constant=_reject_constant)
+    except (ValueError, RecursionError) as e:
+        fail("META: not valid JSON (%s)" % str(e).splitlines()[0])
+    M = Meta()
+    root = "root"
+    if not isinstance(meta, dict):
+        fail("META: the JSON is not an object")
+    binf = bake.binf
+    per_pixel = binf["sample_kind"] == 2
+
+    # format, format_version
+    M.equal(M.get(meta, "format", "string", root), "prt-bake", "format", "§3.9")
+    fv = M.get(meta, "format_version", "array", root)
+    if len(fv) != 2 or not all(is_int(v) and 0 <= v <= U32_MAX for v in fv):
+        fail("META: format_version must be an array of two integers, got %s" % short(fv))
+    if fv != [bake.major, bake.minor]:
+        fail("META: format_version %s, but the header says [%d, %d]"
+             % (short(fv), bake.major, bake.minor))
+    # sh, colour_space
+    sh = M.get(meta, "sh", "object", root)
+    for key, expected in SH_FIXED.items():
+        M.equal(M.get(sh, key, "string", "sh"), expected, "sh.%s" % key, "format 1.x")
+    M.equal(M.get(meta, "colour_space", "string", root), "linear-rec709", "colour_space",
+            "format 1.x")
+    M.equal(M.get(meta, "scalar_type", "string", root), SCALAR_TYPES[bake.scalar_type][0],
+            "scalar_type", "the header")
+    # sample_kind
+    sk = M.get(meta, "sample_kind", "object", root)
+    kind = M.get(sk, "kind", "string", "sample_kind")
+    M.equal(kind, SAMPLE_KINDS[binf["sample_kind"]], "sample_kind.kind", "BINF")
+    if per_pixel:
+        M.equal(M.get(sk, "width", "u32", "sample_kind"), binf["width"], "sample_kind.width",
+                "BINF")
+        M.equal(M.get(sk, "height", "u32", "sample_kind"), binf["height"],
+                "sample_kind.height", "BINF")
+    M.equal(M.get(meta, "rays_per_point", "u32", root), binf["rays_per_point"],
+            "rays_per_point", "BINF")
+    M.equal(M.get(meta, "bounces", "u32", root), binf["bounces"], "bounces", "BINF")
+    # seed: decimal string since 1.1; a u64 integer in 1.0 files
+    seed = M.field(meta, "seed", root)
+    if isinstance(seed, str):
+        if not re.fullmatch(r"0|[1-9][0-9]{0,19}", seed) or int(seed) > U64_MAX:
+            fail("META: seed %s is not a decimal u64 without sign or leading zeros" % short(seed))
+        seed_value = int(seed)
+    elif is_int(seed):  # the 1.0 form; readers accept it in any 1.x file (§3.9)
+        if not 0 <= seed <= U64_MAX:
+            fail("META: seed %s out of the u64 range" % short(seed))
+        seed_value = seed
+    else:
+        fail("META: seed must be a string of decimal digits (or a u64 integer), got %s"
+             % short(seed))
+    if seed_value != binf["seed"]:
+        fail("META: seed %d, but BINF says %d" % (seed_value, binf["seed"]))
+    # shard
+    shard = M.get(meta, "shard", "object", root)
+    M.equal(M.get(shard, "index", "u32", "shard"), binf["shard_index"], "shard.index", "BINF")
+    M.equal(M.get(shard, "count", "u32", "shard"), binf["shard_count"], "shard.count", "BINF")
+    # tool
+    tool = M.get(meta, "tool", "object", root)
+    M.get(tool, "name", "string", "tool")
+    M.get(tool, "version", "string", "tool")
+    # camera (1.1)
+    camera = meta.get("camera")
+    if camera is not None or (per_pixel and bake.minor >= 1):
+        if not per_pixel:
+            fail("META: camera must be null in a per-vertex bake, got %s" % short(camera))
+        if camera is None:
+            fail("META: a per-pixel %d.%d file must have a camera" % (bake.major, bake.minor))
+        M.typed(camera, "object", "camera")
+        M.equal(M.get(camera, "model", "string", "camera"), "pinhole", "camera.model", "§3.9")
+        for key in ("eye", "target", "up"):
+            vec = M.get(camera, key, "array", "camera")
+            if len(vec) != 3 or not all(is_number(v) for v in vec):
+                fail("META: camera.%s must be an array of three finite numbers, got %s"
+                     % (key, short(vec)))
+        M.get(camera, "fov_y_degrees", "number", "camera")
+        M.equal(M.get(camera, "width", "u32", "camera"), binf["width"], "camera.width", "BINF")
+        M.equal(M.get(camera, "height", "u32", "camera"), binf["height"], "camera.height",
+                "BINF")
+    # settings
+    settings = M.get(meta, "settings", "object", root)
+    pixel_samples = 1
+    if "pixel_samples" in settings:
+        pixel_samples = M.typed(settings["pixel_samples"], "u32", "settings.pixel_samples")
+        if pixel_samples < 1:
+            fail("META: settings.pixel_samples is 0")
+    if "albedo_in_transfer" in settings:
+        M.typed(settings["albedo_in_transfer"], "bool", "settings.albedo_in_transfer")
+    if "target_psnr" in settings:
+        M.typed(settings["target_psnr"], "number", "settings.target_psnr")
+    # decisions
+    decisions = M.get(meta, "decisions", "array", root)
+    for k, d in enumerate(decisions):
+        where = "decisions[%d]" % k
+        M.typed(d, "object", where)
+        obj_name = M.field(d, "object", where)
+        if obj_name is not None and not isinstance(obj_name, str):
+            fail("META: %s.object must be a string or null, got %s" % (where, short(obj_name)))
+        M.get(d, "decision", "string", where)
+        M.get(d, "reason", "string", where)
+    # objects
+    objects = M.get(meta, "objects", "array", root)
+    if len(objects) != len(bake.objects):
+        fail("META: objects has %d entries, OBJT has %d records"
+             % (len(objects), len(bake.objects)))
+    for obj, j in zip(bake.objects, objects):
+        where = "objects[%d]" % obj.index
+        M.typed(j, "object", where)
+        M.equal(M.get(j, "name", "string", where), obj.name, where + ".name", "OBJT")
+        gh = M.get(j, "geometry_hash", "string", where)
+        if not re.fullmatch(r"0x[0-9a-f]{16}", gh):
+            fail("META: %s.geometry_hash %s is not 0x + 16 lower-case hex digits"
+                 % (where, short(gh)))
+        if int(gh, 16) != obj.geometry_hash:
+            fail("META: %s.geometry_hash %s, but OBJT says 0x%016x"
+                 % (where, gh, obj.geometry_hash))
+        for key in ("point_count", "point_first", "points_in_file"):
+            M.equal(M.get(j, key, "u64", where), getattr(obj, key), "%s.%s" % (where, key),
+                    "OBJT")
+        for key in ("order", "channels"):
+            M.equal(M.get(j, key, "u32", where), getattr(obj, key), "%s.%s" % (where, key),
+                    "OBJT")
+        blocks = M.get(j, "blocks", "array", where)
+        if len(blocks) != len(obj.blocks):
+            fail("META: %s.blocks has %d entries, BLKT gives the object %d"
+                 % (where, len(blocks), len(obj.blocks)))
+        for k, (jb, block) in enumerate(zip(blocks, obj.blocks)):
+            w = "%s.blocks[%d]" % (where, k)
+            M.typed(jb, "object", w)
+            M.equal(M.get(jb, "kind", "string", w), KIND_NAMES[block["kind"]], w + ".kind",
+                    "BLKT")
+            M.equal(M.get(jb, "bounces", "u32", w), block["bounces"], w + ".bounces", "BLKT")
+            M.equal(M.get(jb, "section", "u32", w), block["section"], w + ".section", "BLKT")
+        mesh = j.get("mesh")
+        if mesh is None:
+            if obj.mesh is not None:
+                fail("META: %s.mesh is null, but OBJT references MESH section %d"
+                     % (where, obj.mesh_section))
+        else:
+            w = where + ".mesh"
+            M.typed(mesh, "object", w)
+            if obj.mesh is None:
+                fail("META: %s is not null, but OBJT references no MESH section" % w)
+            M.equal(M.get(mesh, "section", "u32", w), obj.mesh["section"], w + ".section", "OBJT")
+            M.equal(M.get(mesh, "vertices", "u32", w), obj.mesh["V"], w + ".vertices", "MESH")
+            M.equal(M.get(mesh, "triangles", "u32", w), obj.mesh["T"], w + ".triangles", "MESH")
+        cov = j.get("coverage")
+        if cov is None:
+            if obj.coverage is not None:
+                fail("META: %s.coverage is null, but OBJT references CVRG section %d"
+                     % (where, obj.coverage_section))
+        else:
+            w = where + ".coverage"
+            M.typed(cov, "object", w)
+            if obj.coverage is None:
+                fail("META: %s is not null, but OBJT references no CVRG section" % w)
+            M.equal(M.get(cov, "section", "u32", w), obj.coverage["section"], w + ".section",
+                    "OBJT")
+            M.equal(M.get(cov, "pixel_samples", "u32", w), obj.coverage["K"],
+                    w + ".pixel_samples", "CVRG")
+        if obj.coverage is not None and obj.coverage["K"] != pixel_samples:
+            fail("META: settings.pixel_samples is %d%s, but object %d's CVRG says %d" % (
+                pixel_samples, "" if "pixel_samples" in settings else " (absent)",
+                obj.index, obj.coverage["K"]))
+    # environment
+    env = M.field(meta, "environment", root)
+    if env is None:
+        if bake.env is not None:
+            fail("META: environment is null, but the file has an ENVL section")
+    else:
+        M.typed(env, "object", "environment")
+        if bake.env is None:
+            fail("META: environment is not null, but the file has no ENVL section")
+        M.equal(M.get(env, "order", "u32", "environment"), bake.env["order"],
+                "environment.order", "ENVL")
+        M.equal(M.get(env, "precision", "string", "environment"), bake.env["precision"],
+                "environment.precision", "ENVL")
+    # brdfs
+    brdfs = M.get(meta, "brdfs", "array", root)
+    if len(brdfs) != len(bake.brdfs):
+        fail("META: brdfs has %d entries, BRDF has %d records" % (len(brdfs), len(bake.brdfs)))
+    for k, (jb, brdf) in enumerate(zip(brdfs, bake.brdfs)):
+        w = "brdfs[%d]" % k
+        M.typed(jb, "object", w)
+        M.equal(M.get(jb, "material", "string", w), brdf["material"], w + ".material", "BRDF")
+        M.equal(M.get(jb, "lobe", "string", w), LOBE_NAMES[brdf["lobe"]], w + ".lobe", "BRDF")
+        exponent = M.field(jb, "exponent", w)
+        if brdf["lobe"] == 1:
+            if exponent is not None:
+                fail("META: %s.exponent must be null for clamped-cosine, got %s"
+                     % (w, short(exponent)))
+        else:
+            if not is_number(exponent) or exponent < 0:
+                fail("META: %s.exponent must be a number >= 0 for phong, got %s"
+                     % (w, short(exponent)))
+            if exponent != brdf["exponent"]:
+                fail("META: %s.exponent %s, but BRDF says %r" % (w, short(exponent),
+                                                                brdf["exponent"]))
+        M.equal(M.get(jb, "order", "u32", w), brdf["order"], w + ".order", "BRDF")
+    # glossy
+    glossy = M.get(meta, "glossy", "array", root)
+    if len(glossy) != len(bake.glossy):
+        fail("META: glossy has %d entries, GLSY has %d records" % (len(glossy), len(bake.glossy)))
+    for k, (jg, g) in enumerate(zip(glossy, bake.glossy)):
+        w = "glossy[%d]" % k
+        M.typed(jg, "object", w)
+        M.equal(M.get(jg, "material", "string", w), g["material"], w + ".material", "GLSY")
+        M.equal(M.get(jg, "elevations", "u32", w), g["elevation_count"], w + ".elevations",
+                "GLSY")
+        M.equal(M.get(jg, "order", "u32", w), g["order"], w + ".order", "GLSY")
+    # ray_stats (optional)
+    if "ray_stats" in meta:
+        stats = M.typed(meta["ray_stats"], "array", "ray_stats")
+        if len(stats) != len(bake.objects):
+            fail("META: ray_stats has %d entries for %d objects" % (len(stats), len(bake.objects)))
+        for k, (st, obj) in enumerate(zip(stats, bake.objects)):
+            w = "ray_stats[%d]" % k
+            M.typed(st, "object", w)
+            M.equal(M.get(st, "object", "string", w), obj.name, w + ".object", "objects[].name")
+            v = {key: M.get(st, key, "u64", w) for key in
+                 ("points", "rays", "backface_hits", "inside_points", "inside_rays")}
+            if v["backface_hits"] > v["rays"]:
+                fail("META: %s.backface_hits %d > rays %d" % (w, v["backface_hits"], v["rays"]))
+            if v["inside_rays"] > v["rays"]:
+                fail("META: %s.inside_rays %d > rays %d" % (w, v["inside_rays"], v["rays"]))
+            if v["inside_points"] > v["points"]:
+                fail("META: %s.inside_points %d > points %d"
+                     % (w, v["inside_points"], v["points"]))
+    # shard and point ranges (binary, listed under §4.11)
+    if binf["shard_count"] == 1:
+        for obj in bake.objects:
+            if obj.point_first != 0 or obj.points_in_file != obj.point_count:
+                fail("object %d (%s): unsharded bake holds points [%d, +%d) of %d" % (
+                    obj.index, short(obj.name), obj.point_first, obj.points_in_file,
+                    obj.point_count))
+    return meta
+
+
+# --------------------------------------------------------------------------------------------
+# --dump
+# --------------------------------------------------------------------------------------------
+
+
+def block_values(bake: Bake, block) -> np.ndarray:
+    return np.frombuffer(block["data"], dtype=block["dtype"])
+
+
+def dump(bake: Bake) -> dict:
+    binf = bake.binf
+    objects = []
+    for obj in bake.objects:
+        blocks = []
+        for block in obj.blocks:
+            values = block_values(bake, block)
+            f32 = values.astype("<f4")  # f16 -> f32 is exact
+            blocks.append({
+                "kind": KIND_NAMES[block["kind"]],
+                "bounces": block["bounces"],
+                "crc32_f32": zlib.crc32(f32.tobytes()),
+                "sum": float(values.astype(np.float64).sum()),
+            })
+        mesh = None
+        if obj.mesh is not None:
+            m = obj.mesh
+            mesh = {"vertices": m["V"], "triangles": m["T"],
+                    "crc32_positions": zlib.crc32(m["positions_raw"]),
+                    "crc32_normals": zlib.crc32(m["normals_raw"]),
+                    "crc32_triangles": zlib.crc32(m["triangles_raw"])}
+        coverage = None
+        if obj.coverage is not None:
+            hits = obj.coverage["hits"]
+            coverage = {"pixel_samples": obj.coverage["K"],
+                        "hits_sum": int(hits.astype(np.uint64).sum()),
+                        "covered_points": int(np.count_nonzero(hits))}
+        objects.append({
+            "name": obj.name,
+            "geometry_hash": "0x%016x" % obj.geometry_hash,
+            "recomputed_hash": None if obj.mesh is None else "0x%016x" % obj.mesh["hash"],
+            "point_count": obj.point_count,
+            "point_first": obj.point_first,
+            "points_in_file": obj.points_in_file,
+            "order": obj.order,
+            "channels": obj.channels,
+            "blocks": blocks,
+            "mesh": mesh,
+            "coverage": coverage,
+        })
+    env = None
+    if bake.env is not None:
+        env = {"order": bake.env["order"],
+               "values": [float(v) for v in bake.env["values"]]}
+    return {
+        "version": [bake.major, bake.minor],
+        "scalar_type": SCALAR_TYPES[bake.scalar_type][0],
+        "sample_kind": SAMPLE_KINDS[binf["sample_kind"]],
+        "width": binf["width"],
+        "height": binf["height"],
+        "bounces": binf["bounces"],
+        "rays_per_point": binf["rays_per_point"],
+        "seed": str(binf["seed"]),
+        "shard": [binf["shard_index"], binf["shard_count"]],
+        "objects": objects,
+        "environment": env,
+        "brdfs": [{"material": b["material"], "lobe": LOBE_NAMES[b["lobe"]],
+                   "exponent": None if b["lobe"] == 1 else float(b["exponent"]),
+                   "order": b["order"], "values": [float(v) for v in b["values"]]}
+                  for b in bake.brdfs],
+        "glossy": [{"material": g["material"], "order": g["order"],
+                    "elevations": [float(v) for v in g["elevations"]],
+                    "crc32_values": zlib.crc32(g["values_raw"])}
+                   for g in bake.glossy],
+        "camera": bake.meta.get("camera"),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# --relight
+# --------------------------------------------------------------------------------------------
+
+
+def parse_albedo(text: str):
+    parts = text.split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = None
+    if values is None or len(values) != 3 or not all(math.isfinite(v) and v >= 0
+                                                      for v in values):
+        raise PrtbError("bad --albedo %r: expected R,G,B (three finite numbers >= 0)" % text)
+    return values
+
+
+def relight(bake: Bake, name: str, albedo, order=None):
+    """Exit radiance of every point of object `name` (§3.4, §3.6). Returns (first, rgb[P,3])."""
+    obj = next((o for o in bake.objects if o.name == name), None)
+    if obj is None:
+        fail("no object named %s (objects: %s)"
+             % (short(name), ", ".join(short(o.name) for o in bake.objects)))
+    if bake.env is None:
+        fail("the file has no environment (ENVL section) to relight with")
+    inter = [b for b in obj.blocks if b["kind"] == 4]
+    if inter:
+        block = max(inter, key=lambda b: b["bounces"])
+    else:
+        block = next((b for k in (2, 1) for b in obj.blocks if b["kind"] == k), None)
+    if block is None:
+        fail("object %s has no diffuse transfer block" % short(name))
+    n = min(obj.order, bake.env["order"], order if order is not None else obj.order)
+    nn = n * n
+    t = block_values(bake, block).astype(np.float64).reshape(
+        obj.points_in_file, obj.channels, obj.order * obj.order)[:, :, :nn]
+    en = bake.env["order"]
+    light = bake.env["values"].astype(np.float64).reshape(3, en * en)[:, :nn]
+    if obj.channels == 3:
+        rgb = np.einsum("pci,ci->pc", t, light)
+    else:
+        rgb = t[:, 0, :] @ light.T
+    if not bake.meta.get("settings", {}).get("albedo_in_transfer", False):
+        rgb = rgb * (np.asarray(albedo, dtype=np.float64) / math.pi)
+    return obj.point_first, rgb
+
+
+def write_colours(path: str, first: int, rgb: np.ndarray) -> None:
+    with open(path, "w", encoding="ascii", newline="\n") as f:
+        f.write("point,r,g,b\n")
+        for row, (r, g, b) in enumerate(rgb.tolist()):
+            f.write("%d,%r,%r,%r\n" % (first + row, r, g, b))
+
+
+# --------------------------------------------------------------------------------------------
+# --self-test
+# --------------------------------------------------------------------------------------------
+
+
+def try_parse(data: bytes):
+    """'ok', 'refused' or ('crash', text)."""
+    try:
+        parse(data)
+        return "ok"
+    except PrtbError:
+        return "refused"
+    except Exception:  # noqa: BLE001 - a crash is what the self-test looks for
+        return ("crash", traceback.format_exc(limit=3).strip().splitlines()[-1])
+
+
+def fix_crcs(buf: bytearray, section_index=None) -> None:
+    """Recompute one section's CRC (if given) and the header CRC, in place."""
+    table_offset = struct.unpack_from("<Q", buf, 32)[0]
+    count = struct.unpack_from("<I", buf, 40)[0]
+    if section_index is not None:
+        e = table_offset + ENTRY_SIZE * section_index
+        _tag, _flags, offset, length = struct.unpack_from("<4sIQQ", buf, e)
+        struct.pack_into("<I", buf, e + 24, zlib.crc32(buf[offset:offset + length]))
+    crc = zlib.crc32(buf[table_offset:table_offset + ENTRY_SIZE * count], zlib.crc32(buf[0:60]))
+    struct.pack_into("<I", buf, 60, crc)
+
+
+def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
+    with open(path, "rb") as f:
+        data = f.read()
+    bake = parse(data)  # must be valid to start with
+    n = len(data)
+    rng = random.Random(seed)
+    table_offset = struct.unpack_from("<Q", data, 32)[0]
+    table_end = table_offset + ENTRY_SIZE * len(bake.sections)
+    edges = set(range(0, min(n, table_end)))
+    for s in bake.sections:
+        if s.length:
+            edges.update({s.offset, s.offset + 1, s.offset + s.length - 2, s.offset + s.length - 1})
+    occupied = [(0, table_end)] + [(s.offset, s.offset + s.length) for s in bake.sections]
+    occupied.sort()
+    padding = []
+    cursor = 0
+    for a, b in occupied + [(n, n)]:
+        if a > cursor:
+            padding.extend(range(cursor, a))
+        cursor = max(cursor, b)
+    if len(padding) > 600:
+        padding = sorted(rng.sample(padding, 600))
+    flips = sorted({p for p in edges if 0 <= p < n} | set(padding)
+                   | {rng.randrange(n) for _ in range(1500)})
+    results = {"flip": [0, 0], "padding": [0, 0], "truncate": [0, 0], "repaired": [0, 0, 0],
+               "mesh": [0, 0]}
+    crashes = []
+    slipped = []
+    padding_set = set(padding)
+
+    def record(category, outcome, what, must_refuse=True):
+        r = results[category]
+        r[1] += 1
+        if isinstance(outcome, tuple):
+            crashes.append("%s: %s" % (what, outcome[1]))
+        elif outcome == "refused":
+            r[0] += 1
+        elif must_refuse:
+            slipped.append(what)
+
+    # 1. single-byte flips, no CRC repair: every one must be refused
+    for p in flips:
+        buf = bytearray(data)
+        buf[p] ^= rng.randrange(1, 256)
+        outcome = try_parse(bytes(buf))
+        record("flip", outcome, "flip at %d" % p)
+        if p in padding_set:
+            record("padding", outcome, "padding flip at %d" % p)
+    # 2. truncations and extensions: every one must be refused
+    lengths = set(range(0, min(n, 160)))
+    for s in bake.sections:
+        lengths.update({s.offset - 1, s.offset, s.offset + 1, s.offset + s.length - 1})
+    lengths.update(rng.randrange(n) for _ in range(300))
+    lengths = sorted(x for x in lengths if 0 <= x < n)
+    for length in lengths:
+        record("truncate", try_parse(data[:length]), "truncation to %d" % length)
+    for extra in (b"\x00", b"\x00" * 64, b"junk"):
+        record("truncate", try_parse(data + extra), "extension by %d bytes" % len(extra))
+    # 3. mutations with repaired CRCs: must never crash; MESH position/triangle bytes must be
+    #    refused (the recomputed geometry hash changes); others may read as valid files.
+    targets = [s for s in bake.sections if s.length]
+    for _ in range(1200):
+        buf = bytearray(data)
+        choice = rng.random()
+        if choice < 0.25:  # header field or table entry, header CRC repaired
+            p = rng.choice([x for x in range(8, table_end) if not 60 <= x < 64])
+            section_index = None
+        else:
+            s = rng.choice(targets)
+            # bias towards the start of the payload, where the counts and offsets are
+            p = s.offset + (rng.randrange(min(s.length, 64)) if rng.random() < 0.6
+                            else rng.randrange(s.length))
+            section_index = s.index
+        mode = rng.random()
+        if mode < 0.5:
+            buf[p] ^= 1 << rng.randrange(8)
+        elif mode < 0.8:
+            buf[p] = rng.choice((0x00, 0xFF, 0x7F, 0x80, 0x01))
+        else:
+            buf[p] = rng.randrange(256)
+        if buf[p] == data[p]:
+            buf[p] ^= 0x01
+        fix_crcs(buf, section_index)
+        outcome = try_parse(bytes(buf))
+        r = results["repaired"]
+        r[2] += 1
+        if isinstance(outcome, tuple):
+            crashes.append("repaired mutation at %d: %s" % (p, outcome[1]))
+        elif outcome == "refused":
+            r[0] += 1
+        else:
+            r[1] += 1
+    for obj in bake.objects:
+        if obj.mesh is None or not obj.mesh["V"]:
+            continue
+        s = bake.sections[obj.mesh["section"]]
+        V, T = obj.mesh["V"], obj.mesh["T"]
+        spots = [s.offset + 16 + rng.randrange(12 * V) for _ in range(20)]
+        if T:
+            spots += [s.offset + 16 + 24 * V + rng.randrange(12 * T) for _ in range(20)]
+        for p in spots:
+            buf = bytearray(data)
+            buf[p] ^= 1 << rng.randrange(8)
+            fix_crcs(buf, s.index)
+            record("mesh", try_parse(bytes(buf)), "repaired MESH mutation at %d" % p)
+    # 4. the command line itself on a few corrupted files: exit 1, one line, no traceback
+    cli_bad = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(cli_samples):
+            buf = bytearray(data)
+            if k % 2:
+                buf = buf[:rng.randrange(n)]
+            else:
+                buf[rng.randrange(n)] ^= 0x55
+            bad = os.path.join(tmp, "bad%d.prtb" % k)
+            with open(bad, "wb") as f:
+                f.write(buf)
+            proc = subprocess.run([sys.executable, os.path.abspath(__file__), bad],
+                                  capture_output=True, text=True)
+            lines = proc.stderr.splitlines()
+            if (proc.returncode != 1 or len(lines) != 1 or "Traceback" in proc.stderr
+                    or not lines[0].startswith("%s: %s: " % (PROG, bad))):
+                cli_bad += 1
+                crashes.append("CLI on %s: exit %d, stderr %r"
+                               % (bad, proc.returncode, proc.stderr[:200]))
+    f, p, t, r, m = (results[k] for k in ("flip", "padding", "truncate", "repaired", "mesh"))
+    print("self-test of %s (%d bytes, seed %d)" % (path, n, seed))
+    print("  single-byte flips refused:      %d of %d (of which zero padding: %d of %d)"
+          % (f[0], f[1], p[0], p[1]))
+    print("  truncations/extensions refused: %d of %d" % (t[0], t[1]))
+    print("  CRC-repaired mutations:         %d refused, %d read as valid, of %d (no crash "
+          "allowed)" % (r[0], r[1], r[2]))
+    print("  CRC-repaired MESH mutations:    %d of %d refused (geometry hash)" % (m[0], m[1]))
+    print("  command line on corrupted files: %d of %d gave exit 1 and one clean line"
+          % (cli_samples - cli_bad, cli_samples))
+    caught = f[0] + t[0] + m[0]
+    total = f[1] + t[1] + m[1]
+    print("  caught %d of %d corruptions that must be refused; %d slipped through, %d crashes"
+          % (caught, total, len(slipped), len(crashes)))
+    for line in (slipped + crashes)[:20]:
+        print("    " + line)
+    return 1 if slipped or crashes else 0
+
+
+# --------------------------------------------------------------------------------------------
+# Command line
+# --------------------------------------------------------------------------------------------
+
+
+class UsageError(Exception):
+    pass
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message):
+        raise UsageError(message)
+
+
+def main(argv=None) -> int:
+    parser = Parser(prog="prtb_reader.py", description=__doc__.split("\n\n")[0],
+                    formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("file", help="the .prtb file")
+    parser.add_argument("--dump", metavar="OUT.json", help="write a JSON summary")
+    parser.add_argument("--relight", metavar="OBJECT", help="relight this object's points")
+    parser.add_argument("--albedo", metavar="R,G,B", help="diffuse albedo for --relight")
+    parser.add_argument("--order", type=int, metavar="N", help="SH order cap for --relight")
+    parser.add_argument("--colours", metavar="OUT.csv", help="CSV output of --relight")
+    parser.add_argument("--self-test", action="store_true",
+                        help="corruption self-check on a valid FILE")
+    parser.add_argument("--seed", type=int, default=20240601, help="self-test random seed")
+    try:
+        args = parser.parse_args(argv)
+        if args.relight is not None and (args.albedo is None or args.colours is None):
+            raise UsageError("--relight needs --albedo R,G,B and --colours OUT.csv")
+        if args.relight is None and (args.albedo is not None or args.colours is not None
+                                     or args.order is not None):
+            raise UsageError("--albedo, --order and --colours only go with --relight")
+        if args.order is not None and args.order < 1:
+            raise UsageError("--order must be >= 1")
+    except UsageError as e:
+        print("%s: %s" % (PROG, str(e).replace("\n", " ")), file=sys.stderr)
+        return 1
+
+    path = args.file
+    try:
+        albedo = parse_albedo(args.albedo) if args.relight is not None else None
+        try:
+            with open(path, "rb") as f:
+                data = f.read()
+        except OSError as e:
+            raise PrtbError("cannot read: %s" % (e.strerror or e))
+        if args.self_test:
+            return self_test(path, args.seed)
+        bake = parse(data)
+        if args.dump:
+            summary = dump(bake)
+            try:
+                with open(args.dump, "w", encoding="utf-8") as f:
+                    json.dump(summary, f, indent=1, allow_nan=False)
+                    f.write("\n")
+            except OSError as e:
+                raise PrtbError("cannot write %s: %s" % (args.dump, e.strerror or e))
+        if args.relight is not None:
+            first, rgb = relight(bake, args.relight, albedo, args.order)
+            try:
+                write_colours(args.colours, first, rgb)
+            except OSError as e:
+                raise PrtbError("cannot write %s: %s" % (args.colours, e.strerror or e))
+        return 0
+    except PrtbError as e:
+        message = str(e)
+    except MemoryError:
+        message = "out of memory while reading the file"
+    except Exception as e:  # noqa: BLE001 - never a traceback on bad input
+        message = "malformed file (%s: %s)" % (type(e).__name__, e)
+    print("%s: %s: %s" % (PROG, path, message.replace("\n", " ").replace("\r", " ")),
+          file=sys.stderr)
+    return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
