@@ -341,3 +341,22 @@ fn test10_seed_forms() {
         }
     }
 }
+
+/// SPEC §3.9: `exponent` is null exactly for the clamped cosine; a Phong lobe of exponent 0
+/// (the uniform hemispherical lobe) is a number, and reads back (it was refused once).
+#[test]
+fn test11_brdf_exponent_null_and_zero() {
+    let mut bake = sample_bake();
+    bake.brdfs[1].lobe = BrdfLobe::Phong { exponent: 0.0 };
+    let bytes = encode(&bake, ScalarType::F32).unwrap();
+    assert_eq!(decode(&bytes).unwrap(), bake);
+    let (off, len) = find(&bytes, b"META");
+    let meta: serde_json::Value = serde_json::from_slice(&bytes[off..off + len]).unwrap();
+    assert_eq!(meta["brdfs"][0]["exponent"], serde_json::Value::Null);
+    assert_eq!(meta["brdfs"][1]["exponent"], 0.0);
+    assert!(BakeView::new(&bytes)
+        .unwrap()
+        .summary()
+        .to_string()
+        .contains("phong (exponent 0)"));
+}
