@@ -18,6 +18,10 @@ pub enum BakeError {
         /// What dominates the estimate.
         what: String,
     },
+    /// A pass of a distributed bounced bake that cannot run (wrong pass, or a previous pass's
+    /// file that does not belong to this bake).
+    #[error("distributed bake: {0}")]
+    Pass(String),
     /// The scene has no geometry to bake.
     #[error("the scene has no triangles to bake")]
     EmptyScene,

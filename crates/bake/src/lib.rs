@@ -24,6 +24,7 @@
 
 pub mod brdf;
 mod error;
+pub mod passes;
 pub mod plan;
 pub mod points;
 pub mod sequence;
@@ -31,6 +32,7 @@ mod settings;
 pub mod transfer;
 
 pub use error::BakeError;
+pub use passes::PassInput;
 pub use settings::{BakeSettings, PointKind, DEFAULT_PIXEL_SAMPLES, MAX_PIXEL_SAMPLES};
 
 use glam::Vec3;
@@ -144,6 +146,20 @@ pub fn bake(
     accel: &Accel,
     settings: &BakeSettings,
 ) -> Result<BakeOutput, BakeError> {
+    bake_pass(scene, accel, settings, None)
+}
+
+/// Runs one pass of a distributed bounced bake ([`passes`]): pass 0 and the middle passes
+/// return an intermediate file (`meta.pass` set; merge its shards with
+/// [`prt_bakefile::merge`] and hand the result to the next pass), the last pass (`bounces`)
+/// the shard of the final bake. `None`, or any pass of a bake without bounces, is the whole
+/// bake ([`bake`]).
+pub fn bake_pass(
+    scene: &Scene,
+    accel: &Accel,
+    settings: &BakeSettings,
+    pass: Option<PassInput<'_>>,
+) -> Result<BakeOutput, BakeError> {
     let start = std::time::Instant::now();
     settings.validate()?;
     if accel.triangle_count() == 0 {
@@ -182,8 +198,73 @@ pub fn bake(
     } else {
         bounces.saturating_sub(1)
     };
-    let need_vertices = vertex_mode || bounces > 0;
+    let mut need_vertices = vertex_mode || bounces > 0;
     let mut rays_traced = 0u64;
+    let settings_json = serde_json::json!({
+        "order": settings.order,
+        "max_order": settings.max_order,
+        "error_target": settings.error_target,
+        "rays": settings.rays,
+        "bounces": settings.bounces,
+        // A string, like the JSON `seed` (SPEC §3.9): exact in every JSON parser.
+        "seed": settings.seed.to_string(),
+        "points": if vertex_mode { "vertex" } else { "pixel" },
+        "unshadowed": settings.unshadowed,
+    });
+    let mut settings_json = settings_json;
+    // The diffuse transfer excludes the receiving point's albedo/π (SPEC §3.4).
+    settings_json["albedo_in_transfer"] = false.into();
+    if !vertex_mode {
+        settings_json["pixel_samples"] = settings.pixel_samples.into();
+    }
+    // The environment's projection (also what a distributed pass checks its input against).
+    let env = &scene.environment;
+    let mapping = match env.mapping {
+        Mapping::LatLong => EnvMapping::LatLong,
+        Mapping::Angular => EnvMapping::Angular { subsamples: 4 },
+    };
+    let img = ImageRef {
+        width: env.image.width,
+        height: env.image.height,
+        texels: &env.image.texels,
+    };
+    let coeffs = prt_sh::project_env(img, mapping, max_order, env.rotation_y_deg)?;
+    let environment = EnvCoefficients {
+        order: max_order as u32,
+        precision: EnvPrecision::F64,
+        values: (0..3)
+            .flat_map(|c| coeffs.iter().map(move |v| v[c]))
+            .collect(),
+    };
+
+    // ---- Distributed bounced bakes: which pass, and its input.
+    let last_pass = settings.bounces;
+    if let Some(p) = &pass {
+        let expect = passes::Expect {
+            settings: &settings_json,
+            names: plans.iter().map(|p| p.name.as_str()).collect(),
+            hashes: plans
+                .iter()
+                .map(|p| {
+                    let m = &scene.meshes[p.mesh];
+                    geometry_hash(m.positions.as_slice(), &m.indices)
+                })
+                .collect(),
+            orders: plans.iter().map(|p| p.order as u32).collect(),
+            albedo: &gs.albedo,
+            environment: &environment,
+            bounces: last_pass,
+        };
+        passes::check(p, &expect)?;
+    }
+    // Only bakes with bounces have more than one pass; pass 0 of a bake without bounces is the
+    // whole (sharded) bake.
+    let dist = pass.filter(|_| bounces > 0);
+    let dist_index = dist.map(|d| d.index);
+    if !vertex_mode && dist_index == Some(last_pass) {
+        // The last pass of a per-pixel bake traces pixels only; the vertex levels come in.
+        need_vertices = false;
+    }
 
     // ---- Direct pass at vertices.
     let vertex_points: Vec<Vec<points::SamplePoint>> = (0..scene.meshes.len())
@@ -192,7 +273,8 @@ pub fn bake(
     let vertex_ranges: Vec<(u64, u64)> = vertex_points
         .iter()
         .map(|p| {
-            if vertex_mode && bounces == 0 {
+            // A distributed pass works on its shard's vertices only.
+            if (vertex_mode && bounces == 0) || dist.is_some() {
                 shard_range(p.len() as u64, settings.shard)
             } else {
                 (0, p.len() as u64)
@@ -200,7 +282,21 @@ pub fn bake(
         })
         .collect();
     let mut vertex_direct: Vec<Vec<DirectResult>> = vec![Vec::new(); plans.len()];
-    if need_vertices {
+    // Pass k ≥ 1: this shard's part of the previous pass's merged file.
+    let previous: Vec<passes::Previous> = match dist {
+        Some(PassInput {
+            previous: Some(prev),
+            ..
+        }) => (0..plans.len())
+            .map(|o| passes::previous(prev, o, vertex_ranges[o].0, vertex_ranges[o].1))
+            .collect(),
+        _ => Vec::new(),
+    };
+    if need_vertices && dist_index.is_some_and(|k| k > 0) {
+        for (o, p) in previous.iter().enumerate() {
+            vertex_direct[o] = p.rows.clone();
+        }
+    } else if need_vertices {
         let jobs: Vec<(usize, u64)> = plans
             .iter()
             .enumerate()
@@ -239,13 +335,76 @@ pub fn bake(
     }
 
     // ---- Bounce chain at vertices: chain[b][mesh] = T^b (RGB, f32).
-    let object_hits: Vec<u64> = vertex_direct
-        .iter()
-        .map(|r| r.iter().map(|d| d.hits.len() as u64).sum())
-        .collect();
+    let object_hits: Vec<u64> = if previous.is_empty() {
+        vertex_direct
+            .iter()
+            .map(|r| r.iter().map(|d| d.hits.len() as u64).sum())
+            .collect()
+    } else {
+        previous.iter().map(|p| p.object_hits).collect()
+    };
     let mut chain: Vec<Vec<MeshTransfer>> = Vec::new();
     let mut vertex_totals: Vec<Vec<Vec<f64>>> = Vec::new();
-    if need_vertices && (vertex_bounces > 0 || (!vertex_mode && bounces > 0)) {
+    if let Some(k) = dist_index {
+        // A distributed pass: one bounce level for this shard's vertices, or none.
+        let state = passes::Step {
+            scene,
+            plans: &plans,
+            settings,
+            vertex_mode,
+            vertex_bounces,
+            gs: &gs,
+            vertex_ranges: &vertex_ranges,
+            object_hits: &object_hits,
+        };
+        match state.run(k, &vertex_direct, previous, progress(settings, 0, "gather"))? {
+            passes::Outcome::Intermediate(objects, reports) => {
+                let ray_stats = intermediate_stats(&plans, &vertex_direct, dist, settings);
+                let meta = BakeMeta {
+                    sample_kind: SampleKind::Vertex,
+                    rays_per_point: settings.rays,
+                    bounces: settings.bounces,
+                    seed: settings.seed,
+                    tool: ToolInfo {
+                        name: "prt".into(),
+                        version: env!("CARGO_PKG_VERSION").into(),
+                    },
+                    settings: settings_json,
+                    decisions: decisions.clone(),
+                    shard: settings
+                        .shard
+                        .map_or(ShardInfo::default(), |(index, count)| ShardInfo {
+                            index,
+                            count,
+                        }),
+                    ray_stats,
+                    camera: None,
+                    pass: Some(passes::info(k, last_pass, &gs.albedo)),
+                };
+                let bake = Bake {
+                    meta,
+                    objects,
+                    environment: Some(environment),
+                    brdfs: Vec::new(),
+                    glossy: Vec::new(),
+                };
+                bake.validate()?;
+                return Ok(BakeOutput {
+                    bake,
+                    report: BakeReport {
+                        objects: reports,
+                        rays_traced,
+                        seconds: start.elapsed().as_secs_f64(),
+                        decisions,
+                    },
+                });
+            }
+            passes::Outcome::Final { chain: c, totals } => {
+                chain = c;
+                vertex_totals = totals;
+            }
+        }
+    } else if need_vertices && (vertex_bounces > 0 || (!vertex_mode && bounces > 0)) {
         let t0: Vec<MeshTransfer> = plans
             .iter()
             .enumerate()
@@ -421,6 +580,7 @@ pub fn bake(
                 blocks,
                 mesh: Some(mesh_geometry(mesh)),
                 coverage: None,
+                pass: None,
             });
         }
     } else {
@@ -591,29 +751,12 @@ pub fn bake(
                         })
                         .collect(),
                 }),
+                pass: None,
             });
         }
     }
 
-    // ---- Environment and BRDF projections.
-    let env = &scene.environment;
-    let mapping = match env.mapping {
-        Mapping::LatLong => EnvMapping::LatLong,
-        Mapping::Angular => EnvMapping::Angular { subsamples: 4 },
-    };
-    let img = ImageRef {
-        width: env.image.width,
-        height: env.image.height,
-        texels: &env.image.texels,
-    };
-    let coeffs = prt_sh::project_env(img, mapping, max_order, env.rotation_y_deg)?;
-    let environment = EnvCoefficients {
-        order: max_order as u32,
-        precision: EnvPrecision::F64,
-        values: (0..3)
-            .flat_map(|c| coeffs.iter().map(move |v| v[c]))
-            .collect(),
-    };
+    // ---- BRDF projections.
     let mut brdfs = Vec::new();
     let mut glossy = Vec::new();
     let mut seen = std::collections::BTreeSet::new();
@@ -654,23 +797,6 @@ pub fn bake(
         }
     }
 
-    let settings_json = serde_json::json!({
-        "order": settings.order,
-        "max_order": settings.max_order,
-        "error_target": settings.error_target,
-        "rays": settings.rays,
-        "bounces": settings.bounces,
-        // A string, like the JSON `seed` (SPEC §3.9): exact in every JSON parser.
-        "seed": settings.seed.to_string(),
-        "points": if vertex_mode { "vertex" } else { "pixel" },
-        "unshadowed": settings.unshadowed,
-    });
-    let mut settings_json = settings_json;
-    // The diffuse transfer excludes the receiving point's albedo/π (SPEC §3.4).
-    settings_json["albedo_in_transfer"] = false.into();
-    if !vertex_mode {
-        settings_json["pixel_samples"] = settings.pixel_samples.into();
-    }
     let meta = BakeMeta {
         sample_kind,
         rays_per_point: settings.rays,
@@ -690,14 +816,19 @@ pub fn bake(
             }),
         ray_stats,
         camera: (!vertex_mode).then(|| camera_info(&scene.camera)),
+        pass: None,
     };
-    let bake = Bake {
+    let mut bake = Bake {
         meta,
         objects,
         environment: Some(environment),
         brdfs,
         glossy,
     };
+    if vertex_mode && dist_index.is_some_and(|k| k > 0) {
+        // The vertices' rays were traced in pass 0: their counts come with the previous file.
+        bake.meta.ray_stats = intermediate_stats(&plans, &vertex_direct, dist, settings);
+    }
     bake.validate()?;
     Ok(BakeOutput {
         bake,
@@ -861,5 +992,39 @@ pub fn camera_info(c: &Camera) -> CameraInfo {
         fov_y_degrees: c.fov_y_deg,
         width: c.width,
         height: c.height,
+    }
+}
+
+/// The ray statistics of an intermediate pass file, or of the last pass of a per-vertex
+/// distributed bake: they are counts over a shard's points, so that merging adds them up. Pass
+/// 0 counts its own vertices' rays; later passes traced no vertex rays and only know the merged
+/// total, which shard 0 carries (the others carry zeros, as [`prt_bakefile::split`] does).
+fn intermediate_stats(
+    plans: &[plan::ObjectPlan],
+    rows: &[Vec<DirectResult>],
+    pass: Option<PassInput<'_>>,
+    settings: &BakeSettings,
+) -> Vec<RayStats> {
+    if settings.points != PointKind::Vertex {
+        return Vec::new();
+    }
+    let zero = |name: &str| RayStats {
+        object: name.to_owned(),
+        ..RayStats::default()
+    };
+    match pass.and_then(|p| p.previous) {
+        None => plans
+            .iter()
+            .zip(rows)
+            .map(|(plan, rows)| {
+                let mut stats = zero(&plan.name);
+                for d in rows {
+                    stats.add(&point_stats(d, settings.rays));
+                }
+                stats
+            })
+            .collect(),
+        Some(prev) if settings.shard.is_none_or(|(i, _)| i == 0) => prev.meta.ray_stats.clone(),
+        Some(_) => plans.iter().map(|p| zero(&p.name)).collect(),
     }
 }

@@ -291,6 +291,7 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
         settings: m.settings.clone(),
         decisions: m.decisions.clone(),
         ray_stats: m.ray_stats.clone(),
+        pass: m.pass.clone(),
         objects: objects_json,
         environment: bake.environment.as_ref().map(|e| EnvJson {
             order: e.order,
@@ -352,6 +353,11 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
     plan.extend(xfer);
     plan.extend(meshes.into_iter().map(|v| bytes(Tag::MESH, v)));
     plan.extend(coverages.into_iter().map(|v| bytes(Tag::CVRG, v)));
+    for (oi, o) in bake.objects.iter().enumerate() {
+        if let Some(p) = &o.pass {
+            plan.push(bytes(Tag::PASS, bytes_of_pass(oi as u32, o, p)));
+        }
+    }
     let section_count = u32_of(plan.len(), "section count")?;
 
     // Offsets.
@@ -430,6 +436,42 @@ fn bytes_of_mesh(object: u32, m: &crate::model::MeshGeometry) -> Vec<u8> {
     }
     for t in &m.triangles {
         t.iter().for_each(|&i| b.u32(i));
+    }
+    b.0
+}
+
+/// The payload of a PASS section (SPEC.md §3.12); lengths were checked by `validate`.
+fn bytes_of_pass(
+    object: u32,
+    o: &crate::model::ObjectBake,
+    p: &crate::model::PassState,
+) -> Vec<u8> {
+    let mut b = Buf::default();
+    let flags = u32::from(p.partial.is_some())
+        | u32::from(p.totals.is_some()) << 1
+        | u32::from(p.hit_counts.is_some()) << 2;
+    b.u32(object);
+    b.u32(p.levels.len() as u32);
+    b.u32(o.order);
+    b.u32(flags);
+    b.u64(o.point_count);
+    b.u64(o.points_in_file);
+    b.u64(p.hits.len() as u64);
+    b.u64(0);
+    for &v in p.totals.iter().flatten() {
+        b.f64(v);
+    }
+    for &v in p.levels.iter().flatten().chain(p.partial.iter().flatten()) {
+        b.0.extend_from_slice(&v.to_le_bytes());
+    }
+    for &c in p.hit_counts.iter().flatten() {
+        b.u32(c);
+    }
+    for h in &p.hits {
+        b.u32(h.mesh);
+        b.u32(h.tri);
+        b.0.extend_from_slice(&h.u.to_le_bytes());
+        b.0.extend_from_slice(&h.v.to_le_bytes());
     }
     b.0
 }

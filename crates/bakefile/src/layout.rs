@@ -26,6 +26,8 @@ pub(crate) const NO_SECTION: u32 = u32::MAX;
 pub(crate) const MESH_HEADER: usize = 16;
 /// Size of the header of a CVRG section.
 pub(crate) const CVRG_HEADER: usize = 16;
+/// Size of the header of a PASS section.
+pub(crate) const PASS_HEADER: usize = 48;
 /// Size of a BLKT record.
 pub(crate) const BLKT_RECORD: usize = 48;
 /// Size of the ENVL header.
@@ -68,6 +70,9 @@ impl Tag {
     pub const MESH: Tag = Tag(*b"MESH");
     /// One object's per-pixel coverage (1.1).
     pub const CVRG: Tag = Tag(*b"CVRG");
+    /// One object's state between passes of a distributed bounced bake (1.1, intermediate
+    /// files only).
+    pub const PASS: Tag = Tag(*b"PASS");
 
     /// The tag as the little-endian u32 stored in the section table.
     #[must_use]
@@ -90,6 +95,7 @@ impl Tag {
             Tag::XFER,
             Tag::MESH,
             Tag::CVRG,
+            Tag::PASS,
         ]
         .contains(&self)
     }

@@ -67,8 +67,8 @@ pub use merge::{merge, split};
 pub use meta::ShConvention;
 pub use model::{
     Bake, BakeMeta, BrdfLobe, BrdfProjection, CameraInfo, Coverage, Decision, EnvCoefficients,
-    EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, RayStats, SampleKind, ScalarType,
-    ShardInfo, ToolInfo, TransferBlock, TransferKind,
+    EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, PassHit, PassInfo, PassState,
+    RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo, TransferBlock, TransferKind,
 };
 pub use summary::{
     camera_line, summary, BlockSummary, CoverageSummary, FileSummary, MeshSummary, ObjectSummary,

@@ -1,7 +1,7 @@
 //! Sharded bakes: splitting a bake into shards and merging shards back.
 
 use crate::error::BakeFileError;
-use crate::model::{Bake, Coverage, ObjectBake, RayStats, ShardInfo, TransferBlock};
+use crate::model::{Bake, Coverage, ObjectBake, PassState, RayStats, ShardInfo, TransferBlock};
 
 fn fail(msg: impl Into<String>) -> BakeFileError {
     BakeFileError::Merge(msg.into())
@@ -90,7 +90,8 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
                     .all(|(a, b)| a.kind == b.kind)
                 && o.mesh == o0.mesh
                 && o.coverage.as_ref().map(|c| c.pixel_samples)
-                    == o0.coverage.as_ref().map(|c| c.pixel_samples);
+                    == o0.coverage.as_ref().map(|c| c.pixel_samples)
+                && o.pass.as_ref().map(pass_shape) == o0.pass.as_ref().map(pass_shape);
             if !same {
                 return Err(fail(format!(
                     "object {oi} ({:?}) differs between shards (name, geometry, mesh, counts, order, channels, kinds or coverage)",
@@ -155,6 +156,7 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
             blocks,
             mesh: o0.mesh.clone(),
             coverage,
+            pass: o0.pass.as_ref().map(|p0| merge_pass(p0, &parts)),
         });
     }
     // Ray statistics are counts over each shard's points: they add up (all shards or none
@@ -248,6 +250,14 @@ pub fn split(bake: &Bake, shard_count: u32) -> Result<Vec<Bake>, BakeFileError> 
                             pixel_samples: c.pixel_samples,
                             hits: c.hits[start as usize..end as usize].to_vec(),
                         }),
+                        pass: o.pass.as_ref().map(|p| {
+                            split_pass(
+                                p,
+                                start as usize,
+                                end as usize,
+                                3 * (o.order * o.order) as usize,
+                            )
+                        }),
                         ..o.clone_without_data()
                     }
                 })
@@ -276,6 +286,80 @@ impl ObjectBake {
             blocks: Vec::new(),
             mesh: self.mesh.clone(),
             coverage: None,
+            pass: None,
         }
+    }
+}
+
+/// What must agree between shards' pass states: the complete levels themselves and which
+/// per-point arrays are present.
+fn pass_shape(p: &PassState) -> (&[Vec<f32>], bool, bool, bool) {
+    (
+        &p.levels,
+        p.partial.is_some(),
+        p.totals.is_some(),
+        p.hit_counts.is_some(),
+    )
+}
+
+/// Joins the per-point arrays of the shards' pass states (in point order; the complete levels
+/// were checked equal).
+fn merge_pass(p0: &PassState, parts: &[&ObjectBake]) -> PassState {
+    let states: Vec<&PassState> = parts.iter().filter_map(|p| p.pass.as_ref()).collect();
+    let join_f32 = |get: fn(&PassState) -> Option<&Vec<f32>>| {
+        get(p0).map(|_| {
+            states
+                .iter()
+                .filter_map(|s| get(s))
+                .flatten()
+                .copied()
+                .collect()
+        })
+    };
+    PassState {
+        levels: p0.levels.clone(),
+        partial: join_f32(|s| s.partial.as_ref()),
+        totals: p0.totals.as_ref().map(|_| {
+            states
+                .iter()
+                .filter_map(|s| s.totals.as_ref())
+                .flatten()
+                .copied()
+                .collect()
+        }),
+        hit_counts: p0.hit_counts.as_ref().map(|_| {
+            states
+                .iter()
+                .filter_map(|s| s.hit_counts.as_ref())
+                .flatten()
+                .copied()
+                .collect()
+        }),
+        hits: states.iter().flat_map(|s| s.hits.iter().copied()).collect(),
+    }
+}
+
+/// Points `start..end` of a pass state (`per` values per point).
+fn split_pass(p: &PassState, start: usize, end: usize, per: usize) -> PassState {
+    let (first_hit, last_hit) = match &p.hit_counts {
+        Some(c) => {
+            let before: u64 = c[..start].iter().map(|&n| u64::from(n)).sum();
+            let within: u64 = c[start..end].iter().map(|&n| u64::from(n)).sum();
+            (before as usize, (before + within) as usize)
+        }
+        None => (0, 0),
+    };
+    PassState {
+        levels: p.levels.clone(),
+        partial: p
+            .partial
+            .as_ref()
+            .map(|v| v[start * per..end * per].to_vec()),
+        totals: p
+            .totals
+            .as_ref()
+            .map(|v| v[start * per..end * per].to_vec()),
+        hit_counts: p.hit_counts.as_ref().map(|c| c[start..end].to_vec()),
+        hits: p.hits[first_hit..last_hit].to_vec(),
     }
 }

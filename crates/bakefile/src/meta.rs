@@ -3,7 +3,9 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::BakeFileError;
-use crate::model::{CameraInfo, Decision, RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo};
+use crate::model::{
+    CameraInfo, Decision, PassInfo, RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo,
+};
 
 /// Value of `"format"`.
 pub(crate) const FORMAT_NAME: &str = "prt-bake";
@@ -125,6 +127,9 @@ pub(crate) struct MetaJson {
     pub glossy: Vec<GlossyJson>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub ray_stats: Vec<RayStats>,
+    /// Intermediate pass files only (absent from every final bake).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pass: Option<PassInfo>,
 }
 
 /// `seed` in the JSON: a decimal string since 1.1 (exact in every JSON parser), a number in

@@ -269,6 +269,52 @@ pub struct BakeMeta {
     /// Per-pixel bakes: the camera whose image the pixel grid is (format 1.1; `None` in 1.0
     /// files and in per-vertex bakes).
     pub camera: Option<CameraInfo>,
+    /// Intermediate files of a distributed bounced bake only (SPEC.md §3.12): which pass made
+    /// the file. `None` in every bake an engine is meant to read.
+    pub pass: Option<PassInfo>,
+}
+
+/// Which pass of a distributed bounced bake made an intermediate file (SPEC.md §3.12).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PassInfo {
+    /// This pass, `0 ≤ index < last` (pass `last` writes the final bake, without this).
+    pub index: u32,
+    /// The last pass: the bake's bounce count.
+    pub last: u32,
+    /// Per object, the albedo the bounces were gathered with (so a later pass can refuse a
+    /// scene whose materials changed).
+    pub albedo: Vec<[f32; 3]>,
+}
+
+/// One recorded ray hit of a bounced bake (SPEC.md §3.12).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PassHit {
+    /// Object (mesh) hit.
+    pub mesh: u32,
+    /// Triangle of that mesh.
+    pub tri: u32,
+    /// Barycentric weight of the triangle's second vertex.
+    pub u: f32,
+    /// Barycentric weight of the triangle's third vertex.
+    pub v: f32,
+}
+
+/// The state a distributed bounced bake hands from one pass to the next, per object
+/// (SPEC.md §3.12): every bounce level computed so far for all vertices, this file's points'
+/// newest level, running totals and recorded hits.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PassState {
+    /// Complete bounce levels `0 … L−1`, each `vertex_count × 3 × order²` f32
+    /// (`[vertex][channel][coefficient]`).
+    pub levels: Vec<Vec<f32>>,
+    /// Level `L` for this file's points (`points_in_file × 3 × order²`), if computed.
+    pub partial: Option<Vec<f32>>,
+    /// Running sum of the levels so far for this file's points, in f64 (per-vertex bakes).
+    pub totals: Option<Vec<f64>>,
+    /// Hits recorded per point of this file (`points_in_file` counts), when bounces follow.
+    pub hit_counts: Option<Vec<u32>>,
+    /// The hits themselves, point by point (`Σ hit_counts` records).
+    pub hits: Vec<PassHit>,
 }
 
 /// The pinhole camera of a per-pixel bake (SPEC.md §3.9, "Camera"): the ray through
@@ -333,6 +379,7 @@ impl Default for BakeMeta {
             shard: ShardInfo::default(),
             ray_stats: Vec::new(),
             camera: None,
+            pass: None,
         }
     }
 }
@@ -373,6 +420,8 @@ pub struct ObjectBake {
     /// Per-pixel bakes: the object's coverage of each pixel held here (format 1.1; `None` in
     /// 1.0 files, never in per-vertex bakes).
     pub coverage: Option<Coverage>,
+    /// Intermediate files of a distributed bounced bake: what the next pass needs.
+    pub pass: Option<PassState>,
 }
 
 impl ObjectBake {
@@ -520,6 +569,79 @@ pub(crate) fn uncovered_nonzero(
         }
     }
     None
+}
+
+/// The rules of an object's pass state (SPEC.md §3.12).
+fn check_pass(
+    o: &ObjectBake,
+    m: &BakeMeta,
+    what: &str,
+    with_data: bool,
+) -> Result<(), BakeFileError> {
+    let Some(p) = &o.pass else {
+        return if m.pass.is_some() {
+            Err(bad(format!(
+                "{what}: an intermediate pass file without pass state"
+            )))
+        } else {
+            Ok(())
+        };
+    };
+    if m.pass.is_none() || m.sample_kind != SampleKind::Vertex {
+        return Err(bad(format!(
+            "{what}: pass state outside an intermediate (per-vertex) pass file"
+        )));
+    }
+    let per = 3 * sq(o.order);
+    let whole = o.point_count.checked_mul(per);
+    let held = o.points_in_file.checked_mul(per);
+    if p.levels.iter().any(|l| Some(l.len() as u64) != whole)
+        || p.partial
+            .as_ref()
+            .is_some_and(|l| Some(l.len() as u64) != held)
+        || p.totals
+            .as_ref()
+            .is_some_and(|l| Some(l.len() as u64) != held)
+    {
+        return Err(bad(format!(
+            "{what}: pass levels or totals of the wrong length for {} points (order {})",
+            o.point_count, o.order
+        )));
+    }
+    match &p.hit_counts {
+        None if !p.hits.is_empty() => {
+            return Err(bad(format!("{what}: hits without per-point counts")));
+        }
+        Some(c)
+            if c.len() as u64 != o.points_in_file
+                || c.iter().map(|&n| u64::from(n)).sum::<u64>() != p.hits.len() as u64 =>
+        {
+            return Err(bad(format!(
+                "{what}: hit counts do not add up to the {} hits held",
+                p.hits.len()
+            )));
+        }
+        _ => {}
+    }
+    if with_data {
+        for l in p.levels.iter().chain(&p.partial) {
+            check_finite32(&format!("{what} pass level"), l)?;
+        }
+        if let Some(t) = &p.totals {
+            check_finite64(&format!("{what} pass totals"), t)?;
+        }
+        if let Some(h) = p
+            .hits
+            .iter()
+            .position(|h| !(h.u.is_finite() && h.v.is_finite()))
+        {
+            return Err(BakeFileError::NonFinite {
+                section: format!("{what} pass hits"),
+                index: h as u64,
+            });
+        }
+    }
+    Ok(())
 }
 
 /// The rules of an object's mesh (SPEC.md §3.10).
@@ -693,6 +815,17 @@ impl Bake {
             }
         }
         self.check_camera()?;
+        if let Some(p) = &m.pass {
+            if p.index >= p.last || p.albedo.len() != self.objects.len() {
+                return Err(bad(format!(
+                    "pass {} of a {}-pass bake with {} albedos for {} objects",
+                    p.index,
+                    p.last + 1,
+                    p.albedo.len(),
+                    self.objects.len()
+                )));
+            }
+        }
         let mut names = BTreeSet::new();
         for (oi, o) in self.objects.iter().enumerate() {
             let what = format!("object {oi} ({:?})", o.name);
@@ -724,6 +857,7 @@ impl Bake {
                 return Err(bad(format!("{what}: unsharded bake holds a partial range")));
             }
             check_mesh(o, m.sample_kind, &what)?;
+            check_pass(o, m, &what, with_data)?;
             if let Some(c) = &o.coverage {
                 let SampleKind::Pixel { .. } = m.sample_kind else {
                     return Err(bad(format!("{what}: coverage in a per-vertex bake")));

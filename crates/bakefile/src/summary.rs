@@ -127,6 +127,8 @@ pub struct Summary {
     pub glossy: Vec<(String, u32, usize)>,
     /// The camera of a per-pixel bake (format 1.1).
     pub camera: Option<CameraInfo>,
+    /// Intermediate files of a distributed bake: which pass.
+    pub pass: Option<crate::model::PassInfo>,
 }
 
 fn block_stats(values: impl Iterator<Item = f32>) -> (u64, Option<f32>, Option<f32>, u64, u64) {
@@ -229,6 +231,7 @@ fn summarise(
             .map(|g| (g.material.clone(), g.order, g.elevations.len()))
             .collect(),
         camera: m.camera.clone(),
+        pass: m.pass.clone(),
     }
 }
 

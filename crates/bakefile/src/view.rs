@@ -9,16 +9,16 @@ use crate::encode::header_crc;
 use crate::error::{inconsistent, invalid, BakeFileError};
 use crate::layout::{
     Tag, BINF_SIZE, BLKT_RECORD, BRDF_RECORD, CVRG_HEADER, ENVL_HEADER, GLSY_RECORD, HEADER_SIZE,
-    MAGIC, MESH_HEADER, MUST_UNDERSTAND_FLAGS, NO_SECTION, OBJT_RECORD_V10, SECTION_ENTRY_SIZE,
-    SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE, VERSION_MAJOR,
+    MAGIC, MESH_HEADER, MUST_UNDERSTAND_FLAGS, NO_SECTION, OBJT_RECORD_V10, PASS_HEADER,
+    SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE, VERSION_MAJOR,
 };
 use crate::meta::{
     agree, check_mandatory, hash_string, MetaJson, ShConvention, COLOUR_SPACE, FORMAT_NAME,
 };
 use crate::model::{
     check_finite64, Bake, BakeMeta, BrdfLobe, BrdfProjection, Coverage, EnvCoefficients,
-    EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, SampleKind, ScalarType, ShardInfo,
-    TransferBlock, TransferKind,
+    EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, PassHit, PassState, SampleKind,
+    ScalarType, ShardInfo, TransferBlock, TransferKind,
 };
 
 /// One entry of the section table, as read (and checked) from the file.
@@ -134,6 +134,7 @@ pub struct BakeView<'a> {
     objects: Vec<ObjectInfo>,
     meshes: Vec<Option<MeshGeometry>>,
     coverages: Vec<Option<Coverage>>,
+    passes: Vec<Option<PassState>>,
     environment: Option<EnvCoefficients>,
     brdfs: Vec<BrdfProjection>,
     glossy: Vec<GlossyBrdfTable>,
@@ -261,6 +262,92 @@ fn read_mesh(p: &[u8], object: usize) -> Result<MeshGeometry, BakeFileError> {
         positions,
         normals,
         triangles,
+    })
+}
+
+/// Reads a PASS payload (SPEC.md §3.12) of object `o`: every count is checked against the
+/// payload's length before anything is allocated.
+fn read_pass(p: &[u8], o: &ObjectInfo, name: &str) -> Result<PassState, BakeFileError> {
+    let (levels, order, flags) = (u64::from(rd_u32(p, 4)), rd_u32(p, 8), rd_u32(p, 12));
+    let (vertices, points, hits) = (rd_u64(p, 16), rd_u64(p, 24), rd_u64(p, 32));
+    if flags & !7 != 0 {
+        return Err(invalid(
+            format!("{name} flags"),
+            format!("unknown bits {flags:#x}"),
+        ));
+    }
+    let agree_with = [
+        ("order", u64::from(order), u64::from(o.order)),
+        ("vertex count", vertices, o.point_count),
+        ("points", points, o.points_in_file),
+    ];
+    for (what, found, expected) in agree_with {
+        if found != expected {
+            return Err(inconsistent(format!("{name} {what}"), expected, found));
+        }
+    }
+    let per = 3 * u64::from(order) * u64::from(order);
+    let (has_partial, has_totals, has_hits) = (flags & 1 != 0, flags & 2 != 0, flags & 4 != 0);
+    // Lengths in u128: no product of u64 counts can overflow it.
+    let n = |count: u64, size: u64| u128::from(count) * u128::from(per) * u128::from(size);
+    let totals_len = if has_totals { n(points, 8) } else { 0 };
+    let levels_len = u128::from(levels) * n(vertices, 4);
+    let partial_len = if has_partial { n(points, 4) } else { 0 };
+    let counts_len = if has_hits { u128::from(points) * 4 } else { 0 };
+    let expected = PASS_HEADER as u128
+        + totals_len
+        + levels_len
+        + partial_len
+        + counts_len
+        + u128::from(hits) * 16;
+    if expected != p.len() as u128 {
+        return Err(inconsistent(
+            format!("{name} length"),
+            u64::try_from(expected).unwrap_or(u64::MAX),
+            p.len() as u64,
+        ));
+    }
+    let mut at = PASS_HEADER;
+    let mut take = |len: u128| {
+        let start = at;
+        at += len as usize;
+        &p[start..at]
+    };
+    let f32s = |b: &[u8]| -> Vec<f32> {
+        b.chunks_exact(4)
+            .map(|c| f32::from_bits(rd_u32(c, 0)))
+            .collect()
+    };
+    let totals = has_totals.then(|| {
+        take(totals_len)
+            .chunks_exact(8)
+            .map(|c| rd_f64(c, 0))
+            .collect()
+    });
+    let level_len = n(vertices, 4);
+    let levels = (0..levels).map(|_| f32s(take(level_len))).collect();
+    let partial = has_partial.then(|| f32s(take(partial_len)));
+    let hit_counts = has_hits.then(|| {
+        take(counts_len)
+            .chunks_exact(4)
+            .map(|c| rd_u32(c, 0))
+            .collect()
+    });
+    let hits = take(u128::from(hits) * 16)
+        .chunks_exact(16)
+        .map(|c| PassHit {
+            mesh: rd_u32(c, 0),
+            tri: rd_u32(c, 4),
+            u: f32::from_bits(rd_u32(c, 8)),
+            v: f32::from_bits(rd_u32(c, 12)),
+        })
+        .collect();
+    Ok(PassState {
+        levels,
+        partial,
+        totals,
+        hit_counts,
+        hits,
     })
 }
 
@@ -495,7 +582,7 @@ impl<'a> BakeView<'a> {
                     return Err(BakeFileError::DuplicateSection(s.tag.to_string()));
                 }
                 slot.1 = Some(i);
-            } else if ![Tag::XFER, Tag::MESH, Tag::CVRG].contains(&s.tag)
+            } else if ![Tag::XFER, Tag::MESH, Tag::CVRG, Tag::PASS].contains(&s.tag)
                 && s.flags & SECTION_FLAG_REQUIRED != 0
             {
                 return Err(BakeFileError::UnknownRequiredSection(section_name(
@@ -876,6 +963,35 @@ impl<'a> BakeView<'a> {
             }
         }
 
+        // PASS (intermediate files of distributed bakes): one per object at most, found by the
+        // object index in its header.
+        let mut passes: Vec<Option<PassState>> = vec![None; objects.len()];
+        for (i, s) in sections.iter().enumerate() {
+            if s.tag != Tag::PASS {
+                continue;
+            }
+            let p = payload(i);
+            let name = section_name(s.tag, i);
+            if p.len() < PASS_HEADER {
+                return Err(inconsistent(
+                    format!("{name} length"),
+                    PASS_HEADER as u64,
+                    p.len() as u64,
+                ));
+            }
+            let oi = rd_u32(p, 0) as usize;
+            let o = objects
+                .get(oi)
+                .ok_or_else(|| invalid(name.clone(), format!("object {oi} does not exist")))?;
+            if passes[oi].is_some() {
+                return Err(invalid(
+                    name,
+                    format!("a second PASS section of object {oi}"),
+                ));
+            }
+            passes[oi] = Some(read_pass(p, o, &name)?);
+        }
+
         // The coverage is the object's mask: no transfer where no sample hit it.
         for (oi, (o, coverage)) in objects.iter().zip(&coverages).enumerate() {
             let Some(c) = coverage else { continue };
@@ -1042,10 +1158,12 @@ impl<'a> BakeView<'a> {
                 shard,
                 ray_stats: json.ray_stats,
                 camera: json.camera,
+                pass: json.pass,
             },
             objects,
             meshes,
             coverages,
+            passes,
             environment,
             brdfs,
             glossy,
@@ -1063,7 +1181,8 @@ impl<'a> BakeView<'a> {
                 .objects
                 .iter()
                 .zip(self.meshes.iter().zip(&self.coverages))
-                .map(|(o, (mesh, coverage))| ObjectBake {
+                .zip(&self.passes)
+                .map(|((o, (mesh, coverage)), pass)| ObjectBake {
                     name: o.name.clone(),
                     geometry_hash: o.geometry_hash,
                     point_count: o.point_count,
@@ -1081,6 +1200,7 @@ impl<'a> BakeView<'a> {
                         .collect(),
                     mesh: mesh.clone(),
                     coverage: coverage.clone(),
+                    pass: pass.clone(),
                 })
                 .collect(),
             environment: self.environment.clone(),

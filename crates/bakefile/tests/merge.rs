@@ -128,3 +128,66 @@ fn test04_split_refuses_nonsense() {
     // A shard alone is a valid file.
     assert!(decode(&encode(&shards[1], ScalarType::F32).unwrap()).is_ok());
 }
+
+/// An intermediate file of a distributed bounced bake (SPEC §3.12): its pass state survives
+/// encoding, splits by point and merges back to the same bytes; shards of different passes or
+/// with different complete levels are refused.
+#[test]
+fn test05_pass_files_split_and_merge_back() {
+    use rand::Rng;
+    let mut r = rng(11);
+    let mut bake = sample_bake();
+    bake.glossy.clear();
+    bake.meta.pass = Some(PassInfo {
+        index: 1,
+        last: 2,
+        albedo: vec![[0.8, 0.6, 0.4], [0.5, 0.5, 0.5]],
+    });
+    for (oi, o) in bake.objects.iter_mut().enumerate() {
+        let per = 3 * (o.order * o.order) as usize;
+        let points = o.point_count as usize;
+        let values = |r: &mut rand_pcg::Pcg64, n: usize| -> Vec<f32> {
+            (0..n).map(|_| r.random_range(-1.0f32..1.0)).collect()
+        };
+        let hit_counts: Vec<u32> = (0..points).map(|_| r.random_range(0..5)).collect();
+        let hits = (0..hit_counts.iter().sum::<u32>())
+            .map(|_| PassHit {
+                mesh: r.random_range(0..2),
+                tri: r.random_range(0..3),
+                u: r.random(),
+                v: r.random(),
+            })
+            .collect();
+        o.pass = Some(PassState {
+            levels: vec![values(&mut r, points * per); oi + 1],
+            partial: Some(values(&mut r, points * per)),
+            totals: Some((0..points * per).map(|_| r.random::<f64>()).collect()),
+            hit_counts: Some(hit_counts),
+            hits,
+        });
+    }
+    let bytes = encode(&bake, ScalarType::F32).unwrap();
+    assert_eq!(decode(&bytes).unwrap(), bake);
+    let shards = split(&bake, 3).unwrap();
+    let merged = merge(&shards).unwrap();
+    assert_eq!(encode(&merged, ScalarType::F32).unwrap(), bytes);
+    // Shards of different passes, or with different complete levels, do not merge.
+    let mut other = shards.clone();
+    other[1].meta.pass.as_mut().unwrap().index = 0;
+    assert!(merge_err(&other).contains("metadata"));
+    let mut other = shards.clone();
+    other[2].objects[0].pass.as_mut().unwrap().levels[0][0] += 1.0;
+    assert!(merge_err(&other).contains("differs"));
+    // A hit count that does not add up is refused on encoding.
+    let mut bad = bake.clone();
+    bad.objects[0].pass.as_mut().unwrap().hits.pop();
+    assert!(encode(&bad, ScalarType::F32).is_err());
+    // A pass file's PASS sections are REQUIRED: a reader that does not know them must refuse
+    // the file rather than take it for a bake.
+    let secs = sections(&bytes);
+    let pass = secs.iter().find(|s| &s.0 == b"PASS").unwrap();
+    assert_eq!(
+        u32::from_le_bytes(bytes[pass.3 + 4..pass.3 + 8].try_into().unwrap()) & 1,
+        1
+    );
+}

@@ -98,6 +98,7 @@ fn spec_read(bytes: &[u8]) -> Bake {
         .unwrap(),
         // 1.1: null for per-vertex bakes, the camera object for per-pixel ones.
         camera: serde_json::from_value(meta["camera"].clone()).unwrap(),
+        pass: None,
     };
     // §3.3, §3.4, §3.5
     let objt = sec(b"OBJT").unwrap();
@@ -194,6 +195,7 @@ fn spec_read(bytes: &[u8]) -> Bake {
                 blocks,
                 mesh,
                 coverage,
+                pass: None,
             }
         })
         .collect();

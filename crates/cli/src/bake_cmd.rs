@@ -46,6 +46,18 @@ pub struct BakeArgs {
     /// Bake only shard I of N (`I/N`); `prt merge` joins the shards.
     #[arg(long)]
     pub shard: Option<String>,
+    /// Distributed bounced bakes: run pass K of 0..=bounces. Pass 0 traces the direct transfer
+    /// of the shard's vertices and records their ray hits; pass K ≥ 1 gathers bounce K for
+    /// them from --previous (the merged file of pass K − 1); the last pass (K = bounces) writes
+    /// the shard of the final bake (per-pixel bakes: it traces the shard's pixels). Merge each
+    /// pass's shards with `prt merge` before the next pass. The merged last pass is byte for
+    /// byte the unsharded bake, and all passes together trace the rays of one bake.
+    /// Intermediate files are always stored as f32.
+    #[arg(long, conflicts_with = "target_psnr")]
+    pub pass: Option<u32>,
+    /// The merged file of the previous pass (with --pass K ≥ 1).
+    #[arg(long, requires = "pass")]
+    pub previous: Option<PathBuf>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -270,20 +282,42 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build()?;
+    let previous = match &args.previous {
+        Some(p) => Some(prt_bakefile::read_bake(p)?),
+        None => None,
+    };
+    let pass = args.pass.map(|index| prt_bake::PassInput {
+        index,
+        previous: previous.as_ref(),
+    });
     let out = pool.install(|| -> Result<_> {
         let accel = prt_tracer::Accel::build(&scene)?;
-        let out = prt_bake::bake(&scene, &accel, &settings)?;
+        let out = prt_bake::bake_pass(&scene, &accel, &settings, pass).map_err(|e| {
+            match (&e, &args.previous) {
+                (prt_bake::BakeError::Pass(_), Some(p)) => anyhow::anyhow!("{}: {e}", p.display()),
+                _ => e.into(),
+            }
+        })?;
         Ok(match args.target_psnr {
             Some(p) => choose_orders(&scene, &accel, out, &settings, p, &args.scene)?,
             None => out,
         })
     })?;
-    let scalar = if args.f16 {
+    let intermediate = out.bake.meta.pass.clone();
+    let scalar = if args.f16 && intermediate.is_none() {
         ScalarType::F16
     } else {
         ScalarType::F32
     };
     prt_bakefile::write_bake(&args.out, &out.bake, scalar)?;
+    if let Some(p) = &intermediate {
+        eprintln!(
+            "pass {} of passes 0..={}: an intermediate file; merge this pass's shards (prt merge), then run --pass {} --previous MERGED",
+            p.index,
+            p.last,
+            p.index + 1
+        );
+    }
     if args.json {
         outln!("{}", serde_json::to_string(&out.report)?);
     } else {
@@ -394,6 +428,12 @@ fn print_summary(path: &std::path::Path, s: &Summary) -> Result<()> {
     }
     if let Some(c) = &s.camera {
         outln!("  {}", prt_bakefile::camera_line(c));
+    }
+    if let Some(p) = &s.pass {
+        outln!(
+            "  intermediate file of pass {} of a distributed bake (passes 0..={}), not a finished bake",
+            p.index, p.last
+        );
     }
     for d in &s.decisions {
         outln!(

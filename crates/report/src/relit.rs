@@ -123,6 +123,14 @@ pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), ReportE
             scene.meshes.len()
         )));
     }
+    if let Some(p) = &bake.meta.pass {
+        return Err(bad(format!(
+            "this is the intermediate file of pass {} of a distributed bake (passes 0..={}): run the remaining passes (prt bake --pass {} --previous ...)",
+            p.index,
+            p.last,
+            p.index + 1
+        )));
+    }
     if bake.meta.shard.count != 1 {
         return Err(bad(format!(
             "this is shard {} of {}: merge the shards with `prt merge` first",

@@ -70,6 +70,7 @@ pub fn sample_bake() -> Bake {
                 .collect(),
             mesh: Some(mesh),
             coverage: None,
+            pass: None,
         }
     };
     Bake {
@@ -118,6 +119,7 @@ pub fn sample_bake() -> Bake {
                 },
             ],
             camera: None,
+            pass: None,
         },
         objects: vec![
             object("bunny", 37, 5, 1, &mut r),
@@ -226,6 +228,7 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
                 blocks,
                 mesh: with_mesh.then_some(mesh),
                 coverage,
+                pass: None,
             }
         })
         .collect();
@@ -319,6 +322,7 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
             ray_stats: vec![],
             shard: ShardInfo::default(),
             camera,
+            pass: None,
         },
         objects,
         environment,

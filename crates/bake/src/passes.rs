@@ -1,0 +1,474 @@
+//! Distributed bounced bakes: the bake split into passes, each sharded across machines.
+//!
+//! With `B` bounces a bake runs passes `0 … B`. Pass 0 traces the direct transfer of its
+//! shard's vertices and records their ray hits; pass `k` gathers bounce `k` for its shard's
+//! vertices from the merged file of pass `k − 1`, which carries every vertex's bounce levels so
+//! far (SPEC §3.12); the last pass writes the shard of the final bake (per-pixel bakes: pass
+//! `B` traces the shard's pixels and gathers from the vertex levels `0 … B−1`). Nothing is
+//! traced twice: the rays of a vertex are traced once, in pass 0, and their hits travel in the
+//! files, so the shards of all passes together trace exactly the rays of one unsharded bake,
+//! and the merged last pass is byte for byte the unsharded bake (the same f32/f64 arithmetic in
+//! the same order).
+
+use crate::transfer::{DirectResult, HitRecord, MeshTransfer};
+use crate::BakeError;
+use prt_bakefile::{Bake, EnvCoefficients, PassHit, PassInfo, TransferKind};
+
+/// Which pass to run, and the merged file of the pass before it.
+#[derive(Clone, Copy, Debug)]
+pub struct PassInput<'a> {
+    /// Pass index, `0 ≤ index ≤ bounces`.
+    pub index: u32,
+    /// The merged result of pass `index − 1` (`None` for pass 0).
+    pub previous: Option<&'a Bake>,
+}
+
+fn fail(msg: impl Into<String>) -> BakeError {
+    BakeError::Pass(msg.into())
+}
+
+/// What this run expects a previous pass's file to agree with.
+pub(crate) struct Expect<'a> {
+    pub settings: &'a serde_json::Value,
+    pub names: Vec<&'a str>,
+    pub hashes: Vec<u64>,
+    pub orders: Vec<u32>,
+    pub albedo: &'a [[f32; 3]],
+    pub environment: &'a EnvCoefficients,
+    pub bounces: u32,
+}
+
+/// Checks the pass index against the bake, and `previous` against this run.
+pub(crate) fn check(pass: &PassInput<'_>, expect: &Expect<'_>) -> Result<(), BakeError> {
+    let last = expect.bounces;
+    if pass.index > last {
+        return Err(fail(format!(
+            "pass {} of a bake with {last} bounce(s): its passes are 0..={last}",
+            pass.index
+        )));
+    }
+    let Some(prev) = pass.previous else {
+        return if pass.index == 0 {
+            Ok(())
+        } else {
+            Err(fail(format!(
+                "pass {} needs --previous: the merged file of pass {}",
+                pass.index,
+                pass.index - 1
+            )))
+        };
+    };
+    if pass.index == 0 {
+        return Err(fail("pass 0 starts the bake: it takes no --previous file"));
+    }
+    let Some(info) = &prev.meta.pass else {
+        return Err(fail(
+            "the --previous file is a finished bake, not the intermediate file of a pass",
+        ));
+    };
+    if info.index + 1 != pass.index || info.last != last {
+        return Err(fail(format!(
+            "the --previous file is pass {} of {} passes; pass {} of {} needs pass {}",
+            info.index,
+            info.last + 1,
+            pass.index,
+            last + 1,
+            pass.index - 1
+        )));
+    }
+    if prev.meta.shard.count != 1 {
+        return Err(fail(format!(
+            "the --previous file is shard {} of {} of pass {}: merge that pass's shards first (prt merge)",
+            prev.meta.shard.index, prev.meta.shard.count, info.index
+        )));
+    }
+    if &prev.meta.settings != expect.settings {
+        let differ: Vec<String> =
+            match (prev.meta.settings.as_object(), expect.settings.as_object()) {
+                (Some(a), Some(b)) => a
+                    .keys()
+                    .chain(b.keys())
+                    .filter(|k| a.get(*k) != b.get(*k))
+                    .map(|k| format!("{k}: {} there, {} here", fmt(a.get(k)), fmt(b.get(k))))
+                    .collect::<std::collections::BTreeSet<_>>()
+                    .into_iter()
+                    .collect(),
+                _ => vec!["settings".into()],
+            };
+        return Err(fail(format!(
+            "the --previous file was made with other settings ({})",
+            differ.join("; ")
+        )));
+    }
+    if prev.meta.tool.version != env!("CARGO_PKG_VERSION") {
+        return Err(fail(format!(
+            "the --previous file was made by prt {}, this is {}",
+            prev.meta.tool.version,
+            env!("CARGO_PKG_VERSION")
+        )));
+    }
+    if prev.objects.len() != expect.names.len() {
+        return Err(fail(format!(
+            "the --previous file holds {} objects, the scene {}",
+            prev.objects.len(),
+            expect.names.len()
+        )));
+    }
+    for (i, o) in prev.objects.iter().enumerate() {
+        if o.name != expect.names[i]
+            || o.geometry_hash != expect.hashes[i]
+            || o.order != expect.orders[i]
+        {
+            return Err(fail(format!(
+                "object {i} of the --previous file ({}, geometry {:#018x}, order {}) is not this scene's ({}, geometry {:#018x}, order {})",
+                o.name, o.geometry_hash, o.order, expect.names[i], expect.hashes[i], expect.orders[i]
+            )));
+        }
+        let levels = o
+            .pass
+            .as_ref()
+            .map(|p| (p.levels.len(), p.partial.is_some()));
+        if levels != Some((info.index as usize, true)) {
+            return Err(fail(format!(
+                "object {} of the --previous file lacks the bounce levels of pass {}",
+                o.name, info.index
+            )));
+        }
+    }
+    if info.albedo != expect.albedo {
+        return Err(fail(
+            "the --previous file gathered bounces with other material albedos than this scene's",
+        ));
+    }
+    if prev.environment.as_ref() != Some(expect.environment) {
+        return Err(fail(
+            "the --previous file was lit by another environment (its SH coefficients differ)",
+        ));
+    }
+    Ok(())
+}
+
+fn fmt(v: Option<&serde_json::Value>) -> String {
+    v.map_or("absent".into(), ToString::to_string)
+}
+
+/// What a pass `k ≥ 1` takes from the merged file of pass `k − 1`, for this shard.
+pub(crate) struct Previous {
+    /// Complete bounce levels `0 … k−1` of every object (all vertices).
+    pub chain: Vec<MeshTransfer>,
+    /// Per object: hits recorded by all its vertices (the object-wide count).
+    pub object_hits: u64,
+    /// This shard's vertices: hits, per vertex.
+    pub hits: Vec<Vec<HitRecord>>,
+    /// This shard's vertices: running totals (per-vertex bakes).
+    pub totals: Vec<Vec<f64>>,
+    /// This shard's vertices as pass 0 measured them (shadowed and visibility transfer as
+    /// stored, f32 values widened exactly; the hit count is the recorded front-face hits).
+    pub rows: Vec<DirectResult>,
+}
+
+/// Takes object `o`'s part of `prev` for points `first .. first + count`.
+pub(crate) fn previous(prev: &Bake, o: usize, first: u64, count: u64) -> Previous {
+    let obj = &prev.objects[o];
+    let state = obj.pass.as_ref().expect("checked");
+    let n2 = (obj.order * obj.order) as usize;
+    let order = obj.order as usize;
+    let (first, count) = (first as usize, count as usize);
+    let mut chain: Vec<MeshTransfer> = state
+        .levels
+        .iter()
+        .map(|l| MeshTransfer {
+            order,
+            data: l.clone(),
+        })
+        .collect();
+    chain.push(MeshTransfer {
+        order,
+        data: state.partial.clone().expect("checked"),
+    });
+    let mut hits = Vec::with_capacity(count);
+    if let Some(counts) = &state.hit_counts {
+        let mut start: usize = counts[..first].iter().map(|&c| c as usize).sum();
+        for &c in &counts[first..first + count] {
+            let end = start + c as usize;
+            hits.push(
+                state.hits[start..end]
+                    .iter()
+                    .map(|h| HitRecord {
+                        mesh: h.mesh,
+                        tri: h.tri,
+                        u: h.u,
+                        v: h.v,
+                    })
+                    .collect(),
+            );
+            start = end;
+        }
+    } else {
+        hits.resize(count, Vec::new());
+    }
+    let totals = state.totals.as_ref().map_or_else(Vec::new, |t| {
+        t[first * 3 * n2..(first + count) * 3 * n2]
+            .chunks_exact(3 * n2)
+            .map(<[f64]>::to_vec)
+            .collect()
+    });
+    let block = |kind: TransferKind| obj.blocks.iter().find(|b| b.kind == kind);
+    let widen = |b: Option<&prt_bakefile::TransferBlock>, p: usize| {
+        b.map(|b| {
+            b.data[p * n2..(p + 1) * n2]
+                .iter()
+                .map(|&v| f64::from(v))
+                .collect::<Vec<f64>>()
+        })
+    };
+    let shadowed = block(TransferKind::ShadowedDiffuse);
+    let visibility = block(TransferKind::Visibility);
+    let rows = (first..first + count)
+        .zip(&hits)
+        .map(|(p, h)| DirectResult {
+            shadowed: widen(shadowed, p).unwrap_or_default(),
+            visibility: widen(visibility, p),
+            hits: Vec::new(),
+            hit_count: h.len() as u32,
+            backface_hits: 0,
+        })
+        .collect();
+    Previous {
+        chain,
+        object_hits: state.hits.len() as u64,
+        hits,
+        totals,
+        rows,
+    }
+}
+
+/// The hits of some points as the file stores them.
+pub(crate) fn file_hits(hits: &[&[HitRecord]]) -> (Vec<u32>, Vec<PassHit>) {
+    let counts = hits.iter().map(|h| h.len() as u32).collect();
+    let records = hits
+        .iter()
+        .flat_map(|h| h.iter())
+        .map(|h| PassHit {
+            mesh: h.mesh,
+            tri: h.tri,
+            u: h.u,
+            v: h.v,
+        })
+        .collect();
+    (counts, records)
+}
+
+/// The `pass` metadata of an intermediate file of pass `index`.
+pub(crate) fn info(index: u32, last: u32, albedo: &[[f32; 3]]) -> PassInfo {
+    PassInfo {
+        index,
+        last,
+        albedo: albedo.to_vec(),
+    }
+}
+
+/// What one distributed pass produced.
+pub(crate) enum Outcome {
+    /// Pass `k < last`: this shard's objects with their pass state, and the report rows.
+    Intermediate(Vec<prt_bakefile::ObjectBake>, Vec<crate::ObjectReport>),
+    /// The last pass: the bounce levels (`chain[level][object]`, complete; per-pixel bakes)
+    /// and this shard's running totals (per-vertex bakes) for the final assembly.
+    Final {
+        chain: Vec<Vec<MeshTransfer>>,
+        totals: Vec<Vec<Vec<f64>>>,
+    },
+}
+
+/// The parts of the bake a distributed pass works with.
+pub(crate) struct Step<'a> {
+    pub scene: &'a prt_scene::Scene,
+    pub plans: &'a [crate::plan::ObjectPlan],
+    pub settings: &'a crate::BakeSettings,
+    pub vertex_mode: bool,
+    pub vertex_bounces: usize,
+    pub gs: &'a crate::transfer::GatherScene<'a>,
+    pub vertex_ranges: &'a [(u64, u64)],
+    pub object_hits: &'a [u64],
+}
+
+impl Step<'_> {
+    /// Runs pass `k` on this shard's vertices: `rows` are their direct results (traced now for
+    /// pass 0, from the previous file otherwise), `previous` the previous file's part.
+    pub(crate) fn run(
+        &self,
+        k: u32,
+        rows: &[Vec<DirectResult>],
+        previous: Vec<Previous>,
+        bar: indicatif::ProgressBar,
+    ) -> Result<Outcome, BakeError> {
+        use rayon::prelude::*;
+        let last = self.settings.bounces;
+        let k = k as usize;
+        // Levels 0 … k−1 of every object, by level (moved out of the previous file's part).
+        let mut levels: Vec<Vec<MeshTransfer>> = Vec::new();
+        let mut own = Vec::with_capacity(previous.len());
+        for (o, p) in previous.into_iter().enumerate() {
+            for (b, level) in p.chain.into_iter().enumerate() {
+                if levels.len() <= b {
+                    levels.push(Vec::with_capacity(self.plans.len()));
+                }
+                debug_assert_eq!(levels[b].len(), o);
+                levels[b].push(level);
+            }
+            own.push((p.hits, p.totals));
+        }
+        let vertex_pass = self.vertex_mode || k < last as usize;
+        if k == last as usize && !self.vertex_mode {
+            return Ok(Outcome::Final {
+                chain: levels,
+                totals: Vec::new(),
+            });
+        }
+        let mut objects = Vec::with_capacity(self.plans.len());
+        let mut reports = Vec::with_capacity(self.plans.len());
+        let mut final_totals = Vec::with_capacity(self.plans.len());
+        for (o, plan) in self.plans.iter().enumerate() {
+            let n2 = plan.order * plan.order;
+            let (first, count) = self.vertex_ranges[o];
+            let rows_o = &rows[o];
+            // This shard's newest level, and its running totals, hits.
+            let (level, mut totals, hits): (Vec<f32>, Vec<Vec<f64>>, Vec<Vec<HitRecord>>) = if k
+                == 0
+            {
+                // Level 0 is the shadowed transfer, in all three channels (as unsharded).
+                let level = rows_o
+                    .iter()
+                    .flat_map(|d| (0..3).flat_map(move |_| d.shadowed.iter().map(|v| *v as f32)))
+                    .collect();
+                let totals = if self.vertex_mode {
+                    rows_o
+                        .iter()
+                        .map(|d| {
+                            d.shadowed
+                                .iter()
+                                .cycle()
+                                .take(3 * d.shadowed.len())
+                                .copied()
+                                .collect()
+                        })
+                        .collect()
+                } else {
+                    Vec::new()
+                };
+                (
+                    level,
+                    totals,
+                    rows_o.iter().map(|d| d.hits.clone()).collect(),
+                )
+            } else {
+                let (hits, mut totals) = std::mem::take(&mut own[o]);
+                let level = if self.object_hits[o] == 0 {
+                    vec![0.0; count as usize * 3 * n2]
+                } else {
+                    let prev = &levels[k - 1];
+                    let per_point: Vec<Vec<f64>> = hits
+                        .par_iter()
+                        .with_min_len(64)
+                        .map(|h| {
+                            bar.inc(1);
+                            crate::transfer::gather(
+                                h,
+                                self.settings.rays,
+                                prev,
+                                self.gs,
+                                plan.order,
+                            )
+                        })
+                        .collect();
+                    if self.vertex_mode {
+                        for (tot, g) in totals.iter_mut().zip(&per_point) {
+                            tot.iter_mut().zip(g).for_each(|(t, v)| *t += v);
+                        }
+                    }
+                    per_point.iter().flatten().map(|v| *v as f32).collect()
+                };
+                (level, totals, hits)
+            };
+            debug_assert!(vertex_pass);
+            if k == last as usize {
+                final_totals.push(std::mem::take(&mut totals));
+                continue;
+            }
+            let mesh = &self.scene.meshes[plan.mesh];
+            let blocks = intermediate_blocks(rows_o, self.vertex_mode && plan.needs_visibility);
+            let hit_refs: Vec<&[HitRecord]> = hits.iter().map(Vec::as_slice).collect();
+            let record = self.vertex_bounces > k;
+            let (hit_counts, hit_records) = if record {
+                let (c, r) = file_hits(&hit_refs);
+                (Some(c), r)
+            } else {
+                (None, Vec::new())
+            };
+            reports.push(crate::ObjectReport {
+                name: plan.name.clone(),
+                order: plan.order,
+                points: count,
+                hit_fraction: hit_refs.iter().map(|h| h.len() as f64).sum::<f64>()
+                    / (count.max(1) as f64 * f64::from(self.settings.rays)),
+                backface_fraction: 0.0,
+                inside_fraction: 0.0,
+                kinds: vec![format!("bounce level {k} (pass {k} of {})", last + 1)],
+            });
+            objects.push(prt_bakefile::ObjectBake {
+                name: plan.name.clone(),
+                geometry_hash: crate::geometry_hash(mesh.positions.as_slice(), &mesh.indices),
+                point_count: mesh.positions.len() as u64,
+                point_first: first,
+                points_in_file: count,
+                order: plan.order as u32,
+                channels: 1,
+                blocks,
+                mesh: Some(crate::mesh_geometry(mesh)),
+                coverage: None,
+                pass: Some(prt_bakefile::PassState {
+                    levels: levels.iter().map(|l| l[o].data.clone()).collect(),
+                    partial: Some(level),
+                    totals: self
+                        .vertex_mode
+                        .then(|| totals.into_iter().flatten().collect()),
+                    hit_counts,
+                    hits: hit_records,
+                }),
+            });
+        }
+        bar.finish_and_clear();
+        if k == last as usize {
+            return Ok(Outcome::Final {
+                chain: Vec::new(),
+                totals: final_totals,
+            });
+        }
+        Ok(Outcome::Intermediate(objects, reports))
+    }
+}
+
+/// The direct transfer a final per-vertex pass needs for this shard's vertices (shadowed, and
+/// visibility where traced), one channel, as the unsharded bake rounds it.
+fn intermediate_blocks(
+    rows: &[DirectResult],
+    visibility: bool,
+) -> Vec<prt_bakefile::TransferBlock> {
+    let mut blocks = vec![prt_bakefile::TransferBlock {
+        kind: TransferKind::ShadowedDiffuse,
+        data: rows
+            .iter()
+            .flat_map(|d| d.shadowed.iter().map(|v| *v as f32))
+            .collect(),
+    }];
+    if visibility {
+        blocks.push(prt_bakefile::TransferBlock {
+            kind: TransferKind::Visibility,
+            data: rows
+                .iter()
+                .flat_map(|d| d.visibility.iter().flatten().map(|v| *v as f32))
+                .collect(),
+        });
+    }
+    blocks
+}
