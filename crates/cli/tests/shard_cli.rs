@@ -314,3 +314,62 @@ fn four_shards_two_bounces_pass_by_pass() {
     );
     assert!(!dir.path().join("refused.prtb").exists());
 }
+
+/// The cluster drivers in tools/distributed/: `slurm-bake.sh` (its sbatch calls run by
+/// `fake-sbatch`, which executes each job at once) and `run-local.sh` both produce the
+/// unsharded bake's bytes.
+#[test]
+fn slurm_and_local_drivers_produce_the_unsharded_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path());
+    let tools = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/distributed");
+    let options = [
+        "--bounces",
+        "2",
+        "--rays",
+        "64",
+        "--order",
+        "4",
+        "--seed",
+        "3",
+    ];
+    let whole = dir.path().join("whole.prtb");
+    run(prt()
+        .arg("bake")
+        .arg(&scene)
+        .args(options)
+        .arg("--out")
+        .arg(&whole));
+    let expected = std::fs::read(&whole).unwrap();
+
+    let slurm = dir.path().join("slurm");
+    run(Command::new("bash")
+        .arg(tools.join("slurm-bake.sh"))
+        .arg(&scene)
+        .arg("4")
+        .arg(&slurm)
+        .args(options)
+        .env("SBATCH", tools.join("fake-sbatch"))
+        .env("PRT", env!("CARGO_BIN_EXE_prt"))
+        .env("CPUS", "1"));
+    assert!(std::fs::read(slurm.join("bake.prtb")).unwrap() == expected);
+
+    let local = dir.path().join("local.prtb");
+    let out = Command::new("bash")
+        .arg(tools.join("run-local.sh"))
+        .arg(&scene)
+        .arg("3")
+        .arg(&local)
+        .args(options)
+        .env("PRT", env!("CARGO_BIN_EXE_prt"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("pass 2: 3 shards"), "{text}");
+    assert!(std::fs::read(&local).unwrap() == expected);
+}
