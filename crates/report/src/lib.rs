@@ -4,7 +4,8 @@
 //! and how much time does it save?" ([`report`]), with its error budget ([`budget`]: each
 //! approximation's cost measured by a controlled experiment), adaptive relighting to a PSNR
 //! target ([`target`]) and the per-object choice of what a scene needs ([`recommend`], behind
-//! `prt bake --target-psnr`).
+//! `prt bake --target-psnr`), and its page: an interactive, self-contained HDR viewer with
+//! charts ([`viewer`]).
 //!
 //! The relighting follows Sloan, Kautz & Snyder 2002 (diffuse PRT) and Lee & Kim 2014 (specular
 //! PRT through SH products and locally adaptive SH), as implemented by `prt-relight`, and, for
@@ -23,6 +24,7 @@ pub mod recommend;
 pub mod relit;
 pub mod report;
 pub mod target;
+pub mod viewer;
 
 pub use error::ReportError;
 pub use imaging::{form_image, object_mask, roi_image, RgbImage};

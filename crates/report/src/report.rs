@@ -16,6 +16,7 @@ use crate::io::{
 };
 use crate::plots::{image_grid, line_chart, stacked_shares, ChartOptions, Series, Tile};
 use crate::relit::{check_bake, relight, RelightOptions};
+use crate::viewer::ViewerImage;
 use glam::Vec3;
 use plotters::style::RGBColor;
 use prt_bake::{BakeSettings, PointKind};
@@ -227,6 +228,109 @@ pub struct Machine {
     pub cores: usize,
     /// CPU model name (from /proc/cpuinfo), if known.
     pub cpu: String,
+    /// What else ran while the report relit and timed every order (Linux: from `/proc`).
+    pub timing_load: Option<TimingLoad>,
+}
+
+/// The machine's load while the report was timing: how much of the CPU time went to other
+/// processes (and, on a virtual machine, was stolen by the host). Timings taken while others
+/// used the cores are noisy; the report says so.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct TimingLoad {
+    /// Wall-clock seconds of the timed section.
+    pub seconds: f64,
+    /// Fraction of all cores' time used by other processes.
+    pub other_cpu_fraction: f64,
+    /// Fraction of all cores' time stolen by the hypervisor.
+    pub steal_fraction: f64,
+    /// 1-minute load average at the start and the end (all processes, this one included).
+    pub load_average: [f64; 2],
+}
+
+/// Counters of `/proc/stat` (all cores) and `/proc/self/stat` at one instant, in clock ticks.
+#[derive(Clone, Copy, Debug)]
+struct CpuSnapshot {
+    at: std::time::Instant,
+    total: u64,
+    busy: u64,
+    steal: u64,
+    own: u64,
+    load: f64,
+}
+
+fn cpu_snapshot() -> Option<CpuSnapshot> {
+    let stat = std::fs::read_to_string("/proc/stat").ok()?;
+    let cpu: Vec<u64> = stat
+        .lines()
+        .next()?
+        .split_whitespace()
+        .skip(1)
+        .take(8)
+        .map(|v| v.parse().unwrap_or(0))
+        .collect();
+    if cpu.len() < 8 {
+        return None;
+    }
+    // user nice system idle iowait irq softirq steal
+    let busy = cpu[0] + cpu[1] + cpu[2] + cpu[5] + cpu[6] + cpu[7];
+    let me = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let after = me.rsplit_once(')')?.1;
+    let fields: Vec<u64> = after
+        .split_whitespace()
+        .map(|v| v.parse().unwrap_or(0))
+        .collect();
+    // Fields 14 and 15 of /proc/[pid]/stat (utime, stime) are 11 and 12 after the name.
+    let own = fields.get(11)? + fields.get(12)?;
+    let load = std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|l| l.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0.0);
+    Some(CpuSnapshot {
+        at: std::time::Instant::now(),
+        total: cpu.iter().sum(),
+        busy,
+        steal: cpu[7],
+        own,
+        load,
+    })
+}
+
+impl TimingLoad {
+    fn between(a: CpuSnapshot, b: CpuSnapshot) -> Self {
+        let total = b.total.saturating_sub(a.total).max(1) as f64;
+        let busy = b.busy.saturating_sub(a.busy);
+        let own = b.own.saturating_sub(a.own);
+        TimingLoad {
+            seconds: (b.at - a.at).as_secs_f64(),
+            other_cpu_fraction: busy.saturating_sub(own) as f64 / total,
+            steal_fraction: b.steal.saturating_sub(a.steal) as f64 / total,
+            load_average: [a.load, b.load],
+        }
+    }
+
+    /// Other processes (or the hypervisor) took more than 5 % of the cores' time.
+    #[must_use]
+    pub fn noisy(&self) -> bool {
+        self.other_cpu_fraction > 0.05 || self.steal_fraction > 0.05
+    }
+
+    /// One sentence for the report.
+    #[must_use]
+    pub fn sentence(&self, cores: usize) -> String {
+        format!(
+            "Machine load while timing ({:.0} s): other processes used {:.1} % of the {cores} cores' time and the hypervisor stole {:.1} % (1-minute load average {:.2} → {:.2}); {}",
+            self.seconds,
+            100.0 * self.other_cpu_fraction,
+            100.0 * self.steal_fraction,
+            self.load_average[0],
+            self.load_average[1],
+            if self.noisy() {
+                "the timings are noisy: rerun on a quiet machine before comparing them"
+            } else {
+                "the machine was quiet"
+            }
+        )
+    }
 }
 
 fn machine() -> Machine {
@@ -242,6 +346,7 @@ fn machine() -> Machine {
     Machine {
         cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
         cpu,
+        timing_load: None,
     }
 }
 
@@ -624,6 +729,19 @@ pub fn run_report(
         scale_max: Some(0.25),
         ..ErrorImageOptions::default()
     };
+    let mut viewer_images = vec![ViewerImage {
+        id: "reference".into(),
+        label: format!("path traced, {} spp", reference_data.spp),
+        rgb: reference.pixels.clone(),
+    }];
+    if let Some((p1, _, _)) = &budget_images {
+        viewer_images.push(ViewerImage {
+            id: format!("per_pixel_{max_order:02}"),
+            label: format!("per-pixel bake, full SH order {max_order}"),
+            rgb: p1.iter().map(|v| v.to_array()).collect(),
+        });
+    }
+    let load_start = cpu_snapshot();
     for &order in &s.orders {
         say(&format!("relighting at order {order}"));
         let full_opt = RelightOptions {
@@ -651,6 +769,16 @@ pub fn run_report(
         notes.extend(full.stats.notes.iter().cloned());
         let full_img = form_image(scene, &accel, &full, 0.0)?;
         let ad_img = form_image(scene, &accel, &adaptive, 0.0)?;
+        viewer_images.push(ViewerImage {
+            id: format!("full_{order:02}"),
+            label: format!("full SH, order {order}"),
+            rgb: full_img.pixels.clone(),
+        });
+        viewer_images.push(ViewerImage {
+            id: format!("adaptive_{order:02}"),
+            label: format!("adaptive SH, order {order}"),
+            rgb: ad_img.pixels.clone(),
+        });
         full_images.push(linear(&full_img));
         let (fi, ai) = (to_compare_image(&full_img), to_compare_image(&ad_img));
         let target = match s.target_psnr {
@@ -769,6 +897,10 @@ pub fn run_report(
             target,
         });
     }
+
+    let timing_load = load_start
+        .zip(cpu_snapshot())
+        .map(|(a, b)| TimingLoad::between(a, b));
 
     // 4. The error budget of every order.
     let mut error_budget = Vec::new();
@@ -1027,7 +1159,10 @@ pub fn run_report(
 
     let data = ReportData {
         scene: scene_path.display().to_string(),
-        machine: machine(),
+        machine: Machine {
+            timing_load,
+            ..machine()
+        },
         settings: serde_json::json!({
             "orders": s.orders, "reference_spp": s.reference_spp, "rays": s.rays, "bounces": s.bounces,
             "threshold": s.threshold, "threshold_kind": if s.display_threshold { "display (8-bit view, exposure 0)" } else { "absolute (output radiance)" },
@@ -1067,7 +1202,10 @@ pub fn run_report(
     )?;
     write_text(&out_dir.join("report.csv"), &csv(&data))?;
     write_text(&out_dir.join("report.md"), &markdown(&data, false))?;
-    write_text(&out_dir.join("index.html"), &html(&data))?;
+    write_text(
+        &out_dir.join("index.html"),
+        &html(&data, w, h, &viewer_images),
+    )?;
     Ok(data)
 }
 
@@ -1157,7 +1295,15 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
         "Machine: {} logical cores, {}.  ",
         d.machine.cores, d.machine.cpu
     );
-    let _ = writeln!(s, "Settings: `{}`.\n", d.settings);
+    if let Some(l) = &d.machine.timing_load {
+        let _ = writeln!(s, "{}.  ", l.sentence(d.machine.cores));
+    }
+    if !html_images {
+        // The HTML page lists the settings itself.
+        let _ = writeln!(s, "Settings: `{}`.\n", d.settings);
+    } else {
+        s.push('\n');
+    }
     let r = &d.reference;
     let _ = writeln!(
         s,
@@ -1407,12 +1553,17 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
             let _ = writeln!(s, "- {n}");
         }
     }
+    if html_images {
+        // The page's viewer and interactive charts take the place of the static plots.
+        let _ = writeln!(
+            s,
+            "\n## Static files\n\nThe same plots as PNG files: error_vs_time.png, psnr_vs_order.png, roi_vs_order.png{}, and images.png (an image grid); every image as EXR in images/.",
+            if d.error_budget.is_empty() { "" } else { ", error_budget.png" }
+        );
+        return s;
+    }
     let img = |s: &mut String, file: &str, alt: &str| {
-        if html_images {
-            let _ = writeln!(s, "<p><img src=\"{file}\" alt=\"{alt}\"></p>");
-        } else {
-            let _ = writeln!(s, "![{alt}]({file})\n");
-        }
+        let _ = writeln!(s, "![{alt}]({file})\n");
     };
     let _ = writeln!(s, "\n## Plots and images\n");
     img(&mut s, "error_vs_time.png", "error against time");
@@ -1429,11 +1580,13 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
     s
 }
 
-fn html(d: &ReportData) -> String {
-    // The Markdown tables rendered as HTML by a tiny converter (pipes → cells), images inline.
+fn html(d: &ReportData, w: u32, h: u32, images: &[ViewerImage]) -> String {
+    // The Markdown body as HTML by a tiny converter (pipes → sortable tables), after the
+    // viewer, the interactive charts and the settings list of `viewer::page`.
     let md = markdown(d, true);
-    let mut out = String::from("<!doctype html><html><head><meta charset=\"utf-8\"><title>prt report</title><style>body{font-family:sans-serif;max-width:1100px;margin:2em auto}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}img{max-width:100%}</style></head><body>\n");
+    let mut body = String::new();
     let mut in_table = false;
+    let mut title = String::from("prt report");
     for line in md.lines() {
         if line.starts_with('|') {
             if line.contains("---") {
@@ -1441,45 +1594,51 @@ fn html(d: &ReportData) -> String {
             }
             let cells: Vec<&str> = line.trim_matches('|').split('|').map(str::trim).collect();
             if !in_table {
-                out.push_str("<table><tr>");
+                body.push_str("<table class=\"sortable\"><tr>");
                 for c in &cells {
-                    let _ = write!(out, "<th>{}</th>", escape(c));
+                    let _ = write!(body, "<th>{}</th>", escape(c));
                 }
-                out.push_str("</tr>\n");
+                body.push_str("</tr>\n");
                 in_table = true;
             } else {
-                out.push_str("<tr>");
+                body.push_str("<tr>");
                 for c in &cells {
-                    let _ = write!(out, "<td>{}</td>", escape(c));
+                    let _ = write!(body, "<td>{}</td>", escape(c));
                 }
-                out.push_str("</tr>\n");
+                body.push_str("</tr>\n");
             }
             continue;
         }
         if in_table {
-            out.push_str("</table>\n");
+            body.push_str("</table>\n");
             in_table = false;
         }
         if let Some(t) = line.strip_prefix("## ") {
-            let _ = writeln!(out, "<h2>{}</h2>", escape(t));
+            let _ = writeln!(body, "<h2>{}</h2>", escape(t));
         } else if let Some(t) = line.strip_prefix("# ") {
-            let _ = writeln!(out, "<h1>{}</h1>", escape(t));
-        } else if line.starts_with("<p><img") {
-            out.push_str(line);
-            out.push('\n');
+            title = t.replace('`', "");
         } else if let Some(t) = line.strip_prefix("    ") {
-            let _ = writeln!(out, "<pre>{}</pre>", escape(t));
+            let _ = writeln!(body, "<pre>{}</pre>", escape(t));
         } else if let Some(t) = line.strip_prefix("- ") {
-            let _ = writeln!(out, "<li>{}</li>", escape(t));
+            let _ = writeln!(body, "<li>{}</li>", escape(t));
         } else if !line.is_empty() {
-            let _ = writeln!(out, "<p>{}</p>", escape(line));
+            let _ = writeln!(body, "<p>{}</p>", escape(line));
         }
     }
     if in_table {
-        out.push_str("</table>\n");
+        body.push_str("</table>\n");
     }
-    out.push_str("</body></html>\n");
-    out
+    let load = d.machine.timing_load.as_ref().map_or_else(
+        || {
+            (
+                "Machine load while timing: not measured on this system.".to_owned(),
+                false,
+            )
+        },
+        |l| (l.sentence(d.machine.cores), l.noisy()),
+    );
+    let json = serde_json::to_value(d).unwrap_or(serde_json::Value::Null);
+    crate::viewer::page(&title, (&load.0, load.1), &json, w, h, images, &body)
 }
 
 fn escape(s: &str) -> String {
