@@ -17,7 +17,9 @@ Usage
         `prtb_reader: FILE: <what is wrong>` to stderr and exit 1.
 
     python3 tools/prtb_reader.py FILE.prtb --dump OUT.json
-        Also write a JSON summary of the file (see `dump()`).
+        Also write a JSON summary of the file (see `dump()`). Blocks compressed by clustered
+        PCA (`CPCA`, §3.13) are reconstructed in f32 exactly as §3.13 says and summarised like
+        `XFER` blocks, plus a `cpca` entry (clusters, components, dimension, rel_error).
 
     python3 tools/prtb_reader.py FILE.prtb --relight OBJECT --albedo R,G,B [--order N] \
             --colours OUT.csv
@@ -27,7 +29,8 @@ Usage
     python3 tools/prtb_reader.py --self-test FILE.prtb [--seed S]
         Corruption self-check on a VALID file: single-byte flips (every header/table byte, every
         payload edge, zero padding, random positions), truncations and extensions, and mutations
-        whose CRCs are repaired (so the semantic checks are exercised). Prints the figures and
+        whose CRCs are repaired (so the semantic checks are exercised; for CPCA blocks also
+        targeted ones that break a §3.13 rule and must be refused). Prints the figures and
         exits 1 if a corruption that must be refused was accepted, or if any input crashed the
         reader (any exception other than a clean validation error).
 
@@ -68,6 +71,8 @@ FLAG_REQUIRED = 1
 UNDERSTOOD_MASK = 0xFFFF  # §6: bits 0-15 must be understood, bits 16-31 are ignorable hints
 
 SCALAR_TYPES = {1: ("f32", "<f4", 4), 2: ("f16", "<f2", 2)}
+SCALAR_CPCA = 3  # §3.4: a BLKT record whose block is a CPCA section (§3.13)
+CPCA_HEADER = 32
 ENV_PRECISIONS = {1: ("f32", "<f4", 4), 3: ("f64", "<f8", 8)}
 KIND_NAMES = {
     1: "unshadowed-diffuse",
@@ -80,7 +85,7 @@ SAMPLE_KINDS = {1: "vertex", 2: "pixel"}
 
 TAGS_ONCE = (b"BINF", b"STRS", b"OBJT", b"BLKT", b"META")  # required, exactly once
 TAGS_OPTIONAL = (b"ENVL", b"BRDF", b"GLSY")  # at most once
-TAGS_MANY = (b"XFER", b"MESH", b"CVRG")  # found through BLKT / OBJT
+TAGS_MANY = (b"XFER", b"CPCA", b"MESH", b"CVRG")  # found through BLKT / OBJT
 KNOWN_TAGS = set(TAGS_ONCE) | set(TAGS_OPTIONAL) | set(TAGS_MANY)
 
 # Minimum record sizes of the table sections (§3); later minors may append fields.
@@ -443,10 +448,10 @@ def parse(data: bytes) -> Bake:
         if s.index not in cov_owner:
             fail("%s is referenced by no object" % s)
 
-    # BLKT (§3.4) and XFER lengths (§3.5)
+    # BLKT (§3.4), XFER lengths (§3.5), CPCA structure (§3.13)
     blkt = one[b"BLKT"].payload
     _sname, sdtype, ssize = SCALAR_TYPES[scalar_type]
-    xfer_user = {}
+    xfer_user = {}  # XFER and CPCA section index -> the BLKT record using it
     for obj in bake.objects:
         kinds_seen = set()
         for b in range(obj.first_block, obj.first_block + obj.block_count):
@@ -476,11 +481,27 @@ def parse(data: bytes) -> Bake:
                 fail("%s: channels %d != object's %d" % (what, bchannels, obj.channels))
             if border != obj.order:
                 fail("%s: order %d != object's %d" % (what, border, obj.order))
-            if bscalar != scalar_type:
-                fail("%s: scalar_type %d != header's %d" % (what, bscalar, scalar_type))
+            if bscalar != scalar_type and bscalar != SCALAR_CPCA:
+                fail("%s: scalar_type %d is neither the header's %d nor 3 (CPCA)"
+                     % (what, bscalar, scalar_type))
             if bpoints != obj.points_in_file:
                 fail("%s: point_count %d != object's points_in_file %d"
                      % (what, bpoints, obj.points_in_file))
+            if bscalar == SCALAR_CPCA:
+                cs = section_ref(section_index, b"CPCA", what)
+                if section_index in xfer_user:
+                    fail("%s: CPCA section %d already used by BLKT record %d"
+                         % (what, section_index, xfer_user[section_index]))
+                xfer_user[section_index] = b
+                if data_length != cs.length:
+                    fail("%s: data_length %d != length %d of %s (a CPCA block)"
+                         % (what, data_length, cs.length, cs))
+                cpca = cpca_structure(cs, obj, "%s %s" % (what, cs))
+                block = dict(index=b, object_index=object_index, kind=kind, bounces=bbounces,
+                             section=section_index, data=None, dtype=None, cpca=cpca)
+                obj.blocks.append(block)
+                bake.blocks.append(block)
+                continue
             xs = section_ref(section_index, b"XFER", what)
             if section_index in xfer_user:
                 fail("%s: XFER section %d already used by BLKT record %d"
@@ -493,10 +514,10 @@ def parse(data: bytes) -> Bake:
             if xs.length != data_length:
                 fail("%s: data_length %d != length %d of %s" % (what, data_length, xs.length, xs))
             block = dict(index=b, object_index=object_index, kind=kind, bounces=bbounces,
-                         section=section_index, data=xs.payload, dtype=sdtype)
+                         section=section_index, data=xs.payload, dtype=sdtype, cpca=None)
             obj.blocks.append(block)
             bake.blocks.append(block)
-    for s in by_tag.get(b"XFER", []):
+    for s in by_tag.get(b"XFER", []) + by_tag.get(b"CPCA", []):
         if s.index not in xfer_user:
             fail("%s is used by no BLKT record" % s)
 
@@ -639,9 +660,15 @@ def parse(data: bytes) -> Bake:
     # ---- §4.10 finite values, recomputed geometry hashes -----------------------------------------
     for obj in bake.objects:
         for block in obj.blocks:
-            values = np.frombuffer(block["data"], dtype=sdtype)
-            check_finite(values, "XFER %s of BLKT record %d (object %d)"
-                         % (sections[block["section"]], block["index"], obj.index))
+            if block["cpca"] is None:
+                values = np.frombuffer(block["data"], dtype=sdtype)
+                check_finite(values, "XFER %s of BLKT record %d (object %d)"
+                             % (sections[block["section"]], block["index"], obj.index))
+            else:
+                values = cpca_reconstruct(block["cpca"], "CPCA %s of BLKT record %d (object %d)"
+                                          % (sections[block["section"]], block["index"],
+                                             obj.index))
+            block["values"] = values
     if bake.env is not None:
         check_finite(bake.env["values"], "ENVL values")
     for k, brdf in enumerate(bake.brdfs):
@@ -678,7 +705,7 @@ def parse(data: bytes) -> Bake:
             continue
         width_per_point = obj.channels * obj.order * obj.order
         for block in obj.blocks:
-            values = np.frombuffer(block["data"], dtype=sdtype).reshape(-1, width_per_point)
+            values = block["values"].reshape(-1, width_per_point)
             nonzero = (values[empty] != 0).any(axis=1)
             if nonzero.any():
                 bad = int(np.flatnonzero(empty)[int(np.argmax(nonzero))])
@@ -703,6 +730,67 @@ def table_header(section: Section, name: str, min_record: int):
         fail("%s: %d records of %d bytes do not fit in %d bytes"
              % (name, count, record_size, section.length))
     return count, record_size
+
+
+def cpca_structure(s: Section, obj: Obj, what: str) -> dict:
+    """§3.13 header, counts, exact length and cluster ids of a CPCA section (§4.8, §4.9).
+
+    Every count is checked against the section length before it is used to slice anything;
+    the values are left for the §4.10 finiteness check and the reconstruction."""
+    if s.length < CPCA_HEADER:
+        fail("%s: length %d, shorter than its %d-byte header" % (what, s.length, CPCA_HEADER))
+    p = s.payload
+    object_index, K, M, D, P = struct.unpack_from("<4IQ", p, 0)
+    (rel_error,) = struct.unpack_from("<d", p, 24)
+    if object_index != obj.index:
+        fail("%s: object_index %d != %d (the block's object)" % (what, object_index, obj.index))
+    if K < 1:
+        fail("%s: clusters K is 0" % what)
+    expect_d = obj.channels * obj.order * obj.order
+    if D != expect_d:
+        fail("%s: dimension D %d != channels×order² = %d" % (what, D, expect_d))
+    if P != obj.points_in_file:
+        fail("%s: points P %d != object's points_in_file %d" % (what, P, obj.points_in_file))
+    n_clusters = K * (M + 1) * D
+    expect = CPCA_HEADER + 4 * n_clusters + 4 * P + 4 * P * M  # Python ints: no overflow
+    if s.length != expect:
+        fail("%s: length %d != 32 + 4·K·(M+1)·D + 4·P + 4·P·M = %d (K=%d, M=%d, D=%d, P=%d)"
+             % (what, s.length, expect, K, M, D, P))
+    a = CPCA_HEADER
+    b = a + 4 * n_clusters
+    c = b + 4 * P
+    ids = np.frombuffer(p[b:c], dtype="<u4")
+    if P and int(ids.max()) >= K:
+        bad = int(np.argmax(ids >= K))
+        fail("%s: point %d is in cluster %d >= K=%d" % (what, bad, int(ids[bad]), K))
+    return dict(section=s.index, K=K, M=M, D=D, P=P, rel_error=rel_error,
+                clusters_raw=p[a:b], ids=ids, weights_raw=p[c:expect])
+
+
+def cpca_reconstruct(cpca: dict, what: str) -> np.ndarray:
+    """§4.10 finiteness of a CPCA section, then t̃ per §3.13, flat [point][channel][coeff].
+
+    In f32 throughout: t = mean (a copy), then for j = 0 … M−1, t = t + (w_j · basis_j), each
+    product and each sum rounded to f32 (numpy float32 arithmetic; nothing in f64, no FMA)."""
+    K, M, D, P = cpca["K"], cpca["M"], cpca["D"], cpca["P"]
+    if not math.isfinite(cpca["rel_error"]):
+        fail("%s: rel_error is not finite (%r)" % (what, cpca["rel_error"]))
+    clusters = np.frombuffer(cpca["clusters_raw"], dtype="<f4")
+    check_finite(clusters, what + " cluster means/basis vectors")
+    weights = np.frombuffer(cpca["weights_raw"], dtype="<f4")
+    check_finite(weights, what + " weights")
+    clusters = clusters.astype(np.float32).reshape(K, M + 1, D)
+    weights = weights.astype(np.float32).reshape(P, M)
+    ids = cpca["ids"].astype(np.intp)
+    with np.errstate(all="ignore"):  # an overflow to ±inf is refused below, not warned about
+        t = clusters[ids, 0, :]  # fancy indexing: a float32 copy of each point's mean
+        for j in range(M):
+            t = t + weights[:, j:j + 1] * clusters[ids, j + 1, :]
+    assert t.dtype == np.float32
+    t = t.reshape(-1)
+    # §3.5/§4.10: the reconstruction is used as an XFER block's data, whose scalars are finite.
+    check_finite(t, what + " reconstructed transfer")
+    return t
 
 
 def check_finite(values: np.ndarray, what: str) -> None:
@@ -1036,7 +1124,9 @@ def check_meta(bake: Bake, payload) -> dict:
 
 
 def block_values(bake: Bake, block) -> np.ndarray:
-    return np.frombuffer(block["data"], dtype=block["dtype"])
+    """The block's coefficients, [point][channel][coefficient] flat: the XFER scalars viewed
+    in place, or a CPCA block's f32 reconstruction (§3.13)."""
+    return block["values"]
 
 
 def dump(bake: Bake) -> dict:
@@ -1052,6 +1142,12 @@ def dump(bake: Bake) -> dict:
                 "bounces": block["bounces"],
                 "crc32_f32": zlib.crc32(f32.tobytes()),
                 "sum": float(values.astype(np.float64).sum()),
+                "cpca": None if block["cpca"] is None else {
+                    "clusters": block["cpca"]["K"],
+                    "components": block["cpca"]["M"],
+                    "dimension": block["cpca"]["D"],
+                    "rel_error": float(block["cpca"]["rel_error"]),
+                },
             })
         mesh = None
         if obj.mesh is not None:
@@ -1214,7 +1310,7 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
     flips = sorted({p for p in edges if 0 <= p < n} | set(padding)
                    | {rng.randrange(n) for _ in range(1500)})
     results = {"flip": [0, 0], "padding": [0, 0], "truncate": [0, 0], "repaired": [0, 0, 0],
-               "mesh": [0, 0]}
+               "mesh": [0, 0], "cpca": [0, 0]}
     crashes = []
     slipped = []
     padding_set = set(padding)
@@ -1294,6 +1390,54 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
             buf[p] ^= 1 << rng.randrange(8)
             fix_crcs(buf, s.index)
             record("mesh", try_parse(bytes(buf)), "repaired MESH mutation at %d" % p)
+    # 3b. CPCA blocks (§3.13), CRCs repaired: each of these breaks a rule and must be refused
+    blkt_section = next(s for s in bake.sections if s.tag == b"BLKT")
+    blkt_rs = struct.unpack_from("<I", data, blkt_section.offset + 4)[0]
+    for block in bake.blocks:
+        c = block["cpca"]
+        if c is None:
+            continue
+        s = bake.sections[block["section"]]
+        K, M, D, P = c["K"], c["M"], c["D"], c["P"]
+        o = s.offset
+        ids_at = o + CPCA_HEADER + 4 * K * (M + 1) * D
+        weights_at = ids_at + 4 * P
+        rec = blkt_section.offset + 16 + block["index"] * blkt_rs
+        nan = struct.pack("<f", float("nan"))
+        cases = [  # (label, position, new bytes, section whose CRC to repair)
+            ("object_index", o, struct.pack("<I", block["object_index"] + 1), s.index),
+            ("K = 0", o + 4, struct.pack("<I", 0), s.index),
+            ("K + 1", o + 4, struct.pack("<I", K + 1), s.index),
+            ("M + 1", o + 8, struct.pack("<I", M + 1), s.index),
+            ("M = 2^32-1", o + 8, struct.pack("<I", U32_MAX), s.index),
+            ("D + 1", o + 12, struct.pack("<I", D + 1), s.index),
+            ("P + 1", o + 16, struct.pack("<Q", P + 1), s.index),
+            ("P = 2^63", o + 16, struct.pack("<Q", 2**63), s.index),
+            ("rel_error NaN", o + 24, struct.pack("<d", float("nan")), s.index),
+            ("rel_error inf", o + 24, struct.pack("<d", float("inf")), s.index),
+            ("BLKT scalar_type = header's", rec + 20, struct.pack("<I", bake.scalar_type),
+             blkt_section.index),
+            ("BLKT data_length + 1", rec + 40, struct.pack("<Q", s.length + 1),
+             blkt_section.index),
+        ]
+        for _ in range(4):
+            cases.append(("cluster value NaN",
+                          o + CPCA_HEADER + 4 * rng.randrange(K * (M + 1) * D), nan, s.index))
+        if P:
+            for _ in range(4):
+                cases.append(("cluster id >= K", ids_at + 4 * rng.randrange(P),
+                              struct.pack("<I", rng.randrange(K, U32_MAX + 1)), s.index))
+        if P and M:
+            for _ in range(4):
+                cases.append(("weight NaN", weights_at + 4 * rng.randrange(P * M), nan,
+                              s.index))
+        for label, pos, new, section_index in cases:
+            buf = bytearray(data)
+            buf[pos:pos + len(new)] = new
+            fix_crcs(buf, section_index)
+            record("cpca", try_parse(bytes(buf)),
+                   "repaired CPCA mutation (%s, BLKT record %d) at %d"
+                   % (label, block["index"], pos))
     # 4. the command line itself on a few corrupted files: exit 1, one line, no traceback
     cli_bad = 0
     with tempfile.TemporaryDirectory() as tmp:
@@ -1314,7 +1458,8 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
                 cli_bad += 1
                 crashes.append("CLI on %s: exit %d, stderr %r"
                                % (bad, proc.returncode, proc.stderr[:200]))
-    f, p, t, r, m = (results[k] for k in ("flip", "padding", "truncate", "repaired", "mesh"))
+    f, p, t, r, m, c = (results[k] for k in ("flip", "padding", "truncate", "repaired", "mesh",
+                                             "cpca"))
     print("self-test of %s (%d bytes, seed %d)" % (path, n, seed))
     print("  single-byte flips refused:      %d of %d (of which zero padding: %d of %d)"
           % (f[0], f[1], p[0], p[1]))
@@ -1322,10 +1467,12 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
     print("  CRC-repaired mutations:         %d refused, %d read as valid, of %d (no crash "
           "allowed)" % (r[0], r[1], r[2]))
     print("  CRC-repaired MESH mutations:    %d of %d refused (geometry hash)" % (m[0], m[1]))
+    if c[1]:
+        print("  CRC-repaired CPCA mutations:    %d of %d refused (§3.13 rules)" % (c[0], c[1]))
     print("  command line on corrupted files: %d of %d gave exit 1 and one clean line"
           % (cli_samples - cli_bad, cli_samples))
-    caught = f[0] + t[0] + m[0]
-    total = f[1] + t[1] + m[1]
+    caught = f[0] + t[0] + m[0] + c[0]
+    total = f[1] + t[1] + m[1] + c[1]
     print("  caught %d of %d corruptions that must be refused; %d slipped through, %d crashes"
           % (caught, total, len(slipped), len(crashes)))
     for line in (slipped + crashes)[:20]:

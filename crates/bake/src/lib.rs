@@ -23,6 +23,7 @@
 //! such decision is written to the bake's metadata ([`plan`]).
 
 pub mod brdf;
+pub mod compress;
 mod error;
 pub mod passes;
 pub mod plan;
@@ -506,6 +507,7 @@ pub fn bake_pass(
             if interreflected {
                 let tot = &vertex_totals[o][offset..offset + count as usize];
                 blocks.push(TransferBlock {
+                    cpca: None,
                     kind: TransferKind::InterreflectedDiffuse {
                         bounces: settings.bounces,
                     },
@@ -513,6 +515,7 @@ pub fn bake_pass(
                 });
             } else {
                 blocks.push(TransferBlock {
+                    cpca: None,
                     kind: TransferKind::ShadowedDiffuse,
                     data: rows
                         .iter()
@@ -522,6 +525,7 @@ pub fn bake_pass(
             }
             if plan.needs_visibility {
                 blocks.push(TransferBlock {
+                    cpca: None,
                     kind: TransferKind::Visibility,
                     data: rows
                         .iter()
@@ -535,6 +539,7 @@ pub fn bake_pass(
             if settings.unshadowed {
                 let pts = &vertex_points[o][first as usize..(first + count) as usize];
                 blocks.push(TransferBlock {
+                    cpca: None,
                     kind: TransferKind::UnshadowedDiffuse,
                     data: pts
                         .iter()
@@ -703,17 +708,20 @@ pub fn bake_pass(
                 TransferKind::ShadowedDiffuse
             };
             let mut blocks = vec![TransferBlock {
+                cpca: None,
                 kind,
                 data: diffuse,
             }];
             if let Some(v) = vis {
                 blocks.push(TransferBlock {
+                    cpca: None,
                     kind: TransferKind::Visibility,
                     data: v,
                 });
             }
             if let Some(u) = unsh {
                 blocks.push(TransferBlock {
+                    cpca: None,
                     kind: TransferKind::UnshadowedDiffuse,
                     data: u,
                 });

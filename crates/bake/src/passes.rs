@@ -455,6 +455,7 @@ fn intermediate_blocks(
     visibility: bool,
 ) -> Vec<prt_bakefile::TransferBlock> {
     let mut blocks = vec![prt_bakefile::TransferBlock {
+        cpca: None,
         kind: TransferKind::ShadowedDiffuse,
         data: rows
             .iter()
@@ -463,6 +464,7 @@ fn intermediate_blocks(
     }];
     if visibility {
         blocks.push(prt_bakefile::TransferBlock {
+            cpca: None,
             kind: TransferKind::Visibility,
             data: rows
                 .iter()

@@ -164,15 +164,23 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
         let mut blocks_json = Vec::with_capacity(o.blocks.len());
         for (bi, b) in o.blocks.iter().enumerate() {
             let section = u32_of(fixed_sections + xfer.len(), "section count")?;
-            let length = (b.data.len() as u64)
-                .checked_mul(scalar.size() as u64)
-                .ok_or_else(|| BakeFileError::InvalidBake("block too large".into()))?;
+            let cpca_bytes = b.cpca.as_ref().map(|c| bytes_of_cpca(oi as u32, c));
+            let length = match &cpca_bytes {
+                Some(v) => v.len() as u64,
+                None => (b.data.len() as u64)
+                    .checked_mul(scalar.size() as u64)
+                    .ok_or_else(|| BakeFileError::InvalidBake("block too large".into()))?,
+            };
             blkt.u32(u32_of(oi, "object count")?);
             blkt.u32(b.kind.code());
             blkt.u32(b.kind.bounces());
             blkt.u32(o.channels);
             blkt.u32(o.order);
-            blkt.u32(scalar.code());
+            blkt.u32(if cpca_bytes.is_some() {
+                crate::layout::SCALAR_CPCA
+            } else {
+                scalar.code()
+            });
             blkt.u64(o.points_in_file);
             blkt.u32(section);
             blkt.u32(0);
@@ -182,13 +190,20 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
                 bounces: b.kind.bounces(),
                 section,
             });
-            xfer.push(Planned {
-                tag: Tag::XFER,
-                payload: Payload::Block {
-                    object: oi,
-                    block: bi,
+            xfer.push(match cpca_bytes {
+                Some(v) => Planned {
+                    tag: Tag::CPCA,
+                    payload: Payload::Bytes(v),
+                    length,
                 },
-                length,
+                None => Planned {
+                    tag: Tag::XFER,
+                    payload: Payload::Block {
+                        object: oi,
+                        block: bi,
+                    },
+                    length,
+                },
             });
         }
         objects_json.push(ObjectJson {
@@ -420,6 +435,27 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
     let crc = header_crc(&out[..HEADER_SIZE], &out[HEADER_SIZE..table_end as usize]);
     out[60..64].copy_from_slice(&crc.to_le_bytes());
     Ok(out)
+}
+
+/// The payload of a CPCA section (SPEC.md §3.13); counts were checked by `validate`.
+fn bytes_of_cpca(object: u32, c: &crate::model::Cpca) -> Vec<u8> {
+    let mut b = Buf::default();
+    b.u32(object);
+    b.u32(c.clusters);
+    b.u32(c.components);
+    b.u32(c.dimension);
+    b.u64(c.cluster_of.len() as u64);
+    b.f64(c.rel_error);
+    for &v in &c.centres {
+        b.0.extend_from_slice(&v.to_le_bytes());
+    }
+    for &k in &c.cluster_of {
+        b.u32(k);
+    }
+    for &v in &c.weights {
+        b.0.extend_from_slice(&v.to_le_bytes());
+    }
+    b.0
 }
 
 /// The payload of a MESH section (SPEC.md §3.10); counts were checked by `validate`.

@@ -26,6 +26,10 @@ pub(crate) const NO_SECTION: u32 = u32::MAX;
 pub(crate) const MESH_HEADER: usize = 16;
 /// Size of the header of a CVRG section.
 pub(crate) const CVRG_HEADER: usize = 16;
+/// Size of the header of a CPCA section.
+pub(crate) const CPCA_HEADER: usize = 32;
+/// `BLKT.scalar_type` of a block stored as a CPCA section.
+pub(crate) const SCALAR_CPCA: u32 = 3;
 /// Size of the header of a PASS section.
 pub(crate) const PASS_HEADER: usize = 48;
 /// Size of a BLKT record.
@@ -73,6 +77,8 @@ impl Tag {
     /// One object's state between passes of a distributed bounced bake (1.1, intermediate
     /// files only).
     pub const PASS: Tag = Tag(*b"PASS");
+    /// One transfer block compressed by clustered PCA (1.1), in place of its XFER.
+    pub const CPCA: Tag = Tag(*b"CPCA");
 
     /// The tag as the little-endian u32 stored in the section table.
     #[must_use]
@@ -96,6 +102,7 @@ impl Tag {
             Tag::MESH,
             Tag::CVRG,
             Tag::PASS,
+            Tag::CPCA,
         ]
         .contains(&self)
     }

@@ -32,6 +32,7 @@
 //!         blocks: vec![TransferBlock {
 //!             kind: TransferKind::ShadowedDiffuse,
 //!             data: vec![0.5; 2 * 4],
+//!             cpca: None,
 //!         }],
 //!         ..ObjectBake::default()
 //!     }],
@@ -66,9 +67,9 @@ pub use layout::{
 pub use merge::{merge, split};
 pub use meta::ShConvention;
 pub use model::{
-    Bake, BakeMeta, BrdfLobe, BrdfProjection, CameraInfo, Coverage, Decision, EnvCoefficients,
-    EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, PassHit, PassInfo, PassState,
-    RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo, TransferBlock, TransferKind,
+    Bake, BakeMeta, BrdfLobe, BrdfProjection, CameraInfo, Coverage, Cpca, Decision,
+    EnvCoefficients, EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, PassHit, PassInfo,
+    PassState, RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo, TransferBlock, TransferKind,
 };
 pub use summary::{
     camera_line, summary, BlockSummary, CoverageSummary, FileSummary, MeshSummary, ObjectSummary,

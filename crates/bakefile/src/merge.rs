@@ -21,6 +21,15 @@ fn fail(msg: impl Into<String>) -> BakeFileError {
 /// [`BakeFileError::Merge`] naming the first disagreement; validation errors of a shard.
 pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
     let first = shards.first().ok_or_else(|| fail("no shards"))?;
+    if shards.iter().any(|s| {
+        s.objects
+            .iter()
+            .any(|o| o.blocks.iter().any(|b| b.cpca.is_some()))
+    }) {
+        return Err(fail(
+            "a shard holds compressed (clustered PCA) blocks: merge the shards first, then compress",
+        ));
+    }
     for (i, s) in shards.iter().enumerate() {
         s.validate()
             .map_err(|e| fail(format!("shard at position {i} is invalid: {e}")))?;
@@ -129,6 +138,7 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
             .iter()
             .enumerate()
             .map(|(bi, b)| TransferBlock {
+                cpca: None,
                 kind: b.kind,
                 data: parts
                     .iter()
@@ -204,6 +214,15 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
 /// [`BakeFileError::InvalidBake`] if `bake` is invalid, already a shard, or `shard_count` is 0.
 pub fn split(bake: &Bake, shard_count: u32) -> Result<Vec<Bake>, BakeFileError> {
     bake.validate()?;
+    if bake
+        .objects
+        .iter()
+        .any(|o| o.blocks.iter().any(|b| b.cpca.is_some()))
+    {
+        return Err(BakeFileError::InvalidBake(
+            "a compressed (clustered PCA) bake cannot be split".into(),
+        ));
+    }
     if shard_count == 0 || bake.meta.shard.count != 1 {
         return Err(BakeFileError::InvalidBake(
             "split needs an unsharded bake and at least one shard".into(),
@@ -242,6 +261,7 @@ pub fn split(bake: &Bake, shard_count: u32) -> Result<Vec<Bake>, BakeFileError> 
                             .blocks
                             .iter()
                             .map(|b| TransferBlock {
+                                cpca: None,
                                 kind: b.kind,
                                 data: b.data[start as usize * per..end as usize * per].to_vec(),
                             })

@@ -391,8 +391,109 @@ pub struct TransferBlock {
     pub kind: TransferKind,
     /// `points_in_file × channels × order²` scalars, laid out `[point][channel][coefficient]`:
     /// the scalar of point `p`, channel `c`, SH index `i` is at
-    /// `(p * channels + c) * order² + i`.
+    /// `(p * channels + c) * order² + i`. For a compressed block, its reconstruction
+    /// ([`Cpca::reconstruct`]).
     pub data: Vec<f32>,
+    /// The block's clustered-PCA form (SPEC.md §3.13), when it is stored compressed; `data` then
+    /// holds exactly its reconstruction.
+    pub cpca: Option<Cpca>,
+}
+
+/// A transfer block compressed by clustered principal component analysis (Sloan, Hall, Hart
+/// & Snyder 2003; SPEC.md §3.13): point `p` of cluster `k` is
+/// `mean_k + Σ_j w_{p,j} basis_{k,j}`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Cpca {
+    /// Clusters `K ≥ 1`.
+    pub clusters: u32,
+    /// Basis vectors per cluster `M`.
+    pub components: u32,
+    /// Scalars per point `D` (channels × order²).
+    pub dimension: u32,
+    /// Relative L2 error of the approximation over the block, as the compressor measured it.
+    pub rel_error: f64,
+    /// `K × (M + 1) × D` scalars: per cluster its mean, then its `M` basis vectors.
+    pub centres: Vec<f32>,
+    /// Per point, its cluster (`< K`).
+    pub cluster_of: Vec<u32>,
+    /// `points × M` weights.
+    pub weights: Vec<f32>,
+}
+
+impl Cpca {
+    /// Points described.
+    #[must_use]
+    pub fn points(&self) -> usize {
+        self.cluster_of.len()
+    }
+
+    /// Row `r` of cluster `k` (0: the mean; `1 + j`: basis vector `j`).
+    #[must_use]
+    pub fn row(&self, k: usize, r: usize) -> &[f32] {
+        let d = self.dimension as usize;
+        let m1 = self.components as usize + 1;
+        &self.centres[(k * m1 + r) * d..(k * m1 + r + 1) * d]
+    }
+
+    /// The approximated transfer, `[point][d]`, computed in f32 exactly as SPEC.md §3.13 says
+    /// (the mean, then each weighted basis vector added in order).
+    #[must_use]
+    pub fn reconstruct(&self) -> Vec<f32> {
+        let (d, m) = (self.dimension as usize, self.components as usize);
+        let mut out = Vec::with_capacity(self.points() * d);
+        for (p, &k) in self.cluster_of.iter().enumerate() {
+            let start = out.len();
+            out.extend_from_slice(self.row(k as usize, 0));
+            for j in 0..m {
+                let w = self.weights[p * m + j];
+                for (o, &b) in out[start..].iter_mut().zip(self.row(k as usize, 1 + j)) {
+                    *o += w * b;
+                }
+            }
+        }
+        out
+    }
+
+    /// Checks counts and values (SPEC.md §3.13).
+    pub(crate) fn check(
+        &self,
+        points: u64,
+        dimension: u64,
+        what: &str,
+    ) -> Result<(), BakeFileError> {
+        let (k, m, d) = (
+            u64::from(self.clusters),
+            u64::from(self.components),
+            u64::from(self.dimension),
+        );
+        let ok = k >= 1
+            && d == dimension
+            && self.cluster_of.len() as u64 == points
+            && Some(self.centres.len() as u64)
+                == k.checked_mul(m + 1).and_then(|x| x.checked_mul(d))
+            && Some(self.weights.len() as u64) == points.checked_mul(m);
+        if !ok {
+            return Err(bad(format!(
+                "{what}: clustered PCA of {} points, K {k}, M {m}, D {d} does not fit {points} points of dimension {dimension}",
+                self.cluster_of.len()
+            )));
+        }
+        if let Some(p) = self.cluster_of.iter().position(|&c| c >= self.clusters) {
+            return Err(bad(format!(
+                "{what}: point {p} is in cluster {} of {k}",
+                self.cluster_of[p]
+            )));
+        }
+        check_finite32(&format!("{what} clustered PCA"), &self.centres)?;
+        check_finite32(&format!("{what} clustered PCA weights"), &self.weights)?;
+        if !self.rel_error.is_finite() {
+            return Err(BakeFileError::NonFinite {
+                section: format!("{what} clustered PCA error"),
+                index: 0,
+            });
+        }
+        Ok(())
+    }
 }
 
 /// The transfer of one object (mesh).
@@ -893,6 +994,13 @@ impl Bake {
                         )));
                     }
                 }
+                if let Some(c) = &b.cpca {
+                    c.check(
+                        o.points_in_file,
+                        o.scalars_per_point(),
+                        &format!("{what} block {bi}"),
+                    )?;
+                }
                 if !with_data {
                     continue;
                 }
@@ -904,13 +1012,20 @@ impl Bake {
                     });
                 }
                 check_finite32(&format!("{what} block {bi}"), &b.data)?;
+                if b.cpca.as_ref().is_some_and(|c| c.reconstruct() != b.data) {
+                    return Err(bad(format!(
+                        "{what} block {bi}: its data is not the reconstruction of its clustered PCA"
+                    )));
+                }
             }
             if with_data {
                 let per = o.scalars_per_point() as usize;
+                // Compressed blocks only approximate the zeros (SPEC.md §3.11).
                 let zero = |bi: usize, p: usize| {
-                    o.blocks[bi].data[p * per..(p + 1) * per]
-                        .iter()
-                        .all(|&v| v == 0.0)
+                    o.blocks[bi].cpca.is_some()
+                        || o.blocks[bi].data[p * per..(p + 1) * per]
+                            .iter()
+                            .all(|&v| v == 0.0)
                 };
                 if let Some((bi, p)) = uncovered_nonzero(o, zero) {
                     return Err(bad(format!(

@@ -8,15 +8,16 @@ use half::f16;
 use crate::encode::header_crc;
 use crate::error::{inconsistent, invalid, BakeFileError};
 use crate::layout::{
-    Tag, BINF_SIZE, BLKT_RECORD, BRDF_RECORD, CVRG_HEADER, ENVL_HEADER, GLSY_RECORD, HEADER_SIZE,
-    MAGIC, MESH_HEADER, MUST_UNDERSTAND_FLAGS, NO_SECTION, OBJT_RECORD_V10, PASS_HEADER,
-    SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE, VERSION_MAJOR,
+    Tag, BINF_SIZE, BLKT_RECORD, BRDF_RECORD, CPCA_HEADER, CVRG_HEADER, ENVL_HEADER, GLSY_RECORD,
+    HEADER_SIZE, MAGIC, MESH_HEADER, MUST_UNDERSTAND_FLAGS, NO_SECTION, OBJT_RECORD_V10,
+    PASS_HEADER, SCALAR_CPCA, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE,
+    VERSION_MAJOR,
 };
 use crate::meta::{
     agree, check_mandatory, hash_string, MetaJson, ShConvention, COLOUR_SPACE, FORMAT_NAME,
 };
 use crate::model::{
-    check_finite64, Bake, BakeMeta, BrdfLobe, BrdfProjection, Coverage, EnvCoefficients,
+    check_finite64, Bake, BakeMeta, BrdfLobe, BrdfProjection, Coverage, Cpca, EnvCoefficients,
     EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, PassHit, PassState, SampleKind,
     ScalarType, ShardInfo, TransferBlock, TransferKind,
 };
@@ -135,6 +136,7 @@ pub struct BakeView<'a> {
     meshes: Vec<Option<MeshGeometry>>,
     coverages: Vec<Option<Coverage>>,
     passes: Vec<Option<PassState>>,
+    cpcas: std::collections::BTreeMap<(usize, usize), Cpca>,
     environment: Option<EnvCoefficients>,
     brdfs: Vec<BrdfProjection>,
     glossy: Vec<GlossyBrdfTable>,
@@ -262,6 +264,56 @@ fn read_mesh(p: &[u8], object: usize) -> Result<MeshGeometry, BakeFileError> {
         positions,
         normals,
         triangles,
+    })
+}
+
+/// Reads a CPCA payload (SPEC.md §3.13) of block `what` of object `object`: every count is
+/// checked against the payload's length before anything is allocated; the semantic rules
+/// (dimension, cluster ids, finite values) are `Bake::validate`'s.
+fn read_cpca(p: &[u8], object: usize, what: &str) -> Result<Cpca, BakeFileError> {
+    if p.len() < CPCA_HEADER {
+        return Err(inconsistent(
+            format!("{what} CPCA length"),
+            CPCA_HEADER as u64,
+            p.len() as u64,
+        ));
+    }
+    if rd_u32(p, 0) as usize != object {
+        return Err(invalid(
+            format!("{what} CPCA"),
+            format!("its object index is {}, not {object}", rd_u32(p, 0)),
+        ));
+    }
+    let (k, m, d) = (rd_u32(p, 4), rd_u32(p, 8), rd_u32(p, 12));
+    let points = rd_u64(p, 16);
+    let centres = u128::from(k) * (u128::from(m) + 1) * u128::from(d);
+    let expected = CPCA_HEADER as u128
+        + 4 * centres
+        + 4 * u128::from(points)
+        + 4 * u128::from(points) * u128::from(m);
+    if expected != p.len() as u128 {
+        return Err(inconsistent(
+            format!("{what} CPCA length (32 + 4·K·(M+1)·D + 4·P + 4·P·M)"),
+            u64::try_from(expected).unwrap_or(u64::MAX),
+            p.len() as u64,
+        ));
+    }
+    let f32s = |b: &[u8]| -> Vec<f32> {
+        b.chunks_exact(4)
+            .map(|c| f32::from_bits(rd_u32(c, 0)))
+            .collect()
+    };
+    let a = CPCA_HEADER;
+    let b = a + 4 * centres as usize;
+    let c = b + 4 * points as usize;
+    Ok(Cpca {
+        clusters: k,
+        components: m,
+        dimension: d,
+        rel_error: rd_f64(p, 24),
+        centres: f32s(&p[a..b]),
+        cluster_of: p[b..c].chunks_exact(4).map(|x| rd_u32(x, 0)).collect(),
+        weights: f32s(&p[c..]),
     })
 }
 
@@ -582,7 +634,7 @@ impl<'a> BakeView<'a> {
                     return Err(BakeFileError::DuplicateSection(s.tag.to_string()));
                 }
                 slot.1 = Some(i);
-            } else if ![Tag::XFER, Tag::MESH, Tag::CVRG, Tag::PASS].contains(&s.tag)
+            } else if ![Tag::XFER, Tag::MESH, Tag::CVRG, Tag::PASS, Tag::CPCA].contains(&s.tag)
                 && s.flags & SECTION_FLAG_REQUIRED != 0
             {
                 return Err(BakeFileError::UnknownRequiredSection(section_name(
@@ -629,6 +681,8 @@ impl<'a> BakeView<'a> {
         let (object_count, orec) = table(objt, "OBJT", OBJT_RECORD_V10)?;
         let (block_count, brec) = table(blkt, "BLKT", BLKT_RECORD)?;
         let mut used_sections = BTreeSet::new();
+        let mut cpcas: std::collections::BTreeMap<(usize, usize), Cpca> =
+            std::collections::BTreeMap::new();
         let mut objects = Vec::with_capacity(object_count);
         let mut next_block = 0u64;
         for oi in 0..object_count {
@@ -693,11 +747,22 @@ impl<'a> BakeView<'a> {
                             format!("code {} with {} bounces", rd_u32(r, 4), rd_u32(r, 8)),
                         )
                     })?;
+                // A block stored as clustered PCA (SPEC.md §3.13) says so in its scalar type.
+                let compressed = rd_u32(r, 20) == SCALAR_CPCA;
                 let pairs = [
                     ("object index", u64::from(rd_u32(r, 0)), oi as u64),
                     ("channels", rd_u32(r, 12).into(), o.channels.into()),
                     ("order", rd_u32(r, 16).into(), o.order.into()),
-                    ("scalar type", rd_u32(r, 20).into(), scalar.code().into()),
+                    (
+                        "scalar type",
+                        rd_u32(r, 20).into(),
+                        if compressed {
+                            SCALAR_CPCA
+                        } else {
+                            scalar.code()
+                        }
+                        .into(),
+                    ),
                     ("point count", rd_u64(r, 24), o.points_in_file),
                 ];
                 for (field, found, expected) in pairs {
@@ -707,13 +772,14 @@ impl<'a> BakeView<'a> {
                 }
                 let section_index = rd_u32(r, 32);
                 let data_length = rd_u64(r, 40);
+                let want = if compressed { Tag::CPCA } else { Tag::XFER };
                 let s = sections
                     .get(section_index as usize)
-                    .filter(|s| s.tag == Tag::XFER)
+                    .filter(|s| s.tag == want)
                     .ok_or_else(|| {
                         invalid(
                             format!("{what} section"),
-                            format!("{section_index} is not an XFER section"),
+                            format!("{section_index} is not a {want} section"),
                         )
                     })?;
                 if !used_sections.insert(section_index) {
@@ -721,6 +787,24 @@ impl<'a> BakeView<'a> {
                         format!("{what} section"),
                         format!("section {section_index} used by two blocks"),
                     ));
+                }
+                if compressed {
+                    if data_length != s.length {
+                        return Err(inconsistent(
+                            format!("{what} data length (= its CPCA section's length)"),
+                            s.length,
+                            data_length,
+                        ));
+                    }
+                    let c = read_cpca(payload(section_index as usize), oi, &what)?;
+                    cpcas.insert((oi, o.blocks.len()), c);
+                    o.blocks.push(BlockInfo {
+                        kind,
+                        section_index,
+                        offset: s.offset,
+                        length: s.length,
+                    });
+                    continue;
                 }
                 let expected = o
                     .points_in_file
@@ -768,7 +852,10 @@ impl<'a> BakeView<'a> {
                 next_block,
             ));
         }
-        let xfer_count = sections.iter().filter(|s| s.tag == Tag::XFER).count();
+        let xfer_count = sections
+            .iter()
+            .filter(|s| s.tag == Tag::XFER || s.tag == Tag::CPCA)
+            .count();
         if xfer_count != used_sections.len() {
             return Err(inconsistent(
                 "XFER sections",
@@ -999,6 +1086,10 @@ impl<'a> BakeView<'a> {
                 .unwrap_or(usize::MAX);
             let size = scalar.size();
             let zero = |bi: usize, p: usize| {
+                if cpcas.contains_key(&(oi, bi)) {
+                    // A compressed block only approximates the zeros (SPEC.md §3.11).
+                    return true;
+                }
                 let b = &o.blocks[bi];
                 let data = &bytes[b.offset as usize..(b.offset + b.length) as usize];
                 // Both storage types: zero is all bits clear but the sign.
@@ -1014,6 +1105,7 @@ impl<'a> BakeView<'a> {
                     .blocks
                     .iter()
                     .map(|b| TransferBlock {
+                        cpca: None,
                         kind: b.kind,
                         data: Vec::new(),
                     })
@@ -1164,6 +1256,7 @@ impl<'a> BakeView<'a> {
             meshes,
             coverages,
             passes,
+            cpcas,
             environment,
             brdfs,
             glossy,
@@ -1182,7 +1275,8 @@ impl<'a> BakeView<'a> {
                 .iter()
                 .zip(self.meshes.iter().zip(&self.coverages))
                 .zip(&self.passes)
-                .map(|((o, (mesh, coverage)), pass)| ObjectBake {
+                .enumerate()
+                .map(|(oi, ((o, (mesh, coverage)), pass))| ObjectBake {
                     name: o.name.clone(),
                     geometry_hash: o.geometry_hash,
                     point_count: o.point_count,
@@ -1193,7 +1287,9 @@ impl<'a> BakeView<'a> {
                     blocks: o
                         .blocks
                         .iter()
-                        .map(|b| TransferBlock {
+                        .enumerate()
+                        .map(|(bi, b)| TransferBlock {
+                            cpca: self.cpcas.get(&(oi, bi)).cloned(),
                             kind: b.kind,
                             data: Vec::new(),
                         })
@@ -1285,11 +1381,21 @@ impl<'a> BakeView<'a> {
         Some(&self.bytes[b.offset as usize..(b.offset + b.length) as usize])
     }
 
+    /// The clustered-PCA form of block `block` of object `object`, if it is stored so.
+    #[must_use]
+    pub fn cpca(&self, object: usize, block: usize) -> Option<&Cpca> {
+        self.cpcas.get(&(object, block))
+    }
+
     /// The coefficients of block `block` of object `object`, `[point][channel][coefficient]`;
     /// borrowed in place when the bytes are aligned for the scalar type (and the host is
-    /// little-endian), copied otherwise. `None` when either index is out of range.
+    /// little-endian), copied otherwise; a compressed block's reconstruction (SPEC.md §3.13).
+    /// `None` when either index is out of range.
     #[must_use]
     pub fn coefficients(&self, object: usize, block: usize) -> Option<Coefficients<'a>> {
+        if let Some(c) = self.cpca(object, block) {
+            return Some(Coefficients::F32(Cow::Owned(c.reconstruct())));
+        }
         let raw = self.block_bytes(object, block)?;
         Some(match self.scalar {
             ScalarType::F32 => Coefficients::F32(

@@ -360,3 +360,83 @@ fn test11_brdf_exponent_null_and_zero() {
         .to_string()
         .contains("phong (exponent 0)"));
 }
+
+/// A block stored as clustered PCA (SPEC §3.13): it survives encoding, decodes to its f32
+/// reconstruction, its BLKT record says scalar type 3, and a wrong cluster index, a data
+/// array that is not the reconstruction, or a merge of compressed shards are refused.
+#[test]
+fn test12_cpca_blocks() {
+    let mut bake = sample_bake();
+    let o = &mut bake.objects[1];
+    let d = o.scalars_per_point() as usize;
+    let points = o.points_in_file as usize;
+    let (k, m) = (2usize, 3usize);
+    let centres: Vec<f32> = (0..k * (m + 1) * d)
+        .map(|i| ((i * 7 % 13) as f32 - 6.0) / 8.0)
+        .collect();
+    let cpca = Cpca {
+        clusters: k as u32,
+        components: m as u32,
+        dimension: d as u32,
+        rel_error: 0.0125,
+        centres,
+        cluster_of: (0..points).map(|p| (p % k) as u32).collect(),
+        weights: (0..points * m)
+            .map(|i| (i % 5) as f32 * 0.25 - 0.5)
+            .collect(),
+    };
+    o.blocks[1].data = cpca.reconstruct();
+    o.blocks[1].cpca = Some(cpca.clone());
+    for scalar in [ScalarType::F32, ScalarType::F16] {
+        let bytes = encode(&bake, scalar).unwrap();
+        let back = decode(&bytes).unwrap();
+        assert_eq!(back.objects[1].blocks[1].cpca.as_ref(), Some(&cpca));
+        assert_eq!(back.objects[1].blocks[1].data, cpca.reconstruct());
+        let view = BakeView::new(&bytes).unwrap();
+        assert_eq!(view.cpca(1, 1), Some(&cpca));
+        assert_eq!(
+            view.coefficients(1, 1).unwrap().to_f32_vec(),
+            cpca.reconstruct()
+        );
+        let secs = sections(&bytes);
+        assert_eq!(secs.iter().filter(|s| &s.0 == b"CPCA").count(), 1);
+        if scalar == ScalarType::F32 {
+            assert_eq!(back, bake);
+        }
+    }
+    // The reconstruction formula by hand for one point and one scalar.
+    let p = 3;
+    let c = cpca.cluster_of[p] as usize;
+    let mut v = cpca.row(c, 0)[5];
+    for j in 0..m {
+        v += cpca.weights[p * m + j] * cpca.row(c, 1 + j)[5];
+    }
+    assert_eq!(cpca.reconstruct()[p * d + 5], v);
+
+    // Refusals.
+    let mut bad = bake.clone();
+    bad.objects[1].blocks[1].data[0] += 1.0;
+    assert!(encode(&bad, ScalarType::F32)
+        .unwrap_err()
+        .to_string()
+        .contains("not the reconstruction"));
+    let bytes = encode(&bake, ScalarType::F32).unwrap();
+    let (off, len) = find(&bytes, b"CPCA");
+    let ids = off + 32 + 4 * k * (m + 1) * d;
+    let mut b = bytes.clone();
+    b[ids..ids + 4].copy_from_slice(&7u32.to_le_bytes());
+    fix_crcs(&mut b);
+    assert!(decode(&b)
+        .unwrap_err()
+        .to_string()
+        .contains("is in cluster 7 of 2"));
+    let mut b = bytes.clone();
+    b[off + 12..off + 16].copy_from_slice(&(d as u32 + 1).to_le_bytes());
+    fix_crcs(&mut b);
+    assert!(decode(&b).is_err());
+    assert!(len > 32);
+    assert!(merge(&[bake.clone()])
+        .unwrap_err()
+        .to_string()
+        .contains("merge the shards first, then compress"));
+}

@@ -137,7 +137,11 @@ fn spec_read(bytes: &[u8]) -> Bake {
                         (4, b) => TransferKind::InterreflectedDiffuse { bounces: b },
                         k => panic!("kind {k:?}"),
                     };
-                    TransferBlock { kind, data }
+                    TransferBlock {
+                        kind,
+                        data,
+                        cpca: None,
+                    }
                 })
                 .collect();
             // §3.3 (1.1 fields), §3.10, §3.11

@@ -470,3 +470,143 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
     outln!("merged {} shards into {}", shards.len(), args.out.display());
     Ok(())
 }
+
+/// Options of `prt compress`.
+#[derive(Args)]
+pub struct CompressArgs {
+    /// The bake to compress (.prtb).
+    pub input: PathBuf,
+    /// Output file (.prtb).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Clusters per object (default: one per 256 points, 1 to 64).
+    #[arg(long)]
+    pub clusters: Option<usize>,
+    /// Basis vectors per cluster (default: the fewest that reach --error).
+    #[arg(long)]
+    pub components: Option<usize>,
+    /// Relative L2 error of the compressed transfer that the default --components aims at.
+    #[arg(long, default_value_t = 0.01)]
+    pub error: f64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `prt compress`: every diffuse transfer block (unshadowed, shadowed, interreflected)
+/// of every object is replaced by its clustered-PCA form (SPEC §3.13); visibility blocks,
+/// which the specular path reads, stay as they are.
+pub fn run_compress(args: &CompressArgs) -> Result<()> {
+    if !(args.error.is_finite() && args.error > 0.0 && args.error < 1.0) {
+        bail!("--error {} must be a relative error in (0, 1)", args.error);
+    }
+    if args.clusters == Some(0) {
+        bail!("--clusters must be at least 1");
+    }
+    let bytes = std::fs::read(&args.input)
+        .with_context(|| format!("{}: cannot read", args.input.display()))?;
+    let view = BakeView::new(&bytes).map_err(|e| e.in_file(&args.input))?;
+    let scalar = view.scalar_type();
+    let mut bake = view.to_bake().map_err(|e| e.in_file(&args.input))?;
+    let name = args.input.display();
+    if bake.meta.pass.is_some() {
+        bail!("{name}: an intermediate pass file; compress the finished bake");
+    }
+    if bake.meta.shard.count != 1 {
+        bail!(
+            "{name}: shard {} of {}: merge the shards first, then compress",
+            bake.meta.shard.index,
+            bake.meta.shard.count
+        );
+    }
+    if bake
+        .objects
+        .iter()
+        .any(|o| o.blocks.iter().any(|b| b.cpca.is_some()))
+    {
+        bail!(
+            "{name}: already compressed (clustered PCA blocks); compress the original bake instead"
+        );
+    }
+    if let Some(m) = args.components {
+        if let Some(o) = bake
+            .objects
+            .iter()
+            .find(|o| m as u64 > o.scalars_per_point())
+        {
+            bail!(
+                "--components {m} exceeds the {} scalars per point of object {}",
+                o.scalars_per_point(),
+                o.name
+            );
+        }
+    }
+    let mut rows = Vec::new();
+    for (oi, o) in bake.objects.iter_mut().enumerate() {
+        let d = o.scalars_per_point() as usize;
+        let points = o.points_in_file as usize;
+        let clusters = args.clusters.unwrap_or((points / 256).clamp(1, 64));
+        for b in &mut o.blocks {
+            if b.kind == prt_bakefile::TransferKind::Visibility || points == 0 {
+                continue;
+            }
+            let opt = prt_bake::compress::CpcaOptions {
+                clusters,
+                components: args.components,
+                error_target: args.error,
+                seed: bake.meta.seed ^ (oi as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15),
+                ..prt_bake::compress::CpcaOptions::default()
+            };
+            let c = prt_bake::compress::cpca(&b.data, d, &opt);
+            let before = (b.data.len() * scalar.size()) as u64;
+            let after = 32 + 4 * (c.centres.len() + c.cluster_of.len() + c.weights.len()) as u64;
+            rows.push(serde_json::json!({
+                "object": o.name, "kind": b.kind.name(), "points": points, "dimension": d,
+                "clusters": c.clusters, "components": c.components, "rel_error": c.rel_error,
+                "bytes_before": before, "bytes_after": after,
+            }));
+            b.data = c.reconstruct();
+            b.cpca = Some(c);
+        }
+    }
+    bake.meta.decisions.push(prt_bakefile::Decision {
+        object: None,
+        decision: "clustered PCA compression of the diffuse transfer".into(),
+        reason: format!(
+            "prt compress: clusters {}, components {}, error target {}",
+            args.clusters
+                .map_or("per object (points/256, 1..64)".into(), |k| k.to_string()),
+            args.components
+                .map_or("from the error target".into(), |m| m.to_string()),
+            args.error
+        ),
+    });
+    prt_bakefile::write_bake(&args.out, &bake, scalar)?;
+    let size_in = bytes.len() as u64;
+    let size_out = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
+    if args.json {
+        outln!(
+            "{}",
+            serde_json::to_string(&serde_json::json!({
+                "input": args.input.display().to_string(), "output": args.out.display().to_string(),
+                "file_bytes_before": size_in, "file_bytes_after": size_out, "blocks": rows,
+            }))?
+        );
+    } else {
+        for r in &rows {
+            outln!(
+                "{} {}: {} points × {} → {} clusters × {} components, relative L2 error {:.3} %, {} → {} bytes",
+                r["object"].as_str().unwrap_or(""), r["kind"].as_str().unwrap_or(""), r["points"], r["dimension"],
+                r["clusters"], r["components"], 100.0 * r["rel_error"].as_f64().unwrap_or(0.0),
+                r["bytes_before"], r["bytes_after"]
+            );
+        }
+        outln!(
+            "{}: {size_in} bytes → {}: {size_out} bytes ({:.1}× smaller)",
+            args.input.display(),
+            args.out.display(),
+            size_in as f64 / size_out.max(1) as f64
+        );
+    }
+    Ok(())
+}

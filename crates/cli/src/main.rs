@@ -48,6 +48,8 @@ enum Command {
     Inspect(bake_cmd::InspectArgs),
     /// Merge the shard files of a sharded bake into one file.
     Merge(bake_cmd::MergeArgs),
+    /// Compress a bake's diffuse transfer by clustered PCA (Sloan et al. 2003).
+    Compress(bake_cmd::CompressArgs),
     /// Relight a bake under the (rotated) environment: full-order or locally adaptive SH.
     Relight(relight_cmd::RelightArgs),
     /// Speed-against-error report: reference, bake, full and adaptive relighting per order.
@@ -64,6 +66,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => bake_cmd::run_bake(&args),
         Command::Inspect(args) => bake_cmd::run_inspect(&args),
         Command::Merge(args) => bake_cmd::run_merge(&args),
+        Command::Compress(args) => bake_cmd::run_compress(&args),
         Command::Relight(args) => relight_cmd::run(&args),
         Command::Report(args) => report_cmd::run(&args),
         Command::Compare(args) => compare_cmd::run(args),

@@ -269,7 +269,10 @@ fn report_writes_everything_and_its_figures_are_reproduced_by_hand() {
         }
         obj["reference"].as_object_mut().unwrap().remove("cached");
         // What else ran on the machine while timing differs from run to run.
-        obj["machine"].as_object_mut().unwrap().remove("timing_load");
+        obj["machine"]
+            .as_object_mut()
+            .unwrap()
+            .remove("timing_load");
         for r in obj["orders"].as_array_mut().unwrap() {
             let r = r.as_object_mut().unwrap();
             for k in [

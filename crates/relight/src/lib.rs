@@ -84,6 +84,7 @@
 
 mod adaptive;
 mod adjacency;
+mod compressed;
 mod error;
 mod input;
 mod kernel;
@@ -94,6 +95,7 @@ pub use adaptive::{
     MAX_COST_EXPONENT,
 };
 pub use adjacency::Adjacency;
+pub use compressed::{diffuse_cpca, CpcaTransfer};
 pub use error::RelightError;
 pub use input::{
     low_bands, DiffuseParams, Lighting, PhongParams, SpecularInput, Surface, TransferView, Viewer,

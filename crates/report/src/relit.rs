@@ -309,6 +309,29 @@ pub fn relight(
             TransferView::new(order, channels, &diffuse_data)?.with_low_bands(&diffuse_low)?;
         let albedo = material.albedo();
         let dparams = DiffuseParams::from_albedo(albedo);
+        // A compressed diffuse block relights from its clustered-PCA form (full order only).
+        let cpca = diffuse_block
+            .cpca
+            .as_ref()
+            .filter(|_| subset.is_none() && opt.adaptive.is_none());
+        let cpca_view = cpca.map(|c| prt_relight::CpcaTransfer {
+            order: baked,
+            channels,
+            clusters: c.clusters as usize,
+            components: c.components as usize,
+            centres: &c.centres,
+            cluster_of: &c.cluster_of,
+            weights: &c.weights,
+        });
+        if let Some(c) = cpca {
+            stats.notes.push(format!(
+                "{}: diffuse relit from clustered PCA ({} clusters, {} components, relative L2 error {:.3} %)",
+                obj.name,
+                c.clusters,
+                c.components,
+                100.0 * c.rel_error
+            ));
+        }
         let phong = match material {
             Material::Phong {
                 specular, exponent, ..
@@ -455,7 +478,10 @@ pub fn relight(
                     let prep = Instant::now();
                     let frame = relighter.frame_lighting(&lighting, specular_input.is_some())?;
                     let start = Instant::now();
-                    let d = relighter.diffuse(&diffuse_view, &frame, &dparams)?;
+                    let d = match &cpca_view {
+                        Some(c) => prt_relight::diffuse_cpca(order, c, &lighting, &dparams)?,
+                        None => relighter.diffuse(&diffuse_view, &frame, &dparams)?,
+                    };
                     let s = match &specular_input {
                         Some(si) => relighter.specular(si, &frame)?,
                         None => Vec::new(),

@@ -64,6 +64,7 @@ pub fn sample_bake() -> Bake {
             blocks: kinds
                 .iter()
                 .map(|&kind| TransferBlock {
+                    cpca: None,
                     kind,
                     data: (0..n).map(|_| r.random_range(-4.0f32..4.0)).collect(),
                 })
@@ -200,6 +201,7 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
             let mut blocks: Vec<TransferBlock> = kinds
                 .into_iter()
                 .map(|kind| TransferBlock {
+                    cpca: None,
                     kind,
                     data: (0..n)
                         .map(|_| r.random_range(-1.0f32..1.0) * scale)

@@ -1,0 +1,126 @@
+//! `prt compress` end to end (issue 15, compression): clustered PCA of a bake's diffuse
+//! transfer, relit straight from the compressed form, the error it reports is the error it
+//! has, and what it refuses.
+
+mod common;
+
+use common::{json, prt, run, write_scene};
+
+#[test]
+fn compress_relight_and_refusals() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), 6);
+    let bake = dir.path().join("bake.prtb");
+    run(prt()
+        .arg("bake")
+        .arg(&scene)
+        .args(["--rays", "128", "--order", "6", "--bounces", "1", "--out"])
+        .arg(&bake));
+    let small = dir.path().join("small.prtb");
+    let report = json(&run(prt()
+        .arg("compress")
+        .arg(&bake)
+        .args(["--clusters", "4", "--error", "0.02", "--json", "--out"])
+        .arg(&small)));
+    let blocks = report["blocks"].as_array().unwrap();
+    assert_eq!(blocks.len(), 2, "{report}");
+    // The error each block reports is the error its stored form has, measured here from the
+    // files themselves: ‖t − t̃‖ / ‖t‖ over the block.
+    let full = prt_bakefile::read_bake(&bake).unwrap();
+    let comp = prt_bakefile::read_bake(&small).unwrap();
+    for (b, (fo, co)) in blocks.iter().zip(full.objects.iter().zip(&comp.objects)) {
+        let (fb, cb) = (
+            prt_bake::diffuse_block(fo).unwrap(),
+            prt_bake::diffuse_block(co).unwrap(),
+        );
+        let cpca = cb.cpca.as_ref().expect("the diffuse block is compressed");
+        let num: f64 = fb
+            .data
+            .iter()
+            .zip(&cb.data)
+            .map(|(a, b)| f64::from(a - b).powi(2))
+            .sum();
+        let den: f64 = fb.data.iter().map(|a| f64::from(*a).powi(2)).sum();
+        let measured = (num / den).sqrt();
+        let stated = b["rel_error"].as_f64().unwrap();
+        assert!(
+            (measured - stated).abs() <= 1e-6 + 1e-4 * stated,
+            "{measured} vs {stated}"
+        );
+        assert!((cpca.rel_error - stated).abs() <= 1e-12);
+        // The default component count meets the 2 % target.
+        assert!(stated <= 0.02 + 1e-6, "{stated}");
+        // Visibility is left as it was (the specular path reads it).
+        let vis = |o: &prt_bakefile::ObjectBake| {
+            o.blocks
+                .iter()
+                .find(|b| b.kind == prt_bakefile::TransferKind::Visibility)
+                .map(|b| (b.data.clone(), b.cpca.is_some()))
+        };
+        if let Some((v, compressed)) = vis(co) {
+            assert!(!compressed);
+            assert_eq!(Some(v), vis(fo).map(|x| x.0));
+        }
+    }
+    assert!(std::fs::metadata(&small).unwrap().len() < std::fs::metadata(&bake).unwrap().len());
+    // Relit from the compressed form: the relighter says so, and the image stays close to the
+    // uncompressed one.
+    let relit = |b: &std::path::Path, exr: &str| {
+        json(&run(prt()
+            .arg("relight")
+            .arg(&scene)
+            .arg("--bake")
+            .arg(b)
+            .arg("--json")
+            .arg("--out")
+            .arg(dir.path().join(exr))))
+    };
+    relit(&bake, "full.exr");
+    let r = relit(&small, "small.exr");
+    let notes = r["notes"].to_string();
+    assert!(
+        notes.contains("diffuse relit from clustered PCA"),
+        "{notes}"
+    );
+    let cmp = json(&run(prt()
+        .arg("compare")
+        .arg(dir.path().join("small.exr"))
+        .arg(dir.path().join("full.exr"))
+        .arg("--json")));
+    let psnr = cmp["psnr_ldr"].as_f64().unwrap();
+    assert!(
+        psnr > 35.0,
+        "compressed relighting PSNR {psnr} dB against uncompressed"
+    );
+
+    // Refusals: compressing twice, impossible options.
+    let again = prt()
+        .arg("compress")
+        .arg(&small)
+        .arg("--out")
+        .arg(dir.path().join("again.prtb"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&again.stderr);
+    assert!(
+        !again.status.success() && e.contains("already compressed") && e.contains("small.prtb"),
+        "{e}"
+    );
+    for bad in [
+        &["--clusters", "0"][..],
+        &["--error", "0"],
+        &["--components", "99999"],
+    ] {
+        let out = prt()
+            .arg("compress")
+            .arg(&bake)
+            .args(bad)
+            .arg("--out")
+            .arg(dir.path().join("bad.prtb"))
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{bad:?} accepted");
+        assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
+    }
+    assert!(!dir.path().join("again.prtb").exists() && !dir.path().join("bad.prtb").exists());
+}
