@@ -698,13 +698,16 @@ def parse(data: bytes) -> Bake:
             fail("%s: recomputed geometry hash 0x%016x != OBJT geometry_hash 0x%016x"
                  % (what, h, obj.geometry_hash))
     for obj in covered:
-        # §3.11: an object's transfer is zero in every pixel where its hits is 0.
+        # §3.11: an object's transfer is zero in every pixel where its hits is 0 — for every
+        # XFER block; a CPCA block only approximates it (§3.13), so its reconstruction is exempt.
         hits = obj.coverage["hits"]
         empty = hits == 0
         if not empty.any():
             continue
         width_per_point = obj.channels * obj.order * obj.order
         for block in obj.blocks:
+            if block["cpca"] is not None:
+                continue
             values = block["values"].reshape(-1, width_per_point)
             nonzero = (values[empty] != 0).any(axis=1)
             if nonzero.any():

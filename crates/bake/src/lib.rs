@@ -16,6 +16,11 @@
 //!   ([`brdf`]: zonal clamped-cosine and Phong lobes; per-view-elevation tables for
 //!   Blinn–Phong, Ward and Cook–Torrance, after Kautz, Sloan & Snyder 2002).
 //!
+//! A bake with bounces can run as sharded passes across machines ([`passes`]: each ray traced
+//! once, the merged result byte-identical to one unsharded bake), and a finished bake can be
+//! compressed by clustered PCA ([`compress`]: Sloan, Hall, Hart & Snyder, "Clustered Principal
+//! Components for Precomputed Radiance Transfer", SIGGRAPH 2003).
+//!
 //! Conventions: the diffuse transfer **excludes the receiving point's own albedo/π**; the
 //! outgoing diffuse radiance is `(albedo/π) Σ_i L_i T_i`. Every random number comes from a
 //! stream keyed by (seed, purpose, object, point), so bakes are bit-identical for any thread

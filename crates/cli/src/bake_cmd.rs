@@ -610,3 +610,41 @@ pub fn run_compress(args: &CompressArgs) -> Result<()> {
     }
     Ok(())
 }
+
+/// Options of `prt export`.
+#[derive(Args)]
+pub struct ExportArgs {
+    /// The scene file the bake was made from.
+    pub scene: PathBuf,
+    /// The per-vertex bake (.prtb).
+    #[arg(long)]
+    pub bake: PathBuf,
+    /// Output binary glTF (.glb).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `prt export`.
+pub fn run_export(args: &ExportArgs) -> Result<()> {
+    let scene = crate::common::load_scene(&args.scene)?;
+    let bake = prt_bakefile::read_bake(&args.bake)?;
+    prt_report::check_bake(&scene, &bake, &args.bake)?;
+    let summary = prt_report::export::export_glb(&scene, &bake, &args.out)
+        .with_context(|| format!("{}: cannot export", args.bake.display()))?;
+    if args.json {
+        outln!("{}", serde_json::to_string(&summary)?);
+    } else {
+        outln!(
+            "wrote {}: {} objects, {} vertices, {} transfer attributes (VEC4) per vertex, {} bytes",
+            args.out.display(),
+            summary.objects,
+            summary.vertices,
+            summary.attributes,
+            summary.bytes
+        );
+    }
+    Ok(())
+}

@@ -50,6 +50,8 @@ enum Command {
     Merge(bake_cmd::MergeArgs),
     /// Compress a bake's diffuse transfer by clustered PCA (Sloan et al. 2003).
     Compress(bake_cmd::CompressArgs),
+    /// Write a per-vertex bake as binary glTF 2.0: meshes with their transfer as vertex attributes.
+    Export(bake_cmd::ExportArgs),
     /// Relight a bake under the (rotated) environment: full-order or locally adaptive SH.
     Relight(relight_cmd::RelightArgs),
     /// Speed-against-error report: reference, bake, full and adaptive relighting per order.
@@ -67,6 +69,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => bake_cmd::run_inspect(&args),
         Command::Merge(args) => bake_cmd::run_merge(&args),
         Command::Compress(args) => bake_cmd::run_compress(&args),
+        Command::Export(args) => bake_cmd::run_export(&args),
         Command::Relight(args) => relight_cmd::run(&args),
         Command::Report(args) => report_cmd::run(&args),
         Command::Compare(args) => compare_cmd::run(args),

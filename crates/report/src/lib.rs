@@ -16,6 +16,7 @@
 
 pub mod budget;
 mod error;
+pub mod export;
 pub mod glossy;
 pub mod imaging;
 pub mod io;

@@ -1,0 +1,203 @@
+//! `prt export` (issue 15, export): a per-vertex bake as binary glTF 2.0 that the Khronos
+//! glTF-Validator accepts with no error and no warning, that reads back (through the `gltf`
+//! crate) to exactly the bake's numbers, and whose documented relighting formula, applied to
+//! the file alone, gives `prt relight`'s vertex colours.
+//!
+//! The validator is the npm package gltf-validator (`npm install --prefix tools
+//! gltf-validator`); without it (or Node.js) that part says it is skipped, unless
+//! `PRT_REQUIRE_GLTF_VALIDATOR=1` (which CI sets after installing it).
+
+mod common;
+
+use common::{prt, run, write_scene};
+use std::path::Path;
+use std::process::Command;
+
+fn tools() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools")
+}
+
+fn validator_available() -> bool {
+    tools().join("node_modules/gltf-validator").exists()
+        && Command::new("node")
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+}
+
+#[test]
+fn export_validates_reads_back_and_relights() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), 3);
+    for (bounces, order) in [("0", "4"), ("1", "5")] {
+        let bake = dir.path().join(format!("b{bounces}.prtb"));
+        run(prt()
+            .arg("bake")
+            .arg(&scene)
+            .args([
+                "--rays",
+                "64",
+                "--order",
+                order,
+                "--bounces",
+                bounces,
+                "--out",
+            ])
+            .arg(&bake));
+        let glb = dir.path().join(format!("b{bounces}.glb"));
+        run(prt()
+            .arg("export")
+            .arg(&scene)
+            .arg("--bake")
+            .arg(&bake)
+            .arg("--out")
+            .arg(&glb));
+
+        // Read back: the same positions and transfer, bit for bit.
+        let back = prt_report::export::read_export(&glb).unwrap();
+        let b = prt_bakefile::read_bake(&bake).unwrap();
+        assert_eq!(back.len(), b.objects.len());
+        for (e, o) in back.iter().zip(&b.objects) {
+            assert_eq!(e.name, o.name);
+            assert_eq!(
+                (e.order, e.channels),
+                (o.order as usize, o.channels as usize)
+            );
+            assert_eq!(e.positions, o.mesh.as_ref().unwrap().positions);
+            let block = prt_bake::diffuse_block(o).unwrap();
+            assert!(
+                e.transfer == block.data,
+                "{}: transfer differs after the round trip",
+                o.name
+            );
+        }
+
+        // The documented formula on the file's own numbers against prt relight.
+        let colours = dir.path().join("colours.csv");
+        run(prt()
+            .arg("relight")
+            .arg(&scene)
+            .arg("--bake")
+            .arg(&bake)
+            .arg("--vertex-colours")
+            .arg(&colours));
+        let text = std::fs::read_to_string(&colours).unwrap();
+        let doc: serde_json::Value = {
+            let bytes = std::fs::read(&glb).unwrap();
+            let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+            serde_json::from_slice(&bytes[20..20 + len]).unwrap()
+        };
+        let floor = back.iter().position(|e| e.name == "floor.obj").unwrap();
+        let prim = &doc["meshes"][floor]["primitives"][0];
+        let env: Vec<[f64; 3]> =
+            serde_json::from_value(prim["extras"]["prt"]["environment"].clone()).unwrap();
+        let albedo: Vec<f64> = serde_json::from_value(
+            doc["materials"][prim["material"].as_u64().unwrap() as usize]["pbrMetallicRoughness"]
+                ["baseColorFactor"]
+                .clone(),
+        )
+        .unwrap();
+        let e = &back[floor];
+        let n2 = e.order * e.order;
+        let u = f64::from(f32::EPSILON) / 2.0;
+        let mut checked = 0;
+        for line in text.lines().skip(1).filter(|l| l.starts_with("floor.obj,")) {
+            let f: Vec<f64> = line
+                .split(',')
+                .skip(1)
+                .map(|x| x.parse().unwrap())
+                .collect();
+            let p = f[0] as usize;
+            for c in 0..3 {
+                let ch = if e.channels == 3 { c } else { 0 };
+                let t = &e.transfer[(p * e.channels + ch) * n2..][..n2];
+                let terms = t.iter().zip(&env).map(|(&t, l)| f64::from(t) * l[c]);
+                let ours: f64 = terms.clone().sum::<f64>() * albedo[c] / std::f64::consts::PI;
+                let scale: f64 =
+                    terms.map(f64::abs).sum::<f64>() * albedo[c] / std::f64::consts::PI;
+                // f32 relighting: n² products and sums, lighting and albedo/π rounded, the
+                // printed f32 (the albedo itself went through f32 in the file).
+                let bound = (n2 as f64 + 4.0) * u * scale + u * f[1 + c].abs() + 1e-30;
+                assert!(
+                    (ours - f[1 + c]).abs() <= bound,
+                    "vertex {p} channel {c}: {ours} vs {}",
+                    f[1 + c]
+                );
+            }
+            checked += 1;
+        }
+        assert_eq!(checked, e.positions.len());
+
+        // The Khronos validator: no error, no warning.
+        if validator_available() {
+            let out = Command::new("node")
+                .arg(tools().join("gltf_validate.js"))
+                .arg(&glb)
+                .output()
+                .unwrap();
+            let report = String::from_utf8_lossy(&out.stdout);
+            eprintln!("glTF-Validator: {report}");
+            assert!(
+                out.status.success(),
+                "{report}{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            assert!(
+                report.contains("\"errors\":0") && report.contains("\"warnings\":0"),
+                "{report}"
+            );
+        } else {
+            assert!(
+                std::env::var("PRT_REQUIRE_GLTF_VALIDATOR").as_deref() != Ok("1"),
+                "PRT_REQUIRE_GLTF_VALIDATOR=1 but tools/node_modules/gltf-validator or node is missing"
+            );
+            eprintln!("skipped the validator: npm install --prefix tools gltf-validator");
+        }
+    }
+
+    // Refusals: a per-pixel bake, a bake of another scene; nothing written.
+    let px = dir.path().join("px.prtb");
+    run(prt()
+        .arg("bake")
+        .arg(&scene)
+        .args([
+            "--rays",
+            "16",
+            "--order",
+            "2",
+            "--per-pixel",
+            "--pixel-samples",
+            "1",
+            "--out",
+        ])
+        .arg(&px));
+    let out = prt()
+        .arg("export")
+        .arg(&scene)
+        .arg("--bake")
+        .arg(&px)
+        .arg("--out")
+        .arg(dir.path().join("px.glb"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && e.contains("per-pixel bake"), "{e}");
+    let other = dir.path().join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    let other_scene = write_scene(&other, 4);
+    let out = prt()
+        .arg("export")
+        .arg(&other_scene)
+        .arg("--bake")
+        .arg(dir.path().join("b0.prtb"))
+        .arg("--out")
+        .arg(dir.path().join("x.glb"))
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && e.contains("different geometry"),
+        "{e}"
+    );
+    assert!(!dir.path().join("px.glb").exists() && !dir.path().join("x.glb").exists());
+}

@@ -1,0 +1,343 @@
+//! glTF 2.0 export of a per-vertex bake (`prt export`): the scene's meshes exactly as baked
+//! (the bake's `MESH` sections: world-space positions, the normals the bake used, triangles)
+//! with each vertex's diffuse transfer vector as custom vertex attributes, one binary `.glb`
+//! an engine loads with its ordinary glTF importer.
+//!
+//! Layout (also in `extras.prt` of every primitive, and in the bake SPEC §10): for an object
+//! of order `n` and `C` channels, coefficient `i` (SH index `l(l+1)+m`) of channel `c` is
+//! component `i mod 4` of the `FLOAT VEC4` attribute `_PRT_C{c}_{⌊i/4⌋}` (the last group of
+//! each channel padded with zeros). Values are the bake's f32 transfer, unchanged (f32 is
+//! the only float type core glTF has; the file stores exactly the bake's numbers). Exit
+//! radiance of a vertex is `(albedo/π) Σ_i t_{c,i} L_{c,i}` with the environment's SH
+//! coefficients `L`, which `extras.prt.environment` carries (`[coefficient][r, g, b]`, the
+//! bake's projection), and `albedo` the material's `baseColorFactor`.
+
+use crate::error::ReportError;
+use prt_bakefile::{Bake, SampleKind};
+use prt_scene::Scene;
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// What an export wrote.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ExportSummary {
+    /// Objects (glTF meshes) written.
+    pub objects: usize,
+    /// Vertices in all.
+    pub vertices: usize,
+    /// Custom `VEC4` transfer attributes per vertex (all objects: the largest count).
+    pub attributes: usize,
+    /// File size, bytes.
+    pub bytes: usize,
+}
+
+fn invalid(msg: impl Into<String>) -> ReportError {
+    ReportError::Invalid(msg.into())
+}
+
+/// A growing binary chunk with glTF buffer views.
+struct Bin {
+    data: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Bin {
+    /// Appends `bytes` (4-byte aligned) as a buffer view with an accessor; returns the
+    /// accessor's index.
+    fn add(&mut self, bytes: &[u8], target: u32, accessor: Value) -> usize {
+        while !self.data.len().is_multiple_of(4) {
+            self.data.push(0);
+        }
+        let view = self.views.len();
+        self.views.push(json!({
+            "buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len(), "target": target,
+        }));
+        self.data.extend_from_slice(bytes);
+        let mut a = accessor;
+        a["bufferView"] = json!(view);
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+}
+
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_INT: u32 = 5125;
+
+fn f32_bytes(v: impl IntoIterator<Item = f32>) -> Vec<u8> {
+    v.into_iter().flat_map(f32::to_le_bytes).collect()
+}
+
+/// The attribute name of coefficient group `g` of channel `c`.
+#[must_use]
+pub fn attribute_name(channel: usize, group: usize) -> String {
+    format!("_PRT_C{channel}_{group}")
+}
+
+/// Writes `bake` (per vertex, made for `scene`, already checked with
+/// [`crate::check_bake`]) as a binary glTF 2.0 file at `path`, atomically.
+///
+/// # Errors
+/// A per-pixel bake or an intermediate file, an object without mesh or diffuse transfer, and
+/// write errors.
+pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSummary, ReportError> {
+    if !matches!(bake.meta.sample_kind, SampleKind::Vertex) {
+        return Err(invalid(
+            "glTF export carries per-vertex transfer: this is a per-pixel bake (bake without --per-pixel)",
+        ));
+    }
+    let env = bake
+        .environment
+        .as_ref()
+        .ok_or_else(|| invalid("the bake carries no environment coefficients"))?;
+    let en2 = (env.order * env.order) as usize;
+    let mut bin = Bin {
+        data: Vec::new(),
+        views: Vec::new(),
+        accessors: Vec::new(),
+    };
+    let (mut meshes, mut nodes, mut materials) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut vertices, mut attributes) = (0usize, 0usize);
+    for (o, obj) in bake.objects.iter().enumerate() {
+        let block = prt_bake::diffuse_block(obj)
+            .ok_or_else(|| invalid(format!("object {} has no diffuse transfer", obj.name)))?;
+        let scene_mesh = &scene.meshes[o];
+        let geometry = obj
+            .mesh
+            .clone()
+            .unwrap_or_else(|| prt_bake::mesh_geometry(scene_mesh));
+        let v = geometry.positions.len();
+        if v as u64 != obj.point_count || v == 0 {
+            return Err(invalid(format!(
+                "object {}: {v} vertices for {} points",
+                obj.name, obj.point_count
+            )));
+        }
+        let (n, c) = (obj.order as usize, obj.channels as usize);
+        let n2 = n * n;
+        let groups = n2.div_ceil(4);
+        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+        for p in &geometry.positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let position = bin.add(
+            &f32_bytes(geometry.positions.iter().flatten().copied()),
+            ARRAY_BUFFER,
+            json!({"componentType": FLOAT, "count": v, "type": "VEC3", "min": lo, "max": hi}),
+        );
+        let normal = bin.add(
+            &f32_bytes(geometry.normals.iter().flatten().copied()),
+            ARRAY_BUFFER,
+            json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
+        );
+        let indices = bin.add(
+            &geometry
+                .triangles
+                .iter()
+                .flatten()
+                .flat_map(|i| i.to_le_bytes())
+                .collect::<Vec<u8>>(),
+            ELEMENT_ARRAY_BUFFER,
+            json!({"componentType": UNSIGNED_INT, "count": 3 * geometry.triangles.len(), "type": "SCALAR"}),
+        );
+        let mut attrs = serde_json::Map::new();
+        attrs.insert("POSITION".into(), json!(position));
+        attrs.insert("NORMAL".into(), json!(normal));
+        let mut names = Vec::new();
+        for ch in 0..c {
+            for g in 0..groups {
+                let values = (0..v).flat_map(|p| {
+                    let row = &block.data[(p * c + ch) * n2..(p * c + ch + 1) * n2];
+                    (0..4).map(move |k| row.get(4 * g + k).copied().unwrap_or(0.0))
+                });
+                let a = bin.add(
+                    &f32_bytes(values),
+                    ARRAY_BUFFER,
+                    json!({"componentType": FLOAT, "count": v, "type": "VEC4"}),
+                );
+                let name = attribute_name(ch, g);
+                attrs.insert(name.clone(), json!(a));
+                names.push(name);
+            }
+        }
+        attributes = attributes.max(names.len());
+        vertices += v;
+        let material = &scene.materials[scene_mesh.material];
+        let albedo = material.albedo();
+        materials.push(json!({
+            "name": scene.material_names.get(scene_mesh.material).cloned().unwrap_or_default(),
+            "pbrMetallicRoughness": {
+                "baseColorFactor": [albedo[0], albedo[1], albedo[2], 1.0],
+                "metallicFactor": 0.0, "roughnessFactor": 1.0,
+            },
+        }));
+        let env_rows: Vec<[f64; 3]> = (0..n2.min(en2))
+            .map(|i| [env.values[i], env.values[en2 + i], env.values[2 * en2 + i]])
+            .collect();
+        meshes.push(json!({
+            "name": obj.name,
+            "primitives": [{
+                "attributes": attrs, "indices": indices, "material": o, "mode": 4,
+                "extras": {"prt": {
+                    "format": "prt-transfer", "version": 1,
+                    "kind": block.kind.name(), "order": n, "channels": c,
+                    "attributes": names,
+                    "layout": "coefficient i (SH index l(l+1)+m) of channel c is component i mod 4 of the FLOAT VEC4 attribute _PRT_C{c}_{floor(i/4)}; unused components are 0",
+                    "sh": {"basis": "real-orthonormal", "phase": "condon-shortley", "index_order": "l(l+1)+m", "angles": "theta-from-+Z, phi=atan2(y,x)"},
+                    "radiance": "exit radiance of channel c = (albedo_c / pi) * sum_i t[c or 0][i] * environment[i][c]; albedo = the material's baseColorFactor",
+                    "albedo_in_transfer": false,
+                    "environment": env_rows,
+                    "geometry_hash": format!("0x{:016x}", obj.geometry_hash),
+                }},
+            }],
+        }));
+        nodes.push(json!({"name": obj.name, "mesh": o}));
+    }
+    while !bin.data.len().is_multiple_of(4) {
+        bin.data.push(0);
+    }
+    let doc = json!({
+        "asset": {"version": "2.0", "generator": format!("prt {}", env!("CARGO_PKG_VERSION"))},
+        "scene": 0,
+        "scenes": [{"nodes": (0..nodes.len()).collect::<Vec<_>>()}],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": materials,
+        "accessors": bin.accessors,
+        "bufferViews": bin.views,
+        "buffers": [{"byteLength": bin.data.len()}],
+        "extras": {"prt": {"bake_seed": bake.meta.seed.to_string(), "rays_per_point": bake.meta.rays_per_point, "bounces": bake.meta.bounces}},
+    });
+    let mut json_bytes = serde_json::to_vec(&doc).map_err(|e| invalid(e.to_string()))?;
+    while !json_bytes.len().is_multiple_of(4) {
+        json_bytes.push(b' ');
+    }
+    let total = 12 + 8 + json_bytes.len() + 8 + bin.data.len();
+    let mut glb = Vec::with_capacity(total);
+    glb.extend_from_slice(b"glTF");
+    glb.extend_from_slice(&2u32.to_le_bytes());
+    glb.extend_from_slice(&(total as u32).to_le_bytes());
+    glb.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"JSON");
+    glb.extend_from_slice(&json_bytes);
+    glb.extend_from_slice(&(bin.data.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"BIN\0");
+    glb.extend_from_slice(&bin.data);
+    if u32::try_from(total).is_err() {
+        return Err(invalid("the export exceeds the 4 GiB of a .glb file"));
+    }
+    prt_tracer::output::write_atomically(path, |w| {
+        std::io::Write::write_all(w, &glb).map_err(|e| e.to_string())
+    })
+    .map_err(|e| ReportError::Write {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })?;
+    Ok(ExportSummary {
+        objects: bake.objects.len(),
+        vertices,
+        attributes,
+        bytes: glb.len(),
+    })
+}
+
+/// One object of an export read back: positions and its transfer (`[vertex][channel][coeff]`,
+/// as the bake lays it out).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExportedObject {
+    /// Mesh name.
+    pub name: String,
+    /// Order and channels from `extras.prt`.
+    pub order: usize,
+    /// Channels.
+    pub channels: usize,
+    /// Positions.
+    pub positions: Vec<[f32; 3]>,
+    /// Transfer, `[vertex][channel][coefficient]`.
+    pub transfer: Vec<f32>,
+}
+
+/// Reads an export back with the `gltf` crate (the layout of [`export_glb`]).
+///
+/// # Errors
+/// When the file is not a readable glTF or lacks the prt attributes.
+pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
+    let bad = |m: String| invalid(format!("{}: {m}", path.display()));
+    let (doc, buffers, _) = gltf::import(path).map_err(|e| bad(e.to_string()))?;
+    let floats = |acc: &gltf::Accessor| -> Result<Vec<f32>, ReportError> {
+        let view = acc
+            .view()
+            .ok_or_else(|| bad("accessor without buffer view".into()))?;
+        let buf = &buffers[view.buffer().index()];
+        let start = view.offset() + acc.offset();
+        let len = acc.count() * acc.dimensions().multiplicity() * 4;
+        let bytes = buf
+            .get(start..start + len)
+            .ok_or_else(|| bad("accessor beyond its buffer".into()))?;
+        Ok(bytes
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect())
+    };
+    let mut out = Vec::new();
+    for mesh in doc.meshes() {
+        let prim = mesh
+            .primitives()
+            .next()
+            .ok_or_else(|| bad("a mesh without primitives".into()))?;
+        let extras: Value = prim
+            .extras()
+            .as_ref()
+            .and_then(|r| serde_json::from_str(r.get()).ok())
+            .ok_or_else(|| bad("a primitive without extras.prt".into()))?;
+        let prt = &extras["prt"];
+        let (order, channels) = (
+            prt["order"].as_u64().unwrap_or(0) as usize,
+            prt["channels"].as_u64().unwrap_or(0) as usize,
+        );
+        let n2 = order * order;
+        let mut attrs = std::collections::HashMap::new();
+        for (semantic, acc) in prim.attributes() {
+            attrs.insert(semantic.to_string(), acc);
+        }
+        let position = attrs
+            .get("POSITION")
+            .ok_or_else(|| bad("no POSITION".into()))?;
+        let positions: Vec<[f32; 3]> = floats(position)?
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
+        let v = positions.len();
+        let mut transfer = vec![0.0f32; v * channels * n2];
+        for ch in 0..channels {
+            for g in 0..n2.div_ceil(4) {
+                let name = attribute_name(ch, g);
+                let acc = attrs
+                    .get(&name)
+                    .ok_or_else(|| bad(format!("no attribute {name}")))?;
+                let vals = floats(acc)?;
+                for p in 0..v {
+                    for k in 0..4 {
+                        let i = 4 * g + k;
+                        if i < n2 {
+                            transfer[(p * channels + ch) * n2 + i] = vals[4 * p + k];
+                        }
+                    }
+                }
+            }
+        }
+        out.push(ExportedObject {
+            name: mesh.name().unwrap_or_default().to_owned(),
+            order,
+            channels,
+            positions,
+            transfer,
+        });
+    }
+    Ok(out)
+}
