@@ -35,6 +35,7 @@ pub mod plan;
 pub mod points;
 pub mod sequence;
 mod settings;
+pub mod subdivide;
 pub mod transfer;
 
 pub use error::BakeError;
@@ -170,6 +171,9 @@ pub fn bake_pass(
     settings.validate()?;
     if accel.triangle_count() == 0 {
         return Err(BakeError::EmptyScene);
+    }
+    if let Some(sub) = settings.subdivide {
+        return bake_subdivided(scene, accel, settings, pass, &sub, start);
     }
     let (plans, mut decisions) = plan::plan(scene, settings);
     let max_order = plans.iter().map(|p| p.order).max().unwrap_or(1);
@@ -1040,4 +1044,78 @@ fn intermediate_stats(
         Some(prev) if settings.shard.is_none_or(|(i, _)| i == 0) => prev.meta.ray_stats.clone(),
         Some(_) => plans.iter().map(|p| zero(&p.name)).collect(),
     }
+}
+
+/// A per-vertex bake on meshes refined where the transfer changes fast ([`subdivide`]): the
+/// refinement, then the ordinary bake of the refined scene; the file's meshes are the refined
+/// ones, and `settings.subdivided_from` names each object's source mesh (SPEC §3.9).
+fn bake_subdivided(
+    scene: &Scene,
+    accel: &Accel,
+    settings: &BakeSettings,
+    pass: Option<PassInput<'_>>,
+    sub: &subdivide::SubdivideOptions,
+    start: std::time::Instant,
+) -> Result<BakeOutput, BakeError> {
+    if settings.points != PointKind::Vertex {
+        return Err(BakeError::InvalidSettings(
+            "--subdivide refines per-vertex bakes; a per-pixel bake has no mesh to refine".into(),
+        ));
+    }
+    if pass.is_some() || settings.shard.is_some() {
+        return Err(BakeError::InvalidSettings(
+            "--subdivide runs on one machine: the refinement of a mesh needs all of its vertices (bake without --shard/--pass)".into(),
+        ));
+    }
+    let (plans, _) = plan::plan(scene, settings);
+    let (refined, report) = subdivide::refine(scene, accel, settings, &plans, sub)?;
+    let refined_accel = Accel::build(&refined)?;
+    let inner = BakeSettings {
+        subdivide: None,
+        ..settings.clone()
+    };
+    let mut out = bake_pass(&refined, &refined_accel, &inner, None)?;
+    let m = &mut out.bake.meta;
+    m.settings["subdivide"] =
+        serde_json::json!({ "error": sub.error, "max_levels": sub.max_levels });
+    let mut from = serde_json::Map::new();
+    for r in &report {
+        let mesh = &scene.meshes[plans
+            .iter()
+            .find(|p| p.name == r.name)
+            .map_or(0, |p| p.mesh)];
+        from.insert(
+            r.name.clone(),
+            serde_json::json!({
+                "geometry_hash": format!("0x{:016x}", geometry_hash(mesh.positions.as_slice(), &mesh.indices)),
+                "vertices": r.vertices[0],
+                "triangles": r.triangles[0],
+            }),
+        );
+        let d = Decision {
+            object: Some(r.name.clone()),
+            decision: format!(
+                "subdivided: {} → {} vertices, {} → {} triangles",
+                r.vertices[0], r.vertices[1], r.triangles[0], r.triangles[1]
+            ),
+            reason: if r.splits.is_empty() {
+                format!(
+                    "no edge's transfer differed by more than {} (relative L2): nothing to refine",
+                    sub.error
+                )
+            } else {
+                format!(
+                    "edges whose transfer differed by more than {} (relative L2) were split, level by level: {:?} edges (at most {} levels)",
+                    sub.error, r.splits, sub.max_levels
+                )
+            },
+        };
+        m.decisions.push(d.clone());
+        out.report.decisions.push(d);
+        out.report.rays_traced += r.rays;
+    }
+    m.settings["subdivided_from"] = serde_json::Value::Object(from);
+    out.report.seconds = start.elapsed().as_secs_f64();
+    out.bake.validate()?;
+    Ok(out)
 }

@@ -37,6 +37,9 @@ pub struct BakeSettings {
     pub unshadowed: bool,
     /// Bake only shard `index` of `count` (contiguous point ranges per object).
     pub shard: Option<(u32, u32)>,
+    /// Per-vertex bakes: refine the meshes where the transfer changes fast
+    /// ([`crate::subdivide`]).
+    pub subdivide: Option<crate::subdivide::SubdivideOptions>,
     /// Memory the bake may use, in bytes (estimated before any work).
     pub memory_limit: u64,
     /// Show a progress bar on a terminal.
@@ -87,6 +90,7 @@ impl BakeSettings {
             shard: None,
             memory_limit: 8 << 30,
             progress: false,
+            subdivide: None,
         }
     }
 

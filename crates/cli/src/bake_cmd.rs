@@ -58,6 +58,18 @@ pub struct BakeArgs {
     /// The merged file of the previous pass (with --pass K ≥ 1).
     #[arg(long, requires = "pass")]
     pub previous: Option<PathBuf>,
+    /// Per-vertex bakes: refine the meshes where the transfer changes fast (after D3DX's
+    /// adaptive subdivision): split every edge across which the shadowed transfer differs by
+    /// more than --subdivide-error (relative L2), bake the new vertices, repeat up to
+    /// --max-subdivision levels. The file holds the refined meshes; relight and export use them.
+    #[arg(long, conflicts_with_all = ["per_pixel", "shard", "pass", "target_psnr"])]
+    pub subdivide: bool,
+    /// Relative difference of the transfer across an edge above which --subdivide splits it.
+    #[arg(long, default_value_t = 0.1, requires = "subdivide")]
+    pub subdivide_error: f64,
+    /// Refinement levels at most (each can double a region's vertex density).
+    #[arg(long, default_value_t = 5, requires = "subdivide")]
+    pub max_subdivision: u32,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -275,6 +287,13 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
         pixel_samples: args.pixel_samples,
         unshadowed: args.unshadowed,
         shard: args.shard.as_deref().map(parse_shard).transpose()?,
+        subdivide: args
+            .subdivide
+            .then_some(prt_bake::subdivide::SubdivideOptions {
+                error: args.subdivide_error,
+                max_levels: args.max_subdivision,
+                ..prt_bake::subdivide::SubdivideOptions::default()
+            }),
         progress: true,
         ..BakeSettings::final_quality()
     };
@@ -632,6 +651,7 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
     let scene = crate::common::load_scene(&args.scene)?;
     let bake = prt_bakefile::read_bake(&args.bake)?;
     prt_report::check_bake(&scene, &bake, &args.bake)?;
+    let scene = prt_report::baked_scene(&scene, &bake)?;
     let summary = prt_report::export::export_glb(&scene, &bake, &args.out)
         .with_context(|| format!("{}: cannot export", args.bake.display()))?;
     if args.json {

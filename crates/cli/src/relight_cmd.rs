@@ -127,6 +127,8 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     let scene = crate::common::load_scene(&args.scene)?;
     let bake = prt_bakefile::read_bake(&args.bake)?;
     prt_report::check_bake(&scene, &bake, &args.bake)?;
+    // Subdivided objects relight on the bake's refined meshes.
+    let scene = prt_report::baked_scene(&scene, &bake)?;
     let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
     let adaptive = args.adaptive.then(|| AdaptiveParams {
         stop: match args.stop {

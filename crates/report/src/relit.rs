@@ -139,7 +139,9 @@ pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), ReportE
     }
     for (o, (obj, mesh)) in bake.objects.iter().zip(&scene.meshes).enumerate() {
         let h = prt_bake::geometry_hash(&mesh.positions, &mesh.indices);
-        if h != obj.geometry_hash {
+        // A subdivided object was baked on a refinement of the scene's mesh: its source hash.
+        let source = subdivided_from(bake, &obj.name).unwrap_or(obj.geometry_hash);
+        if h != source {
             return Err(bad(format!(
                 "object {o} ({}) was baked for different geometry (hash {:#018x}, the scene's mesh {:#018x}): re-bake",
                 obj.name, obj.geometry_hash, h
@@ -150,6 +152,43 @@ pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), ReportE
         return Err(bad("the bake carries no environment coefficients".into()));
     }
     Ok(())
+}
+
+/// The hash of the mesh a subdivided object was refined from (`settings.subdivided_from`).
+fn subdivided_from(bake: &Bake, name: &str) -> Option<u64> {
+    let h = bake
+        .meta
+        .settings
+        .get("subdivided_from")?
+        .get(name)?
+        .get("geometry_hash")?;
+    u64::from_str_radix(h.as_str()?.strip_prefix("0x")?, 16).ok()
+}
+
+/// The scene as the bake saw it: every object the bake subdivided gets the bake's refined
+/// mesh (its `MESH` section: positions, normals, triangles), so that relighting, image
+/// formation and export use the vertices the transfer belongs to. Other objects are
+/// unchanged. Call after [`check_bake`].
+///
+/// # Errors
+/// A subdivided object whose mesh is missing from the file.
+pub fn baked_scene(scene: &Scene, bake: &Bake) -> Result<Scene, ReportError> {
+    let mut out = scene.clone();
+    for (obj, mesh) in bake.objects.iter().zip(&mut out.meshes) {
+        if subdivided_from(bake, &obj.name).is_none() {
+            continue;
+        }
+        let g = obj.mesh.as_ref().ok_or_else(|| {
+            ReportError::Invalid(format!(
+                "object {} was subdivided but the bake holds no mesh for it",
+                obj.name
+            ))
+        })?;
+        mesh.positions = g.positions.iter().map(|p| Vec3::from_array(*p)).collect();
+        mesh.normals = g.normals.iter().map(|n| Vec3::from_array(*n)).collect();
+        mesh.indices.clone_from(&g.triangles);
+    }
+    Ok(out)
 }
 
 /// The bake's environment as RGB coefficients `[coeff][channel]`.

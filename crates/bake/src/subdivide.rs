@@ -1,0 +1,358 @@
+//! Adaptive subdivision of per-vertex bakes (after D3DX's PRT engine): a coarse mesh cannot
+//! hold the shadow a figure casts on a 4-vertex floor, so the baker splits the edges across
+//! which the transfer changes by more than an error target, bakes the new vertices, and
+//! repeats, up to a number of levels. Edges across which the transfer does not change are
+//! never split, so open, evenly lit regions keep their triangles.
+//!
+//! What interpolation gets wrong is what matters: the transfer is baked at each edge's
+//! midpoint and at each triangle's centroid, and an edge is split when its midpoint's transfer
+//! differs from the average of its ends' by more than `E` — `‖t_m − (t_a + t_b)/2‖ /
+//! max(‖t_m‖, f) > E` — and all three edges of a triangle when its centroid's differs so from
+//! the average of its corners' (a shadow inside a large triangle whose corners all see the
+//! sky). Vectors are compared on bands 0–2 (what diffuse lighting weighs; the higher bands
+//! carry most of the Monte Carlo noise), and `f` is the object's mean ‖t‖, so noise in
+//! dark regions does not split. A split edge gets its midpoint (position averaged in f64,
+//! normal the normalised sum of its ends'); a triangle with 1, 2 or 3 split edges becomes 2, 3
+//! or 4 triangles with the same winding (red–green refinement: both triangles of a shared edge
+//! split it, so the mesh stays conforming, without T-junctions). The new surface is the old one
+//! exactly: every new triangle lies in its parent's plane.
+
+use crate::plan::ObjectPlan;
+use crate::points::SamplePoint;
+use crate::transfer::{direct, DirectOptions};
+use crate::{BakeError, BakeSettings};
+use glam::Vec3;
+use prt_scene::{Mesh, Scene};
+use prt_sh::Basis;
+use prt_tracer::{point_offset, Accel};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// `prt bake --subdivide` options.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SubdivideOptions {
+    /// Relative difference of the transfer across an edge above which it is split.
+    pub error: f64,
+    /// Refinement levels at most.
+    pub max_levels: u32,
+    /// An object stops refining once it has this many vertices.
+    pub max_vertices: usize,
+}
+
+impl Default for SubdivideOptions {
+    fn default() -> Self {
+        Self {
+            error: 0.1,
+            max_levels: 5,
+            max_vertices: 1 << 20,
+        }
+    }
+}
+
+/// What refinement did to one object.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ObjectRefinement {
+    /// Object name.
+    pub name: String,
+    /// Vertices before and after.
+    pub vertices: [usize; 2],
+    /// Triangles before and after.
+    pub triangles: [usize; 2],
+    /// Edges split at each level.
+    pub splits: Vec<usize>,
+    /// Rays traced to decide (the new vertices' direct transfer, level by level).
+    pub rays: u64,
+}
+
+/// Coefficients compared: bands 0–2.
+const COMPARED: usize = 9;
+
+/// `‖t − mean of others‖ / max(‖t‖, floor)` on the compared coefficients.
+fn deviation(t: &[f64], others: &[&[f64]], floor: f64) -> f64 {
+    let k = t.len().min(COMPARED);
+    let n = others.len() as f64;
+    let (mut d, mut nt) = (0.0f64, 0.0f64);
+    for i in 0..k {
+        let avg = others.iter().map(|o| o[i]).sum::<f64>() / n;
+        d += (t[i] - avg).powi(2);
+        nt += t[i] * t[i];
+    }
+    d.sqrt() / nt.sqrt().max(floor).max(f64::MIN_POSITIVE)
+}
+
+/// Splits the marked edges of `indices` (keys `(min, max)` → midpoint vertex) into new
+/// triangles with the same winding.
+fn split_triangles(indices: &[[u32; 3]], mid: &HashMap<(u32, u32), u32>) -> Vec<[u32; 3]> {
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let mut out = Vec::with_capacity(indices.len() * 2);
+    for &t in indices {
+        let m: [Option<u32>; 3] = [0, 1, 2].map(|e| mid.get(&key(t[e], t[(e + 1) % 3])).copied());
+        match m.iter().filter(|x| x.is_some()).count() {
+            0 => out.push(t),
+            3 => {
+                let [ab, bc, ca] = m.map(|x| x.expect("three splits"));
+                let [a, b, c] = t;
+                out.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+            }
+            1 => {
+                // Rotate so that the split edge is (a, b).
+                let e = m.iter().position(Option::is_some).expect("one split");
+                let (a, b, c) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
+                let ab = m[e].expect("split");
+                out.extend([[a, ab, c], [ab, b, c]]);
+            }
+            _ => {
+                // Rotate so that the unsplit edge is (c, a): (a, b) and (b, c) are split.
+                let e = (m.iter().position(Option::is_none).expect("one unsplit") + 1) % 3;
+                let (a, b, c) = (t[e], t[(e + 1) % 3], t[(e + 2) % 3]);
+                let (ab, bc) = (m[e].expect("split"), m[(e + 1) % 3].expect("split"));
+                out.extend([[ab, b, bc], [a, ab, bc], [a, bc, c]]);
+            }
+        }
+    }
+    out
+}
+
+/// Refines every mesh of `scene` (per-vertex bakes) and returns the scene with the refined
+/// meshes, and what was done. `accel` is `scene`'s; the new vertices' transfer is estimated
+/// with the bake's own rays and keys (so the final bake of the refined scene finds the same
+/// values at the same vertices).
+///
+/// # Errors
+/// Invalid options.
+pub fn refine(
+    scene: &Scene,
+    accel: &Accel,
+    settings: &BakeSettings,
+    plans: &[ObjectPlan],
+    opt: &SubdivideOptions,
+) -> Result<(Scene, Vec<ObjectRefinement>), BakeError> {
+    if !(opt.error.is_finite() && opt.error >= 0.0) || opt.max_levels > 16 {
+        return Err(BakeError::InvalidSettings(format!(
+            "subdivision error {} must be a finite number ≥ 0 and levels {} at most 16",
+            opt.error, opt.max_levels
+        )));
+    }
+    let mut refined = scene.clone();
+    let mut report = Vec::with_capacity(plans.len());
+    for plan in plans {
+        let mesh: &mut Mesh = &mut refined.meshes[plan.mesh];
+        let basis = Basis::new(plan.order)?;
+        let extent = accel.mesh_extent(plan.mesh);
+        let dopt = DirectOptions {
+            rays: settings.rays,
+            record_hits: false,
+            visibility: false,
+            seed: settings.seed,
+            object: plan.mesh as u64,
+            first_ray: 0,
+            basis: &basis,
+        };
+        let point = |p: Vec3, n: Vec3| {
+            let n = n.normalize_or(Vec3::Y);
+            SamplePoint {
+                position: p,
+                normal: n,
+                offset_normal: n,
+                offset: point_offset(p, extent),
+            }
+        };
+        let mut transfer: Vec<Vec<f64>> = (0..mesh.positions.len())
+            .into_par_iter()
+            .map(|v| {
+                direct(
+                    accel,
+                    &point(mesh.positions[v], mesh.normals[v]),
+                    v as u64,
+                    &dopt,
+                )
+                .shadowed
+            })
+            .collect();
+        let mut rays = mesh.positions.len() as u64 * u64::from(settings.rays);
+        let (v0, t0) = (mesh.positions.len(), mesh.indices.len());
+        let mut splits = Vec::new();
+        let mut probe_key = 0u64;
+        for _ in 0..opt.max_levels {
+            if mesh.positions.len() >= opt.max_vertices {
+                break;
+            }
+            let mean_norm = transfer
+                .iter()
+                .map(|t| {
+                    t[..t.len().min(COMPARED)]
+                        .iter()
+                        .map(|x| x * x)
+                        .sum::<f64>()
+                        .sqrt()
+                })
+                .sum::<f64>()
+                / transfer.len().max(1) as f64;
+            let floor = mean_norm;
+            // Every edge once, in the order triangles first meet it.
+            let mut edges: Vec<(u32, u32)> = Vec::new();
+            let mut seen: HashMap<(u32, u32), usize> = HashMap::new();
+            for t in &mesh.indices {
+                for e in 0..3 {
+                    let (a, b) = (t[e], t[(e + 1) % 3]);
+                    let k = (a.min(b), a.max(b));
+                    if let std::collections::hash_map::Entry::Vacant(slot) = seen.entry(k) {
+                        slot.insert(edges.len());
+                        edges.push(k);
+                    }
+                }
+            }
+            // Probe transfer at edge midpoints and triangle centroids (their own keys, after
+            // every vertex index; the final bake re-derives kept vertices by their index).
+            let midpoint = |(a, b): (u32, u32)| {
+                let p = ((mesh.positions[a as usize].as_dvec3()
+                    + mesh.positions[b as usize].as_dvec3())
+                    * 0.5)
+                    .as_vec3();
+                let n = (mesh.normals[a as usize] + mesh.normals[b as usize])
+                    .normalize_or(mesh.normals[a as usize]);
+                (p, n)
+            };
+            let centroid = |t: &[u32; 3]| {
+                let p = (t
+                    .iter()
+                    .map(|&i| mesh.positions[i as usize].as_dvec3())
+                    .sum::<glam::DVec3>()
+                    / 3.0)
+                    .as_vec3();
+                let n = t
+                    .iter()
+                    .map(|&i| mesh.normals[i as usize])
+                    .sum::<Vec3>()
+                    .normalize_or(mesh.normals[t[0] as usize]);
+                (p, n)
+            };
+            let base = u64::MAX / 2 + probe_key;
+            let at_edges: Vec<Vec<f64>> = edges
+                .par_iter()
+                .enumerate()
+                .map(|(i, &e)| {
+                    let (p, n) = midpoint(e);
+                    direct(accel, &point(p, n), base + i as u64, &dopt).shadowed
+                })
+                .collect();
+            let at_tris: Vec<Vec<f64>> = mesh
+                .indices
+                .par_iter()
+                .enumerate()
+                .map(|(i, t)| {
+                    let (p, n) = centroid(t);
+                    direct(accel, &point(p, n), base + (edges.len() + i) as u64, &dopt).shadowed
+                })
+                .collect();
+            probe_key += (edges.len() + mesh.indices.len()) as u64;
+            rays += (edges.len() + mesh.indices.len()) as u64 * u64::from(settings.rays);
+            let mut split = vec![false; edges.len()];
+            for (i, &(a, b)) in edges.iter().enumerate() {
+                let ends = [
+                    transfer[a as usize].as_slice(),
+                    transfer[b as usize].as_slice(),
+                ];
+                split[i] = deviation(&at_edges[i], &ends, floor) > opt.error;
+            }
+            for (t, at) in mesh.indices.iter().zip(&at_tris) {
+                let corners = t.map(|i| transfer[i as usize].as_slice());
+                if deviation(at, &corners, floor) > opt.error {
+                    for e in 0..3 {
+                        let (a, b) = (t[e], t[(e + 1) % 3]);
+                        split[seen[&(a.min(b), a.max(b))]] = true;
+                    }
+                }
+            }
+            let chosen: Vec<usize> = (0..edges.len()).filter(|&i| split[i]).collect();
+            if chosen.is_empty() {
+                break;
+            }
+            splits.push(chosen.len());
+            let new_points: Vec<(Vec3, Vec3)> =
+                chosen.iter().map(|&i| midpoint(edges[i])).collect();
+            let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+            for (&i, (p, n)) in chosen.iter().zip(new_points) {
+                let index = u32::try_from(mesh.positions.len()).map_err(|_| {
+                    BakeError::InvalidSettings("subdivision beyond 2^32 vertices".into())
+                })?;
+                mesh.positions.push(p);
+                mesh.normals.push(n);
+                mid.insert(edges[i], index);
+                // The midpoint's probe is its transfer estimate for the next level.
+                transfer.push(at_edges[i].clone());
+            }
+            mesh.indices = split_triangles(&mesh.indices, &mid);
+        }
+        report.push(ObjectRefinement {
+            name: plan.name.clone(),
+            vertices: [v0, mesh.positions.len()],
+            triangles: [t0, mesh.indices.len()],
+            splits,
+            rays,
+        });
+    }
+    Ok((refined, report))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn area(p: &[Vec3], t: &[[u32; 3]]) -> Vec3 {
+        t.iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| p[i as usize]);
+                0.5 * (b - a).cross(c - a)
+            })
+            .sum()
+    }
+
+    /// Every pattern of split edges keeps the area vector (same surface, same winding) and
+    /// leaves no T-junction: every edge of the result is shared by at most two triangles, and
+    /// a split edge's halves appear on both sides.
+    #[test]
+    fn split_patterns_keep_surface_and_winding_and_conform() {
+        // Two triangles sharing edge (1, 2).
+        let p = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+        ];
+        let tris = vec![[0u32, 1, 2], [1, 3, 2]];
+        let edges = [(0u32, 1u32), (1, 2), (0, 2), (1, 3), (2, 3)];
+        for mask in 0u32..32 {
+            let mut mid = HashMap::new();
+            let mut pts = p.clone();
+            for (i, &(a, b)) in edges.iter().enumerate() {
+                if mask & (1 << i) != 0 {
+                    mid.insert((a.min(b), a.max(b)), pts.len() as u32);
+                    pts.push((p[a as usize] + p[b as usize]) * 0.5);
+                }
+            }
+            let out = split_triangles(&tris, &mid);
+            assert!(
+                (area(&pts, &out) - area(&p, &tris)).length() < 1e-6,
+                "mask {mask}"
+            );
+            for t in &out {
+                let [a, b, c] = t.map(|i| pts[i as usize]);
+                assert!(
+                    (b - a).cross(c - a).z > 0.0,
+                    "mask {mask}: winding flipped or degenerate"
+                );
+            }
+            let mut count: HashMap<(u32, u32), usize> = HashMap::new();
+            for t in &out {
+                for e in 0..3 {
+                    let (a, b) = (t[e], t[(e + 1) % 3]);
+                    *count.entry((a.min(b), a.max(b))).or_default() += 1;
+                }
+            }
+            assert!(count.values().all(|&c| c <= 2), "mask {mask}");
+            // The shared edge: split on one side means split on the other (no T-junction).
+            assert!(!count.contains_key(&(1, 2)) || !mid.contains_key(&(1, 2)));
+        }
+    }
+}
