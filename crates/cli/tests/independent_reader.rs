@@ -344,8 +344,20 @@ fn independent_reader_agrees_with_prt_on_every_bake_kind() {
     run(prt().arg("merge").args(&shards).arg("--out").arg(&merged));
     let v10 =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../bakefile/tests/data/v1_0_sample_f16.prtb");
+    // Compressed (clustered PCA, SPEC §3.13): the reader reconstructs the blocks itself; its
+    // CRC-32s of the reconstruction must match prt's bit for bit.
+    let compressed = dir.path().join("compressed.prtb");
+    run(prt()
+        .arg("compress")
+        .arg(&files[1])
+        .args(["--clusters", "3", "--out"])
+        .arg(&compressed));
     let dump = dir.path().join("dump.json");
-    for f in files.iter().chain(&shards).chain([&merged, &v10]) {
+    for f in files
+        .iter()
+        .chain(&shards)
+        .chain([&merged, &v10, &compressed])
+    {
         check_dump(&py, f, &dump);
     }
     for f in [&files[0], &files[1], &merged, &files[2], &files[3]] {
