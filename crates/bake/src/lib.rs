@@ -371,25 +371,15 @@ pub fn bake_pass(
             passes::Outcome::Intermediate(objects, reports) => {
                 let ray_stats = intermediate_stats(&plans, &vertex_direct, dist, settings);
                 let meta = BakeMeta {
-                    sample_kind: SampleKind::Vertex,
-                    rays_per_point: settings.rays,
-                    bounces: settings.bounces,
-                    seed: settings.seed,
-                    tool: ToolInfo {
-                        name: "prt".into(),
-                        version: env!("CARGO_PKG_VERSION").into(),
-                    },
-                    settings: settings_json,
-                    decisions: decisions.clone(),
-                    shard: settings
-                        .shard
-                        .map_or(ShardInfo::default(), |(index, count)| ShardInfo {
-                            index,
-                            count,
-                        }),
-                    ray_stats,
                     camera: None,
                     pass: Some(passes::info(k, last_pass, &gs.albedo)),
+                    ..bake_meta(
+                        settings,
+                        SampleKind::Vertex,
+                        settings_json,
+                        &decisions,
+                        ray_stats,
+                    )
                 };
                 let bake = Bake {
                     meta,
@@ -434,18 +424,7 @@ pub fn bake_pass(
             .collect();
         vertex_totals = vertex_direct
             .iter()
-            .map(|r| {
-                r.iter()
-                    .map(|d| {
-                        d.shadowed
-                            .iter()
-                            .cycle()
-                            .take(3 * d.shadowed.len())
-                            .copied()
-                            .collect()
-                    })
-                    .collect()
-            })
+            .map(|r| r.iter().map(|d| level0_totals(&d.shadowed)).collect())
             .collect();
         chain.push(t0);
         for b in 1..=vertex_bounces {
@@ -815,25 +794,8 @@ pub fn bake_pass(
     }
 
     let meta = BakeMeta {
-        sample_kind,
-        rays_per_point: settings.rays,
-        bounces: settings.bounces,
-        seed: settings.seed,
-        tool: ToolInfo {
-            name: "prt".into(),
-            version: env!("CARGO_PKG_VERSION").into(),
-        },
-        settings: settings_json,
-        decisions: decisions.clone(),
-        shard: settings
-            .shard
-            .map_or(ShardInfo::default(), |(index, count)| ShardInfo {
-                index,
-                count,
-            }),
-        ray_stats,
         camera: (!vertex_mode).then(|| camera_info(&scene.camera)),
-        pass: None,
+        ..bake_meta(settings, sample_kind, settings_json, &decisions, ray_stats)
     };
     let mut bake = Bake {
         meta,
@@ -1118,4 +1080,46 @@ fn bake_subdivided(
     out.report.seconds = start.elapsed().as_secs_f64();
     out.bake.validate()?;
     Ok(out)
+}
+
+/// The metadata every file of a bake shares (no camera, not a pass file).
+fn bake_meta(
+    settings: &BakeSettings,
+    sample_kind: SampleKind,
+    settings_json: serde_json::Value,
+    decisions: &[Decision],
+    ray_stats: Vec<RayStats>,
+) -> BakeMeta {
+    BakeMeta {
+        sample_kind,
+        rays_per_point: settings.rays,
+        bounces: settings.bounces,
+        seed: settings.seed,
+        tool: ToolInfo {
+            name: "prt".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+        },
+        settings: settings_json,
+        decisions: decisions.to_vec(),
+        shard: settings
+            .shard
+            .map_or(ShardInfo::default(), |(index, count)| ShardInfo {
+                index,
+                count,
+            }),
+        ray_stats,
+        camera: None,
+        pass: None,
+    }
+}
+
+/// The running totals a vertex's bounces start from: its shadowed transfer in each of the
+/// three channels (f64, as the gathers add to it).
+pub(crate) fn level0_totals(shadowed: &[f64]) -> Vec<f64> {
+    shadowed
+        .iter()
+        .cycle()
+        .take(3 * shadowed.len())
+        .copied()
+        .collect()
 }

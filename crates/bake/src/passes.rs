@@ -344,14 +344,7 @@ impl Step<'_> {
                 let totals = if self.vertex_mode {
                     rows_o
                         .iter()
-                        .map(|d| {
-                            d.shadowed
-                                .iter()
-                                .cycle()
-                                .take(3 * d.shadowed.len())
-                                .copied()
-                                .collect()
-                        })
+                        .map(|d| crate::level0_totals(&d.shadowed))
                         .collect()
                 } else {
                     Vec::new()
