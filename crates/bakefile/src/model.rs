@@ -486,7 +486,7 @@ impl Cpca {
         }
         check_finite32(&format!("{what} clustered PCA"), &self.centres)?;
         check_finite32(&format!("{what} clustered PCA weights"), &self.weights)?;
-        if !self.rel_error.is_finite() {
+        if !(self.rel_error.is_finite() && self.rel_error >= 0.0) {
             return Err(BakeFileError::NonFinite {
                 section: format!("{what} clustered PCA error"),
                 index: 0,
