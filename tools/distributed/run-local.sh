@@ -32,7 +32,9 @@ for ((k = 0; k <= bounces; k++)); do
     start=$(date +%s.%N)
     pids=()
     for ((i = 0; i < n; i++)); do
-        "$prt" bake "$scene" "$@" --shard "$i/$n" --pass "$k" "${previous[@]}" --json \
+        hits=()
+        [ "$k" -gt 0 ] && hits=(--hits "$work/pass0-shard$i.prtb")
+        "$prt" bake "$scene" "$@" --shard "$i/$n" --pass "$k" "${previous[@]}" "${hits[@]}" --json \
             --out "$work/pass$k-shard$i.prtb" >"$work/pass$k-shard$i.json" 2>"$work/pass$k-shard$i.log" &
         pids+=($!)
     done

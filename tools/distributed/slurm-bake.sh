@@ -38,6 +38,8 @@ for ((k = 0; k <= bounces; k++)); do
     # Single quotes keep $SLURM_* for the task's shell.
     task="$(printf %q "$prt") bake $(printf %q "$scene")$options --threads \$SLURM_CPUS_PER_TASK"
     task+=" --shard \$SLURM_ARRAY_TASK_ID/$n --pass $k $previous --json"
+    # Later passes read each shard's own hit records from its pass-0 file.
+    [ "$k" -gt 0 ] && task+=" --hits $(printf %q "$dir")/pass0-shard\$SLURM_ARRAY_TASK_ID.prtb"
     task+=" --out $(printf %q "$dir")/pass$k-shard\$SLURM_ARRAY_TASK_ID.prtb"
     array=$($sbatch --parsable --job-name="prt-pass$k" --array="0-$((n - 1))" \
         --cpus-per-task="$cpus" "${dependency[@]}" \

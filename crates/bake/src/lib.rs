@@ -264,6 +264,17 @@ pub fn bake_pass(
             albedo: &gs.albedo,
             environment: &environment,
             bounces: last_pass,
+            gathers_at_vertices: p.index >= 1 && (p.index as usize) <= vertex_bounces,
+            shard: settings.shard,
+            ranges: plans
+                .iter()
+                .map(|plan| {
+                    shard_range(
+                        scene.meshes[plan.mesh].positions.len() as u64,
+                        settings.shard,
+                    )
+                })
+                .collect(),
         };
         passes::check(p, &expect)?;
     }
@@ -296,9 +307,10 @@ pub fn bake_pass(
     let previous: Vec<passes::Previous> = match dist {
         Some(PassInput {
             previous: Some(prev),
+            hits,
             ..
         }) => (0..plans.len())
-            .map(|o| passes::previous(prev, o, vertex_ranges[o].0, vertex_ranges[o].1))
+            .map(|o| passes::previous(prev, hits, o, vertex_ranges[o].0, vertex_ranges[o].1))
             .collect(),
         _ => Vec::new(),
     };

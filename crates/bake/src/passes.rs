@@ -21,6 +21,9 @@ pub struct PassInput<'a> {
     pub index: u32,
     /// The merged result of pass `index − 1` (`None` for pass 0).
     pub previous: Option<&'a Bake>,
+    /// This shard's own pass-0 file, which holds its vertices' hit records (passes that gather
+    /// at vertices need it; a merged file keeps only the counts).
+    pub hits: Option<&'a Bake>,
 }
 
 fn fail(msg: impl Into<String>) -> BakeError {
@@ -36,6 +39,12 @@ pub(crate) struct Expect<'a> {
     pub albedo: &'a [[f32; 3]],
     pub environment: &'a EnvCoefficients,
     pub bounces: u32,
+    /// Whether this pass gathers a bounce at vertices (and so needs the shard's hits).
+    pub gathers_at_vertices: bool,
+    /// This run's shard.
+    pub shard: Option<(u32, u32)>,
+    /// This shard's point range per object.
+    pub ranges: Vec<(u64, u64)>,
 }
 
 /// Checks the pass index against the bake, and `previous` against this run.
@@ -49,6 +58,9 @@ pub(crate) fn check(pass: &PassInput<'_>, expect: &Expect<'_>) -> Result<(), Bak
     }
     let Some(prev) = pass.previous else {
         return if pass.index == 0 {
+            if pass.hits.is_some() {
+                return Err(fail("pass 0 records the hits: it takes no --hits file"));
+            }
             Ok(())
         } else {
             Err(fail(format!(
@@ -145,6 +157,58 @@ pub(crate) fn check(pass: &PassInput<'_>, expect: &Expect<'_>) -> Result<(), Bak
             "the --previous file was lit by another environment (its SH coefficients differ)",
         ));
     }
+    check_hits(pass, expect, prev)
+}
+
+/// The `--hits` file: this shard's own pass-0 file, needed exactly by the passes that gather
+/// at vertices.
+fn check_hits(pass: &PassInput<'_>, expect: &Expect<'_>, prev: &Bake) -> Result<(), BakeError> {
+    let Some(h) = pass.hits else {
+        return if expect.gathers_at_vertices {
+            Err(fail(format!(
+                "pass {} gathers a bounce at this shard's vertices: give --hits, this shard's own pass-0 file (the merged file keeps only the hit counts)",
+                pass.index
+            )))
+        } else {
+            Ok(())
+        };
+    };
+    if !expect.gathers_at_vertices {
+        return Err(fail(format!(
+            "pass {} gathers nothing at vertices: it takes no --hits file",
+            pass.index
+        )));
+    }
+    let shard = expect.shard.unwrap_or((0, 1));
+    if h.meta.pass.as_ref().map(|p| (p.index, p.last)) != Some((0, expect.bounces)) {
+        return Err(fail("the --hits file is not a pass-0 file of this bake"));
+    }
+    if (h.meta.shard.index, h.meta.shard.count) != shard {
+        return Err(fail(format!(
+            "the --hits file is shard {}/{}, this is shard {}/{}: each shard reads its own",
+            h.meta.shard.index, h.meta.shard.count, shard.0, shard.1
+        )));
+    }
+    if h.meta.settings != prev.meta.settings || h.meta.tool != prev.meta.tool {
+        return Err(fail(
+            "the --hits file was made with other settings than the --previous file",
+        ));
+    }
+    for (i, (o, range)) in h.objects.iter().zip(&expect.ranges).enumerate() {
+        let same = o.name == expect.names[i]
+            && o.geometry_hash == expect.hashes[i]
+            && (o.point_first, o.points_in_file) == *range
+            && o.pass.as_ref().is_some_and(|p| p.records);
+        if !same {
+            return Err(fail(format!(
+                "object {} of the --hits file does not hold this shard's points with their hits",
+                o.name
+            )));
+        }
+    }
+    if h.objects.len() != expect.names.len() {
+        return Err(fail("the --hits file holds other objects than the scene"));
+    }
     Ok(())
 }
 
@@ -167,10 +231,23 @@ pub(crate) struct Previous {
     pub rows: Vec<DirectResult>,
 }
 
-/// Takes object `o`'s part of `prev` for points `first .. first + count`.
-pub(crate) fn previous(prev: &Bake, o: usize, first: u64, count: u64) -> Previous {
+/// Takes object `o`'s part of `prev` for points `first .. first + count`, and their hit
+/// records from `hits` (this shard's pass-0 file; checked to hold exactly these points).
+pub(crate) fn previous(
+    prev: &Bake,
+    hits_file: Option<&Bake>,
+    o: usize,
+    first: u64,
+    count: u64,
+) -> Previous {
     let obj = &prev.objects[o];
     let state = obj.pass.as_ref().expect("checked");
+    let object_hits: u64 = state
+        .hit_counts
+        .iter()
+        .flatten()
+        .map(|&c| u64::from(c))
+        .sum();
     let n2 = (obj.order * obj.order) as usize;
     let order = obj.order as usize;
     let (first, count) = (first as usize, count as usize);
@@ -187,12 +264,15 @@ pub(crate) fn previous(prev: &Bake, o: usize, first: u64, count: u64) -> Previou
         data: state.partial.clone().expect("checked"),
     });
     let mut hits = Vec::with_capacity(count);
-    if let Some(counts) = &state.hit_counts {
-        let mut start: usize = counts[..first].iter().map(|&c| c as usize).sum();
-        for &c in &counts[first..first + count] {
+    let own = hits_file
+        .and_then(|f| f.objects[o].pass.as_ref())
+        .filter(|s| s.records);
+    if let Some((own, counts)) = own.and_then(|s| Some(s).zip(s.hit_counts.as_ref())) {
+        let mut start = 0usize;
+        for &c in counts {
             let end = start + c as usize;
             hits.push(
-                state.hits[start..end]
+                own.hits[start..end]
                     .iter()
                     .map(|h| HitRecord {
                         mesh: h.mesh,
@@ -236,7 +316,7 @@ pub(crate) fn previous(prev: &Bake, o: usize, first: u64, count: u64) -> Previou
         .collect();
     Previous {
         chain,
-        object_hits: state.hits.len() as u64,
+        object_hits,
         hits,
         totals,
         rows,
@@ -392,9 +472,12 @@ impl Step<'_> {
             let blocks = intermediate_blocks(rows_o, self.vertex_mode && plan.needs_visibility);
             let hit_refs: Vec<&[HitRecord]> = hits.iter().map(Vec::as_slice).collect();
             let record = self.vertex_bounces > k;
+            // Pass 0 writes the shard's hit records (later passes read them from this file
+            // with --hits); every pass writes the counts, which merge into the object-wide
+            // figure the next pass needs.
             let (hit_counts, hit_records) = if record {
                 let (c, r) = file_hits(&hit_refs);
-                (Some(c), r)
+                (Some(c), if k == 0 { r } else { Vec::new() })
             } else {
                 (None, Vec::new())
             };
@@ -426,6 +509,7 @@ impl Step<'_> {
                         .vertex_mode
                         .then(|| totals.into_iter().flatten().collect()),
                     hit_counts,
+                    records: record && k == 0,
                     hits: hit_records,
                 }),
             });

@@ -485,7 +485,8 @@ fn bytes_of_pass(
     let mut b = Buf::default();
     let flags = u32::from(p.partial.is_some())
         | u32::from(p.totals.is_some()) << 1
-        | u32::from(p.hit_counts.is_some()) << 2;
+        | u32::from(p.hit_counts.is_some()) << 2
+        | u32::from(p.records) << 3;
     b.u32(object);
     b.u32(p.levels.len() as u32);
     b.u32(o.order);

@@ -355,7 +355,10 @@ fn merge_pass(p0: &PassState, parts: &[&ObjectBake]) -> PassState {
                 .copied()
                 .collect()
         }),
-        hits: states.iter().flat_map(|s| s.hits.iter().copied()).collect(),
+        // Each shard keeps its own hit records in its pass-0 file (later passes read them
+        // with `--hits`); the merged file keeps only the counts (SPEC §3.12).
+        records: false,
+        hits: Vec::new(),
     }
 }
 
@@ -380,6 +383,11 @@ fn split_pass(p: &PassState, start: usize, end: usize, per: usize) -> PassState 
             .as_ref()
             .map(|v| v[start * per..end * per].to_vec()),
         hit_counts: p.hit_counts.as_ref().map(|c| c[start..end].to_vec()),
-        hits: p.hits[first_hit..last_hit].to_vec(),
+        records: p.records,
+        hits: if p.records {
+            p.hits[first_hit..last_hit].to_vec()
+        } else {
+            Vec::new()
+        },
     }
 }

@@ -313,7 +313,10 @@ pub struct PassState {
     pub totals: Option<Vec<f64>>,
     /// Hits recorded per point of this file (`points_in_file` counts), when bounces follow.
     pub hit_counts: Option<Vec<u32>>,
-    /// The hits themselves, point by point (`Σ hit_counts` records).
+    /// Whether `hits` holds the records: in the files of pass 0 (each shard keeps its own;
+    /// later passes read them with `--hits`), not in merged files, which keep the counts only.
+    pub records: bool,
+    /// The hits themselves, point by point (`Σ hit_counts` records when `records`, else none).
     pub hits: Vec<PassHit>,
 }
 
@@ -710,12 +713,18 @@ fn check_pass(
         )));
     }
     match &p.hit_counts {
-        None if !p.hits.is_empty() => {
+        None if !p.hits.is_empty() || p.records => {
             return Err(bad(format!("{what}: hits without per-point counts")));
+        }
+        _ if !p.records && !p.hits.is_empty() => {
+            return Err(bad(format!(
+                "{what}: hit records in a file that says it holds none"
+            )));
         }
         Some(c)
             if c.len() as u64 != o.points_in_file
-                || c.iter().map(|&n| u64::from(n)).sum::<u64>() != p.hits.len() as u64 =>
+                || (p.records
+                    && c.iter().map(|&n| u64::from(n)).sum::<u64>() != p.hits.len() as u64) =>
         {
             return Err(bad(format!(
                 "{what}: hit counts do not add up to the {} hits held",

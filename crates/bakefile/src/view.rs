@@ -322,7 +322,7 @@ fn read_cpca(p: &[u8], object: usize, what: &str) -> Result<Cpca, BakeFileError>
 fn read_pass(p: &[u8], o: &ObjectInfo, name: &str) -> Result<PassState, BakeFileError> {
     let (levels, order, flags) = (u64::from(rd_u32(p, 4)), rd_u32(p, 8), rd_u32(p, 12));
     let (vertices, points, hits) = (rd_u64(p, 16), rd_u64(p, 24), rd_u64(p, 32));
-    if flags & !7 != 0 {
+    if flags & !15 != 0 {
         return Err(invalid(
             format!("{name} flags"),
             format!("unknown bits {flags:#x}"),
@@ -385,7 +385,7 @@ fn read_pass(p: &[u8], o: &ObjectInfo, name: &str) -> Result<PassState, BakeFile
             .map(|c| rd_u32(c, 0))
             .collect()
     });
-    let hits = take(u128::from(hits) * 16)
+    let hits: Vec<PassHit> = take(u128::from(hits) * 16)
         .chunks_exact(16)
         .map(|c| PassHit {
             mesh: rd_u32(c, 0),
@@ -394,11 +394,18 @@ fn read_pass(p: &[u8], o: &ObjectInfo, name: &str) -> Result<PassState, BakeFile
             v: f32::from_bits(rd_u32(c, 12)),
         })
         .collect();
+    if flags & 8 == 0 && !hits.is_empty() {
+        return Err(invalid(
+            format!("{name} flags"),
+            "hit records without the records flag (bit 3)",
+        ));
+    }
     Ok(PassState {
         levels,
         partial,
         totals,
         hit_counts,
+        records: flags & 8 != 0,
         hits,
     })
 }

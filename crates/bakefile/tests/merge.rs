@@ -163,14 +163,31 @@ fn test05_pass_files_split_and_merge_back() {
             partial: Some(values(&mut r, points * per)),
             totals: Some((0..points * per).map(|_| r.random::<f64>()).collect()),
             hit_counts: Some(hit_counts),
+            records: true,
             hits,
         });
     }
     let bytes = encode(&bake, ScalarType::F32).unwrap();
     assert_eq!(decode(&bytes).unwrap(), bake);
     let shards = split(&bake, 3).unwrap();
+    // A shard keeps its own points' hit records through encoding ...
+    let shard_bytes = encode(&shards[1], ScalarType::F32).unwrap();
+    assert_eq!(decode(&shard_bytes).unwrap(), shards[1]);
+    assert!(shards[1].objects[1].pass.as_ref().unwrap().records);
+    // ... and the merge keeps every point's state but only the counts of the hits: each shard
+    // reads its own records from its own pass-0 file (SPEC §3.12).
     let merged = merge(&shards).unwrap();
-    assert_eq!(encode(&merged, ScalarType::F32).unwrap(), bytes);
+    let mut expected = bake.clone();
+    for o in &mut expected.objects {
+        let p = o.pass.as_mut().unwrap();
+        p.records = false;
+        p.hits.clear();
+    }
+    assert_eq!(
+        encode(&merged, ScalarType::F32).unwrap(),
+        encode(&expected, ScalarType::F32).unwrap()
+    );
+    assert!(encode(&expected, ScalarType::F32).unwrap().len() < bytes.len());
     // Shards of different passes, or with different complete levels, do not merge.
     let mut other = shards.clone();
     other[1].meta.pass.as_mut().unwrap().index = 0;

@@ -48,7 +48,8 @@ pub struct BakeArgs {
     pub shard: Option<String>,
     /// Distributed bounced bakes: run pass K of 0..=bounces. Pass 0 traces the direct transfer
     /// of the shard's vertices and records their ray hits; pass K ≥ 1 gathers bounce K for
-    /// them from --previous (the merged file of pass K − 1); the last pass (K = bounces) writes
+    /// them from --previous (the merged file of pass K − 1) and --hits (the shard's own pass-0
+    /// file); the last pass (K = bounces) writes
     /// the shard of the final bake (per-pixel bakes: it traces the shard's pixels). Merge each
     /// pass's shards with `prt merge` before the next pass. The merged last pass is byte for
     /// byte the unsharded bake, and all passes together trace the rays of one bake.
@@ -58,6 +59,10 @@ pub struct BakeArgs {
     /// The merged file of the previous pass (with --pass K ≥ 1).
     #[arg(long, requires = "pass")]
     pub previous: Option<PathBuf>,
+    /// This shard's own pass-0 file (with --pass K ≥ 1 while bounces are gathered at
+    /// vertices): it holds the shard's ray hits, which merged files do not carry.
+    #[arg(long, requires = "pass")]
+    pub hits: Option<PathBuf>,
     /// Per-vertex bakes: refine the meshes where the transfer changes fast (after D3DX's
     /// adaptive subdivision): split every edge across which the shadowed transfer differs by
     /// more than --subdivide-error (relative L2), bake the new vertices, repeat up to
@@ -305,16 +310,27 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
         Some(p) => Some(prt_bakefile::read_bake(p)?),
         None => None,
     };
+    let hits = match &args.hits {
+        Some(p) => Some(prt_bakefile::read_bake(p)?),
+        None => None,
+    };
     let pass = args.pass.map(|index| prt_bake::PassInput {
         index,
         previous: previous.as_ref(),
+        hits: hits.as_ref(),
     });
     let out = pool.install(|| -> Result<_> {
         let accel = prt_tracer::Accel::build(&scene)?;
         let out = prt_bake::bake_pass(&scene, &accel, &settings, pass).map_err(|e| {
-            match (&e, &args.previous) {
-                (prt_bake::BakeError::Pass(_), Some(p)) => anyhow::anyhow!("{}: {e}", p.display()),
-                _ => e.into(),
+            // Name the file the message is about.
+            let file = match (&e, &args.hits, &args.previous) {
+                (prt_bake::BakeError::Pass(m), Some(h), _) if m.contains("--hits file") => Some(h),
+                (prt_bake::BakeError::Pass(_), _, Some(p)) => Some(p),
+                _ => None,
+            };
+            match file {
+                Some(f) => anyhow::anyhow!("{}: {e}", f.display()),
+                None => e.into(),
             }
         })?;
         Ok(match args.target_psnr {

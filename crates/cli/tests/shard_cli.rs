@@ -206,6 +206,11 @@ fn four_shards_two_bounces_pass_by_pass() {
                 if let Some(p) = &previous {
                     cmd.arg("--previous").arg(p);
                 }
+                // Passes that gather at vertices read the shard's hits from its pass-0 file
+                // (per vertex: passes 1 and 2; per pixel: pass 1, pass 2 traces pixels).
+                if pass >= 1 && (!per_pixel || pass < 2) {
+                    cmd.arg("--hits").arg(name(&format!("pass0-shard{i}")));
+                }
                 let r = bake_json(cmd.arg("--out").arg(&out));
                 let rays = r["rays_traced"].as_u64().unwrap();
                 eprintln!(
@@ -222,6 +227,24 @@ fn four_shards_two_bounces_pass_by_pass() {
                 .args(shards.iter().rev())
                 .arg("--out")
                 .arg(&merged));
+            if pass < 2 {
+                // The merged file carries every point's state but no hit records: those stay in
+                // the shards' pass-0 files (only counts travel).
+                let m = prt_bakefile::read_bake(&merged).unwrap();
+                assert!(m.objects.iter().all(|o| o
+                    .pass
+                    .as_ref()
+                    .is_some_and(|p| !p.records && p.hits.is_empty())));
+                if pass == 0 {
+                    let shard_bytes: u64 = shards
+                        .iter()
+                        .map(|s| std::fs::metadata(s).unwrap().len())
+                        .sum();
+                    let merged_bytes = std::fs::metadata(&merged).unwrap().len();
+                    eprintln!("pass 0: shard files {shard_bytes} bytes in all, merged {merged_bytes} bytes");
+                    assert!(merged_bytes < shard_bytes);
+                }
+            }
             previous = Some(merged);
         }
         eprintln!(
@@ -258,7 +281,38 @@ fn four_shards_two_bounces_pass_by_pass() {
         String::from_utf8_lossy(&out.stderr).into_owned()
     };
     let pass0 = dir.path().join("vx-pass0.prtb");
-    let e = pass1(&["--pass", "1", "--order", "4", "--seed", "9"], &pass0);
+    let hits0 = dir.path().join("vx-pass0-shard0.prtb");
+    let hits0 = hits0.to_str().unwrap();
+    let hits1 = dir.path().join("vx-pass0-shard1.prtb");
+    let hits1 = hits1.to_str().unwrap();
+    let e = pass1(&["--pass", "1", "--order", "4"], &pass0);
+    assert!(e.contains("give --hits"), "{e}");
+    let e = pass1(&["--pass", "1", "--order", "4", "--hits", hits1], &pass0);
+    assert!(
+        e.contains("vx-pass0-shard1.prtb") && e.contains("each shard reads its own"),
+        "{e}"
+    );
+    let e = pass1(
+        &[
+            "--pass",
+            "1",
+            "--order",
+            "4",
+            "--hits",
+            pass0.to_str().unwrap(),
+        ],
+        &pass0,
+    );
+    assert!(
+        e.contains("not a pass-0 file") || e.contains("shard"),
+        "{e}"
+    );
+    let e = pass1(
+        &[
+            "--pass", "1", "--order", "4", "--hits", hits0, "--seed", "9",
+        ],
+        &pass0,
+    );
     assert!(e.contains("vx-pass0.prtb") && e.contains("seed"), "{e}");
     let e = pass1(&["--pass", "1", "--order", "3"], &pass0);
     assert!(e.contains("order: 4 there, 3 here"), "{e}");

@@ -21,7 +21,9 @@ for ((k = 0; k <= BOUNCES; k++)); do
     export PASS=$k
     export MERGED=/data/passes/pass$k.prtb
     [ "$k" -eq "$BOUNCES" ] && MERGED=/data/bake.prtb
-    envsubst '${PASS} ${SHARDS} ${PREVIOUS} ${BAKE_OPTIONS}' <"$here/pass-job.yaml" | kubectl apply -f -
+    export HITS=""
+    [ "$k" -gt 0 ] && HITS='--hits /data/passes/pass0-shard$JOB_COMPLETION_INDEX.prtb'
+    envsubst '${PASS} ${SHARDS} ${PREVIOUS} ${HITS} ${BAKE_OPTIONS}' <"$here/pass-job.yaml" | kubectl apply -f -
     kubectl wait --for=condition=complete "job/prt-pass$k" --timeout="$timeout"
     envsubst '${PASS} ${MERGED}' <"$here/merge-job.yaml" | kubectl apply -f -
     kubectl wait --for=condition=complete "job/prt-merge$k" --timeout="$timeout"
