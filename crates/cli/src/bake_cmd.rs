@@ -64,12 +64,14 @@ pub struct BakeArgs {
     #[arg(long, requires = "pass")]
     pub hits: Option<PathBuf>,
     /// Per-vertex bakes: refine the meshes where the transfer changes fast (after D3DX's
-    /// adaptive subdivision): split every edge across which the shadowed transfer differs by
-    /// more than --subdivide-error (relative L2), bake the new vertices, repeat up to
-    /// --max-subdivision levels. The file holds the refined meshes; relight and export use them.
+    /// adaptive subdivision): split every edge whose midpoint's transfer (or whose triangle's
+    /// centroid's) differs from the interpolation of the corners by more than
+    /// --subdivide-error, bake the new vertices, repeat up to --max-subdivision levels. The
+    /// file holds the refined meshes; relight and export use them.
     #[arg(long, conflicts_with_all = ["per_pixel", "shard", "pass", "target_psnr"])]
     pub subdivide: bool,
-    /// Relative difference of the transfer across an edge above which --subdivide splits it.
+    /// Relative difference between the transfer at a midpoint (or centroid) and its
+    /// interpolation, bands 0–2, above which --subdivide splits (0: split everything).
     #[arg(long, default_value_t = 0.1, requires = "subdivide")]
     pub subdivide_error: f64,
     /// Refinement levels at most (each can double a region's vertex density).
