@@ -658,17 +658,19 @@ pub(crate) fn check_finite32(section: &str, values: &[f32]) -> Result<(), BakeFi
 /// f32 is within ~2·10⁻⁷ of it.
 pub(crate) const MAX_NORMAL_LENGTH_ERROR: f64 = 1e-5;
 
-/// The first point of `o` whose transfer is not zero although its coverage says no footprint
-/// sample hit it (SPEC.md §3.11), as `(block, point)`.
+/// The first point whose transfer is not zero although its coverage says no footprint sample
+/// hit it (SPEC.md §3.11), as `(block, point)`: `blocks` blocks over the points
+/// `point_first …` that `coverage` describes, `is_zero(block, point in file)` telling.
 pub(crate) fn uncovered_nonzero(
-    o: &ObjectBake,
+    point_first: u64,
+    blocks: usize,
+    coverage: &Coverage,
     is_zero: impl Fn(usize, usize) -> bool,
 ) -> Option<(usize, u64)> {
-    let c = o.coverage.as_ref()?;
-    for (bi, _) in o.blocks.iter().enumerate() {
-        for (p, &h) in c.hits.iter().enumerate() {
+    for bi in 0..blocks {
+        for (p, &h) in coverage.hits.iter().enumerate() {
             if h == 0 && !is_zero(bi, p) {
-                return Some((bi, o.point_first + p as u64));
+                return Some((bi, point_first + p as u64));
             }
         }
     }
@@ -1036,7 +1038,11 @@ impl Bake {
                             .iter()
                             .all(|&v| v == 0.0)
                 };
-                if let Some((bi, p)) = uncovered_nonzero(o, zero) {
+                let found = o
+                    .coverage
+                    .as_ref()
+                    .and_then(|c| uncovered_nonzero(o.point_first, o.blocks.len(), c, zero));
+                if let Some((bi, p)) = found {
                     return Err(bad(format!(
                         "{what} block {bi}: transfer at point {p}, which its coverage says no sample hit"
                     )));

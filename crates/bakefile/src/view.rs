@@ -1106,22 +1106,9 @@ impl<'a> BakeView<'a> {
                     ScalarType::F16 => d.chunks_exact(2).all(|v| (v[0] | (v[1] & 0x7f)) == 0),
                 })
             };
-            let probe = ObjectBake {
-                point_first: o.point_first,
-                blocks: o
-                    .blocks
-                    .iter()
-                    .map(|b| TransferBlock {
-                        cpca: None,
-                        kind: b.kind,
-                        data: Vec::new(),
-                    })
-                    .collect(),
-                coverage: Some(c.clone()),
-                ..ObjectBake::default()
-            };
             if c.hits.len() as u64 == o.points_in_file {
-                if let Some((bi, p)) = crate::model::uncovered_nonzero(&probe, zero) {
+                let found = crate::model::uncovered_nonzero(o.point_first, o.blocks.len(), c, zero);
+                if let Some((bi, p)) = found {
                     return Err(invalid(
                         format!("object {oi} block {bi}"),
                         format!("transfer at point {p}, which its coverage says no sample hit"),
