@@ -59,7 +59,7 @@ fn specular_only(material: &Material) -> Material {
             roughness,
             ior,
         },
-        ref m => m.clone(),
+        ref m => *m,
     }
 }
 
@@ -68,14 +68,79 @@ fn specular_only(material: &Material) -> Material {
 ///
 /// The integrand is not smooth (clamped, peaked), so the product rule is not exact; it uses
 /// a rule exact to degree `max(8·order, 256)`, ~33k directions, and the error estimate is
-/// measured with the same rule.
+/// measured with the same rule. For `pbr` this is the [`PbrComponent::Dv`] table.
 #[must_use]
 pub fn glossy_table(material: &Material, order: usize) -> GlossyBrdfTable {
+    if let Material::Pbr { roughness, .. } = *material {
+        return pbr_table(roughness, PbrComponent::Dv, order);
+    }
     let spec = specular_only(material);
+    table_of(
+        |wo, wi| f64::from(prt_shading::eval(&spec, Vec3::Z, wo, wi).x),
+        order,
+    )
+}
+
+/// The colour-independent parts of the `pbr` BRDF's view-dependent term (see
+/// [`prt_shading::pbr_terms`]), each tabulated like a glossy BRDF; relighting weights them per
+/// channel by `A = 0.04(1 − m) + m·c`, `B = 0.96(1 − m) + m(1 − c)` and
+/// `C = −0.96(1 − m)·c`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PbrComponent {
+    /// `D·V`.
+    Dv,
+    /// `s·D·V`.
+    SchlickDv,
+    /// `s/π`, the Fresnel-dependent part of the `(1 − F)` diffuse term.
+    SchlickDiffuse,
+}
+
+impl PbrComponent {
+    /// All three, in the order of their table names' suffixes.
+    pub const ALL: [PbrComponent; 3] = [Self::Dv, Self::SchlickDv, Self::SchlickDiffuse];
+
+    /// The suffix of the table's material name: `""`, `"/schlick"`, `"/schlick_diffuse"`.
+    #[must_use]
+    pub fn suffix(self) -> &'static str {
+        match self {
+            Self::Dv => "",
+            Self::SchlickDv => "/schlick",
+            Self::SchlickDiffuse => "/schlick_diffuse",
+        }
+    }
+
+    /// Channel weight of this component for base colour `c` and metallic `m`.
+    #[must_use]
+    pub fn weight(self, c: f32, m: f32) -> f32 {
+        match self {
+            Self::Dv => 0.04 * (1.0 - m) + m * c,
+            Self::SchlickDv => 0.96 * (1.0 - m) + m * (1.0 - c),
+            Self::SchlickDiffuse => -0.96 * (1.0 - m) * c,
+        }
+    }
+}
+
+/// The table of one `pbr` component at `roughness`.
+#[must_use]
+pub fn pbr_table(roughness: f32, component: PbrComponent, order: usize) -> GlossyBrdfTable {
+    table_of(
+        |wo, wi| {
+            let (dv, s) = prt_shading::pbr_terms(roughness, wo, wi);
+            f64::from(match component {
+                PbrComponent::Dv => dv,
+                PbrComponent::SchlickDv => s * dv,
+                PbrComponent::SchlickDiffuse => s * std::f32::consts::FRAC_1_PI,
+            })
+        },
+        order,
+    )
+}
+
+/// Per-elevation SH projections of `f(ω_i, ω_o) max(0, cos θ_i)` (local frame).
+fn table_of(f: impl Fn(Vec3, Vec3) -> f64, order: usize) -> GlossyBrdfTable {
     let q = SphereQuadrature::exact_for_degree((8 * order).max(256));
     let basis = Basis::new(order).expect("order checked");
     let n2 = order * order;
-    let normal = Vec3::Z;
     let mut elevations = Vec::with_capacity(ELEVATIONS);
     let mut values = Vec::with_capacity(ELEVATIONS * n2);
     let mut err2 = vec![0.0; order];
@@ -90,8 +155,7 @@ pub fn glossy_table(material: &Material, order: usize) -> GlossyBrdfTable {
             if d.z <= 0.0 {
                 continue;
             }
-            let f = prt_shading::eval(&spec, normal, wo, d.as_vec3());
-            let v = f64::from(f.x) * d.z;
+            let v = f(wo, d.as_vec3()) * d.z;
             if v == 0.0 {
                 continue;
             }

@@ -786,7 +786,20 @@ pub fn bake_pass(
             .max()
             .unwrap_or(plan.order);
         brdfs.extend(brdf::zonal_projection(&name, material, order));
-        if matches!(
+        if let Material::Pbr { roughness, .. } = *material {
+            for c in brdf::PbrComponent::ALL {
+                let mut t = brdf::pbr_table(roughness, c, order);
+                t.material = format!("{name}{}", c.suffix());
+                glossy.push(t);
+            }
+            decisions.push(Decision {
+                object: None,
+                decision: format!("glossy tables for {name} (pbr: D·V, s·D·V, s/π)"),
+                reason: format!(
+                    "the metallic-roughness BRDF has no zonal form; roughness factor {roughness} (a roughness texture is not in the tables)"
+                ),
+            });
+        } else if matches!(
             material,
             Material::BlinnPhong { .. } | Material::Ward { .. } | Material::CookTorrance { .. }
         ) {

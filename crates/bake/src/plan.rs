@@ -78,7 +78,11 @@ pub fn plan(scene: &Scene, settings: &BakeSettings) -> (Vec<ObjectPlan>, Vec<Dec
                     }
                 }
             }
-            Material::BlinnPhong { .. } | Material::Ward { .. } | Material::CookTorrance { .. } => {
+            Material::BlinnPhong { .. }
+            | Material::Ward { .. }
+            | Material::CookTorrance { .. }
+            | Material::Pbr { .. } => {
+                // For `pbr` the D·V table: its lobe is the sharpest of the three components.
                 let t = glossy_table(material, settings.max_order.max(diffuse_order));
                 let o = t
                     .projection_error

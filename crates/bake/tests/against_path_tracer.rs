@@ -116,7 +116,7 @@ fn reference(scene: &Scene, vertices: &[usize], bounces: u32, spp: u32, runs: u3
             position: mesh.positions[v],
             normal: mesh.normals[v],
             view_dir: mesh.normals[v],
-            material: scene.materials[mesh.material].clone(),
+            material: scene.materials[mesh.material],
         })
         .collect();
     let mut sum = vec![[0.0f64; 3]; points.len()];

@@ -44,7 +44,7 @@ fn ward_specular_from_the_brdf_table_matches_the_integral() {
     };
     let cam = Camera::look_at(DVec3::new(0.0, 0.0, 4.0), DVec3::ZERO, 40.0, 16, 16);
     let mut scene = Scene::new(cam, Environment::uniform([1.0; 3]));
-    let m = scene.add_material("ward", ward.clone());
+    let m = scene.add_material("ward", ward);
     scene.add_mesh(icosphere(2), m);
     let accel = prt_tracer::Accel::build(&scene).unwrap();
     let order = 8;

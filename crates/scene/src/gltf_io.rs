@@ -1,5 +1,8 @@
 //! glTF 2.0 (`.gltf` with external or embedded buffers, and binary `.glb`) through the `gltf`
-//! crate. Images are never decoded: textures are ignored (with a warning).
+//! crate, with the metallic-roughness materials of the file: factors, `baseColorTexture` and
+//! `metallicRoughnessTexture` (PNG or JPEG, decoded by the `image` crate through `gltf`;
+//! base colour from sRGB), their UV sets (`TEXCOORD_n`, float or normalised integers) and
+//! `COLOR_0`.
 //!
 //! - Every node reachable from the default scene (the first scene when none is marked default)
 //!   is visited with its world transform (parent × node, `matrix` or TRS); each of its mesh's
@@ -7,7 +10,9 @@
 //! - `TRIANGLES`, `TRIANGLE_STRIP` and `TRIANGLE_FAN` are read (strips and fans triangulated
 //!   with the winding rule of the glTF specification, §3.7.2.1); `POINTS` and `LINE*` primitives
 //!   are skipped with a warning.
-//! - `POSITION` must be float VEC3; `NORMAL` (float VEC3) is used when present.
+//! - `POSITION` must be float VEC3; `NORMAL` (float VEC3) is used when present; every
+//!   `TEXCOORD_n` a material reads and `COLOR_0` (float or normalised unsigned bytes/shorts,
+//!   VEC3 or VEC4) are read.
 //! - Errors: a required extension other than `KHR_texture_transform` and
 //!   `KHR_materials_emissive_strength` (which do not affect geometry or our material mapping),
 //!   sparse accessors, accessors that run past their buffer, out-of-range indices and
@@ -16,7 +21,7 @@
 
 use crate::mesh::{finish_mesh, RawMesh, Repairs};
 use crate::obj::file_name;
-use crate::{LoadedMeshes, Material, Mesh, SceneError};
+use crate::{LoadedMeshes, Material, Mesh, SceneError, Texture, TextureRef, Wrap};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
 use glam::{DMat4, Mat4, Vec3};
@@ -26,7 +31,8 @@ use std::path::Path;
 const IGNORABLE_REQUIRED_EXTENSIONS: [&str; 2] =
     ["KHR_texture_transform", "KHR_materials_emissive_strength"];
 
-/// Maps a glTF metallic-roughness material to one of our BRDFs. With `c` = baseColorFactor
+/// Maps a glTF metallic-roughness material's factors to our older BRDFs (before `pbr`
+/// existed; kept for scenes that want a Cook–Torrance stand-in). With `c` = baseColorFactor
 /// (RGB; alpha and textures ignored), `m` = metallicFactor and `r` = roughnessFactor (each
 /// clamped to `[0, 1]`), the rule is:
 /// - `m < 0.5` and `r ≥ 0.8` (a rough dielectric, whose specular lobe is weak and wide):
@@ -135,7 +141,8 @@ pub fn load_gltf(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErr
         materials: Vec::new(),
         repairs: Repairs::default(),
         warnings: Vec::new(),
-        textured: 0,
+        textures: Vec::new(),
+        texture_keys: Vec::new(),
     };
     let mut stack: Vec<(::gltf::Node, DMat4, usize)> =
         scene.nodes().map(|n| (n, *to_world, 0)).collect();
@@ -161,11 +168,10 @@ pub fn load_gltf(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErr
     }
     let mut warnings = out.warnings;
     warnings.extend(out.repairs.warnings(path));
-    if out.textured > 0 {
+    if gltf.extensions_used().any(|e| e == "KHR_texture_transform") {
         warnings.push(format!(
-            "{}: {} material(s) have textures, which are ignored (factors only)",
-            path.display(),
-            out.textured
+            "{}: KHR_texture_transform is not applied: textures are read at the untransformed UVs",
+            path.display()
         ));
     }
     let mut order: Vec<(usize, Mesh)> = out.meshes;
@@ -173,6 +179,7 @@ pub fn load_gltf(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErr
     Ok(LoadedMeshes {
         meshes: order.into_iter().map(|(_, m)| m).collect(),
         materials: out.materials.into_iter().map(|(_, n, m)| (n, m)).collect(),
+        textures: out.textures,
         warnings,
     })
 }
@@ -188,7 +195,9 @@ struct Loader<'a> {
     materials: Vec<(Option<usize>, String, Material)>,
     repairs: Repairs,
     warnings: Vec<String>,
-    textured: usize,
+    /// Decoded textures, and for each its (glTF texture index, decoded from sRGB).
+    textures: Vec<Texture>,
+    texture_keys: Vec<(usize, bool)>,
 }
 
 impl Loader<'_> {
@@ -253,12 +262,80 @@ impl Loader<'_> {
                 .map(|i| [v[i], v[i + 1], v[0]])
                 .collect(),
         };
-        let material = self.material(prim.material());
+        let material = self.material(prim.material())?;
+        // The UV sets the material reads, and the vertex colours.
+        let mut sets = 0;
+        if let Material::Pbr {
+            base_color_texture,
+            metallic_roughness_texture,
+            ..
+        } = self.materials[material].2
+        {
+            for t in [base_color_texture, metallic_roughness_texture]
+                .into_iter()
+                .flatten()
+            {
+                sets = sets.max(t.texcoord + 1);
+            }
+        }
+        let mut texcoords = Vec::with_capacity(sets);
+        for set in 0..sets {
+            let what = format!("TEXCOORD_{set}");
+            let acc = prim
+                .get(&Semantic::TexCoords(set as u32))
+                .ok_or_else(|| {
+                    SceneError::mesh(
+                        self.path,
+                        format!(
+                            "{name}: material `{}` has a texture on {what}, but the primitive has no {what}",
+                            self.materials[material].1
+                        ),
+                    )
+                })?;
+            let uv = self.read_floats::<2>(&acc, &name, &what)?;
+            if uv.len() != positions.len() {
+                return Err(SceneError::mesh(
+                    self.path,
+                    format!(
+                        "{name}: {what} has {} values for {} positions",
+                        uv.len(),
+                        positions.len()
+                    ),
+                ));
+            }
+            texcoords.push(uv);
+        }
+        let colors = match prim.get(&Semantic::Colors(0)) {
+            None => Vec::new(),
+            Some(acc) => {
+                let c: Vec<[f32; 3]> = match acc.dimensions() {
+                    Dimensions::Vec4 => self
+                        .read_floats::<4>(&acc, &name, "COLOR_0")?
+                        .into_iter()
+                        .map(|c| [c[0], c[1], c[2]])
+                        .collect(),
+                    _ => self.read_floats::<3>(&acc, &name, "COLOR_0")?,
+                };
+                if c.len() != positions.len() {
+                    return Err(SceneError::mesh(
+                        self.path,
+                        format!(
+                            "{name}: COLOR_0 has {} values for {} positions",
+                            c.len(),
+                            positions.len()
+                        ),
+                    ));
+                }
+                c
+            }
+        };
         let raw = RawMesh {
             name,
             positions,
             normals,
             indices,
+            texcoords,
+            colors,
         };
         let (mesh, repairs) = finish_mesh(self.path, raw, world, material)?;
         self.repairs.add(repairs);
@@ -267,25 +344,183 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// Index of `m` in `self.materials`, adding it on first use.
-    fn material(&mut self, m: ::gltf::Material) -> usize {
+    /// Index of `m` in `self.materials`, adding it (and decoding its textures) on first use.
+    /// The material is the file's own metallic-roughness material: `pbr` with the factors
+    /// (clamped to `[0, 1]`, non-finite ones replaced by glTF's defaults, with a warning) and
+    /// the textures.
+    fn material(&mut self, m: ::gltf::Material) -> Result<usize, SceneError> {
         if let Some(k) = self.materials.iter().position(|(i, _, _)| *i == m.index()) {
-            return k;
+            return Ok(k);
         }
-        let pbr = m.pbr_metallic_roughness();
-        if pbr.base_color_texture().is_some() || pbr.metallic_roughness_texture().is_some() {
-            self.textured += 1;
-        }
-        let [r, g, b, _] = pbr.base_color_factor();
-        let mat = map_material([r, g, b], pbr.metallic_factor(), pbr.roughness_factor());
         let label = match (m.index(), m.name()) {
             (_, Some(n)) => n.to_owned(),
             (Some(i), None) => format!("material{i}"),
             (None, None) => "default".to_owned(),
         };
-        self.materials
-            .push((m.index(), format!("{}#{label}", self.file), mat));
-        self.materials.len() - 1
+        let name = format!("{}#{label}", self.file);
+        let pbr = m.pbr_metallic_roughness();
+        let mut fixed = Vec::new();
+        let mut unit = |v: f32, default: f32, what: &str| {
+            if v.is_finite() && (0.0..=1.0).contains(&v) {
+                v
+            } else {
+                fixed.push(format!("{what} {v}"));
+                if v.is_finite() {
+                    v.clamp(0.0, 1.0)
+                } else {
+                    default
+                }
+            }
+        };
+        let [r, g, b, _] = pbr.base_color_factor();
+        let base_color = [
+            unit(r, 1.0, "baseColorFactor"),
+            unit(g, 1.0, "baseColorFactor"),
+            unit(b, 1.0, "baseColorFactor"),
+        ];
+        let metallic = unit(pbr.metallic_factor(), 1.0, "metallicFactor");
+        let roughness = unit(pbr.roughness_factor(), 1.0, "roughnessFactor");
+        if !fixed.is_empty() {
+            self.warnings.push(format!(
+                "{}: material `{label}`: {} outside [0, 1] (clamped)",
+                self.path.display(),
+                fixed.join(", ")
+            ));
+        }
+        let base_color_texture = match pbr.base_color_texture() {
+            Some(info) => Some(self.texture(&info.texture(), info.tex_coord(), true, &label)?),
+            None => None,
+        };
+        let metallic_roughness_texture = match pbr.metallic_roughness_texture() {
+            Some(info) => Some(self.texture(&info.texture(), info.tex_coord(), false, &label)?),
+            None => None,
+        };
+        let mat = Material::Pbr {
+            base_color,
+            metallic,
+            roughness,
+            base_color_texture,
+            metallic_roughness_texture,
+        };
+        self.materials.push((m.index(), name, mat));
+        Ok(self.materials.len() - 1)
+    }
+
+    /// The decoded texture `t` (sRGB-decoded when `srgb`), decoding it on first use.
+    fn texture(
+        &mut self,
+        t: &::gltf::Texture,
+        texcoord: u32,
+        srgb: bool,
+        material: &str,
+    ) -> Result<TextureRef, SceneError> {
+        let key = (t.index(), srgb);
+        let texcoord = texcoord as usize;
+        if let Some(index) = self.texture_keys.iter().position(|k| *k == key) {
+            return Ok(TextureRef { index, texcoord });
+        }
+        let image = t.source();
+        let image_name = match (image.name(), image.source()) {
+            (_, ::gltf::image::Source::Uri { uri, .. }) if !uri.starts_with("data:") => {
+                format!("`{uri}`")
+            }
+            (Some(n), _) => format!("image `{n}` ({})", image.index()),
+            (None, _) => format!("image {}", image.index()),
+        };
+        let err = |msg: String| {
+            SceneError::mesh(
+                self.path,
+                format!(
+                    "material `{material}`: texture {} ({image_name}): {msg}",
+                    t.index()
+                ),
+            )
+        };
+        if let ::gltf::image::Source::View { view, .. } = image.source() {
+            let data = self.buffers.get(view.buffer().index());
+            let end = view.offset().checked_add(view.length());
+            if data.zip(end).is_none_or(|(d, e)| e > d.len()) {
+                return Err(err("its buffer view runs past the end of its buffer".into()));
+            }
+        }
+        let data =
+            ::gltf::image::Data::from_source(image.source(), self.path.parent(), self.buffers)
+                .map_err(|e| err(format!("cannot read or decode the image: {e}")))?;
+        let (width, height) = (data.width as usize, data.height as usize);
+        let texels = decode_texels(&data, srgb).ok_or_else(|| {
+            err(format!(
+                "{width}×{height} image with an unexpected pixel layout"
+            ))
+        })?;
+        if width == 0 || height == 0 || texels.len() != width * height {
+            return Err(err(format!("{width}×{height} image has no texels")));
+        }
+        let sampler = t.sampler();
+        let wrap = |w: ::gltf::texture::WrappingMode| match w {
+            ::gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+            ::gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+            ::gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        };
+        self.textures.push(Texture {
+            name: format!("{}#{image_name}", self.file),
+            width,
+            height,
+            texels,
+            wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+        });
+        self.texture_keys.push(key);
+        Ok(TextureRef {
+            index: self.textures.len() - 1,
+            texcoord,
+        })
+    }
+
+    /// Reads a float VECn accessor, or a normalised unsigned byte/short one (values / 255 or
+    /// / 65535, as glTF defines them).
+    fn read_floats<const N: usize>(
+        &self,
+        acc: &::gltf::Accessor,
+        name: &str,
+        what: &str,
+    ) -> Result<Vec<[f32; N]>, SceneError> {
+        let label = format!("{name} {what}");
+        let dims = match acc.dimensions() {
+            Dimensions::Vec2 => 2,
+            Dimensions::Vec3 => 3,
+            Dimensions::Vec4 => 4,
+            _ => 0,
+        };
+        let size = match acc.data_type() {
+            DataType::F32 => 4,
+            DataType::U16 if acc.normalized() => 2,
+            DataType::U8 if acc.normalized() => 1,
+            _ => 0,
+        };
+        if dims != N || size == 0 {
+            return Err(SceneError::mesh(
+                self.path,
+                format!(
+                    "{label}: must be VEC{N} of float or normalised unsigned byte/short, found {:?} {:?}{}",
+                    acc.data_type(),
+                    acc.dimensions(),
+                    if acc.normalized() { " normalised" } else { "" }
+                ),
+            ));
+        }
+        let (bytes, stride, _, count) = self.accessor_bytes(acc, &label)?;
+        let value = |e: &[u8], k: usize| -> f32 {
+            match size {
+                4 => f32::from_le_bytes([e[4 * k], e[4 * k + 1], e[4 * k + 2], e[4 * k + 3]]),
+                2 => f32::from(u16::from_le_bytes([e[2 * k], e[2 * k + 1]])) / 65535.0,
+                _ => f32::from(e[k]) / 255.0,
+            }
+        };
+        Ok((0..count)
+            .map(|i| {
+                let e = &bytes[i * stride..i * stride + N * size];
+                std::array::from_fn(|k| value(e, k))
+            })
+            .collect())
     }
 
     /// The bytes of accessor `acc`: (data from its first element, stride, element size, count).
@@ -397,4 +632,59 @@ impl Loader<'_> {
             })
             .collect())
     }
+}
+
+/// The sRGB transfer function's inverse (IEC 61966-2-1).
+fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// RGBA texels of a decoded image, in `[0, 1]` (sRGB-decoded RGB when `srgb`); grey images
+/// fill R, G and B. `None` if the byte count does not match the format.
+fn decode_texels(data: &::gltf::image::Data, srgb: bool) -> Option<Vec<[f32; 4]>> {
+    use ::gltf::image::Format;
+    let (channels, bytes) = match data.format {
+        Format::R8 => (1, 1),
+        Format::R8G8 => (2, 1),
+        Format::R8G8B8 => (3, 1),
+        Format::R8G8B8A8 => (4, 1),
+        Format::R16 => (1, 2),
+        Format::R16G16 => (2, 2),
+        Format::R16G16B16 => (3, 2),
+        Format::R16G16B16A16 => (4, 2),
+        Format::R32G32B32FLOAT => (3, 4),
+        Format::R32G32B32A32FLOAT => (4, 4),
+    };
+    let texel = channels * bytes;
+    let n = data.width as usize * data.height as usize;
+    if data.pixels.len() != n.checked_mul(texel)? {
+        return None;
+    }
+    // `gltf` stores 16-bit and float pixels in native byte order.
+    let value = |b: &[u8]| -> f32 {
+        match bytes {
+            1 => f32::from(b[0]) / 255.0,
+            2 => f32::from(u16::from_ne_bytes([b[0], b[1]])) / 65535.0,
+            _ => f32::from_ne_bytes([b[0], b[1], b[2], b[3]]),
+        }
+    };
+    let colour = |v: f32| if srgb { srgb_to_linear(v) } else { v };
+    Some(
+        data.pixels
+            .chunks_exact(texel)
+            .map(|p| {
+                let c: Vec<f32> = p.chunks_exact(bytes).map(value).collect();
+                match channels {
+                    1 => [colour(c[0]), colour(c[0]), colour(c[0]), 1.0],
+                    2 => [colour(c[0]), colour(c[0]), colour(c[0]), c[1]],
+                    3 => [colour(c[0]), colour(c[1]), colour(c[2]), 1.0],
+                    _ => [colour(c[0]), colour(c[1]), colour(c[2]), c[3]],
+                }
+            })
+            .collect(),
+    )
 }

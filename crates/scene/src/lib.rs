@@ -79,6 +79,7 @@ mod mesh;
 mod obj;
 mod scene_file;
 pub mod test_util;
+mod texture;
 mod types;
 mod validate;
 
@@ -88,4 +89,5 @@ pub use gltf_io::{load_gltf, map_material};
 pub use mesh::{angle_weighted_normals, load_mesh, normal_matrix, object_transform};
 pub use obj::load_obj;
 pub use scene_file::{load_scene, parse_scene_str};
+pub use texture::SurfacePoint;
 pub use types::*;

@@ -27,6 +27,10 @@ pub(crate) struct RawMesh {
     pub normals: Option<Vec<Vec3>>,
     /// Triangles (not yet checked).
     pub indices: Vec<[u32; 3]>,
+    /// UV sets, one value per position each.
+    pub texcoords: Vec<Vec<[f32; 2]>>,
+    /// Vertex colours (linear RGB), one per position, or empty.
+    pub colors: Vec<[f32; 3]>,
 }
 
 /// What [`finish_mesh`] had to repair, summed over a file for one warning each.
@@ -85,6 +89,8 @@ pub(crate) fn finish_mesh(
         positions,
         normals,
         indices,
+        texcoords,
+        colors,
     } = raw;
     if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
         return Err(SceneError::mesh(
@@ -134,6 +140,8 @@ pub(crate) fn finish_mesh(
         normals: Vec::new(),
         indices: kept,
         material,
+        texcoords,
+        colors,
     };
     let file_normals = normals.filter(|v| v.len() == n);
     mesh.transform_positions(to_world);

@@ -34,6 +34,8 @@ pub fn load_obj(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErro
     };
     let mut normals = Vec::new();
     let mut all_have_normals = true;
+    let mut texcoords = Vec::new();
+    let mut all_have_texcoords = true;
     for model in &models {
         let m = &model.mesh;
         let base = raw.positions.len();
@@ -52,6 +54,13 @@ pub fn load_obj(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErro
                 .chunks_exact(3)
                 .map(|c| Vec3::new(c[0], c[1], c[2])),
         );
+        if m.texcoords.len() / 2 == count && !m.texcoords.is_empty() {
+            // OBJ's `vt` has v up from the image's bottom; glTF's (and ours) v down from its
+            // top row.
+            texcoords.extend(m.texcoords.chunks_exact(2).map(|c| [c[0], 1.0 - c[1]]));
+        } else {
+            all_have_texcoords = false;
+        }
         if m.normals.len() == m.positions.len() {
             normals.extend(
                 m.normals
@@ -76,10 +85,14 @@ pub fn load_obj(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErro
     if all_have_normals {
         raw.normals = Some(normals);
     }
+    if all_have_texcoords {
+        raw.texcoords = vec![texcoords];
+    }
     let (mesh, repairs) = finish_mesh(path, raw, to_world, 0)?;
     Ok(LoadedMeshes {
         meshes: vec![mesh],
         materials: Vec::new(),
+        textures: Vec::new(),
         warnings: repairs.warnings(path),
     })
 }

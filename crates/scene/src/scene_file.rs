@@ -64,6 +64,8 @@ struct FileMaterial {
     exponent: Option<f64>,
     roughness: Option<f64>,
     ior: Option<f64>,
+    base_color: Option<[f64; 3]>,
+    metallic: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -85,14 +87,22 @@ struct FileRender {
 }
 
 /// Which parameters each material type needs (`true`) or ignores (`false`), in the order
-/// albedo, specular, exponent, roughness, ior. `ior` is optional (default 1.5).
-const MATERIAL_TYPES: [(&str, [bool; 5]); 6] = [
-    ("lambert", [true, false, false, false, false]),
-    ("phong", [true, true, true, false, false]),
-    ("blinn_phong", [true, true, true, false, false]),
-    ("ward", [true, true, false, true, false]),
-    ("cook_torrance", [true, true, false, true, true]),
-    ("mirror", [true, true, false, false, false]),
+/// albedo, specular, exponent, roughness, ior, base_color, metallic. `ior` is optional
+/// (default 1.5).
+const MATERIAL_TYPES: [(&str, [bool; 7]); 7] = [
+    ("lambert", [true, false, false, false, false, false, false]),
+    ("phong", [true, true, true, false, false, false, false]),
+    (
+        "blinn_phong",
+        [true, true, true, false, false, false, false],
+    ),
+    ("ward", [true, true, false, true, false, false, false]),
+    (
+        "cook_torrance",
+        [true, true, false, true, true, false, false],
+    ),
+    ("mirror", [true, true, false, false, false, false, false]),
+    ("pbr", [false, false, false, true, false, true, true]),
 ];
 
 /// Reads a TOML scene file, every mesh and the environment map it names, and checks them.
@@ -242,7 +252,37 @@ pub fn parse_scene_str(text: &str, path: &Path) -> Result<LoadedScene, SceneErro
         // Map the file's own materials to scene indices, reusing identical ones.
         let mut file_to_scene = Vec::with_capacity(loaded.materials.len());
         if material.is_none() {
-            for (name, m) in loaded.materials {
+            // The file's textures join the scene's (an identical one, e.g. from a second
+            // instance of the file, is shared); its materials' references move with them.
+            let texture_to_scene: Vec<usize> = loaded
+                .textures
+                .into_iter()
+                .map(|t| {
+                    let same = |s: &crate::Texture| {
+                        s.name == t.name
+                            && (s.width, s.height, s.wrap) == (t.width, t.height, t.wrap)
+                            && s.texels == t.texels
+                    };
+                    scene.textures.iter().position(same).unwrap_or_else(|| {
+                        scene.textures.push(t);
+                        scene.textures.len() - 1
+                    })
+                })
+                .collect();
+            for (name, mut m) in loaded.materials {
+                if let Material::Pbr {
+                    base_color_texture,
+                    metallic_roughness_texture,
+                    ..
+                } = &mut m
+                {
+                    for t in [base_color_texture, metallic_roughness_texture]
+                        .into_iter()
+                        .flatten()
+                    {
+                        t.index = texture_to_scene[t.index];
+                    }
+                }
                 let found = scene
                     .material_names
                     .iter()
@@ -328,15 +368,25 @@ fn build_material(
             format!("unknown type `{}` (known: {})", m.kind, known.join(", ")),
         ));
     };
-    let keys = ["albedo", "specular", "exponent", "roughness", "ior"];
+    let keys = [
+        "albedo",
+        "specular",
+        "exponent",
+        "roughness",
+        "ior",
+        "base_color",
+        "metallic",
+    ];
     let present = [
         m.albedo.is_some(),
         m.specular.is_some(),
         m.exponent.is_some(),
         m.roughness.is_some(),
         m.ior.is_some(),
+        m.base_color.is_some(),
+        m.metallic.is_some(),
     ];
-    for k in 0..5 {
+    for k in 0..keys.len() {
         if present[k] && !needs[k] {
             warnings.push(format!(
                 "{}: materials.{name}.{}: ignored by type {}",
@@ -377,6 +427,13 @@ fn build_material(
             specular,
             roughness,
             ior,
+        },
+        "pbr" => Material::Pbr {
+            base_color: rgb(m.base_color),
+            metallic: m.metallic.unwrap_or(0.0) as f32,
+            roughness,
+            base_color_texture: None,
+            metallic_roughness_texture: None,
         },
         _ => Material::Mirror { albedo, specular },
     };

@@ -105,6 +105,7 @@ pub fn icosphere(subdivisions: u32) -> Mesh {
         positions,
         indices,
         material: 0,
+        ..Default::default()
     }
 }
 
@@ -124,6 +125,7 @@ pub fn floor_quad(half_size: f32, height: f32) -> Mesh {
         normals: vec![Vec3::Y; 4],
         indices: vec![[0, 1, 2], [0, 2, 3]],
         material: 0,
+        ..Default::default()
     }
 }
 

@@ -38,8 +38,47 @@ pub struct Environment {
     pub rotation_y_deg: f64,
 }
 
-/// A BRDF, with the parameters of CONVENTIONS.md. All glossy types include `albedo/π`.
-#[derive(Clone, Debug, PartialEq)]
+/// A texture used by a material: which of [`Scene::textures`] and which UV set of the mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TextureRef {
+    /// Index into [`Scene::textures`] (or into [`LoadedMeshes::textures`] before a scene
+    /// takes the file's textures over).
+    pub index: usize,
+    /// The mesh's UV set (`TEXCOORD_n`).
+    pub texcoord: usize,
+}
+
+/// How a texture coordinate outside `[0, 1]` wraps (glTF sampler `wrapS` / `wrapT`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Wrap {
+    /// `REPEAT` (glTF's default).
+    #[default]
+    Repeat,
+    /// `MIRRORED_REPEAT`.
+    MirroredRepeat,
+    /// `CLAMP_TO_EDGE`.
+    ClampToEdge,
+}
+
+/// A decoded texture: linear values (sRGB images decoded when the texture holds colours),
+/// row 0 at the top (glTF's UV origin), sampled bilinearly with its wrap modes.
+#[derive(Clone, Debug, Default)]
+pub struct Texture {
+    /// For messages: the image's file or glTF name and index.
+    pub name: String,
+    /// Width in texels.
+    pub width: usize,
+    /// Height in texels.
+    pub height: usize,
+    /// `width * height` RGBA texels, row-major, linear.
+    pub texels: Vec<[f32; 4]>,
+    /// Wrap mode along `u` (S) and `v` (T).
+    pub wrap: [Wrap; 2],
+}
+
+/// A BRDF, with the parameters of CONVENTIONS.md. All glossy types include `albedo/π`
+/// (`Pbr` has its own diffuse term).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Material {
     /// `albedo/π`.
     Lambert {
@@ -84,6 +123,22 @@ pub enum Material {
         /// Index of refraction (default 1.5).
         ior: f32,
     },
+    /// The glTF 2.0 metallic-roughness material (glTF 2.0 specification, Appendix B): GGX
+    /// `D`, height-correlated Smith `V`, Schlick Fresnel, `(1 − F)` diffuse; see
+    /// CONVENTIONS.md. The factors multiply the textures and the mesh's `COLOR_0`;
+    /// [`Scene::material_at`] resolves them at a surface point.
+    Pbr {
+        /// `baseColorFactor` (RGB, linear).
+        base_color: Rgb,
+        /// `metallicFactor` in `[0, 1]`.
+        metallic: f32,
+        /// `roughnessFactor` in `[0, 1]` (`α = roughness²`).
+        roughness: f32,
+        /// `baseColorTexture` (sRGB-decoded RGB multiplies `base_color`).
+        base_color_texture: Option<TextureRef>,
+        /// `metallicRoughnessTexture` (B multiplies `metallic`, G `roughness`).
+        metallic_roughness_texture: Option<TextureRef>,
+    },
     /// `albedo/π` plus a perfect mirror of reflectance `specular`.
     Mirror {
         /// Diffuse reflectance.
@@ -106,6 +161,11 @@ pub struct Mesh {
     pub indices: Vec<[u32; 3]>,
     /// Index into [`Scene::materials`].
     pub material: usize,
+    /// Texture coordinate sets (`TEXCOORD_0`, `TEXCOORD_1`, ...; OBJ `vt` is set 0), one
+    /// `[u, v]` per vertex each; empty when the file has none.
+    pub texcoords: Vec<Vec<[f32; 2]>>,
+    /// Vertex colours (`COLOR_0`, linear RGB; alpha dropped), one per vertex, or empty.
+    pub colors: Vec<[f32; 3]>,
 }
 
 /// A pinhole camera.
@@ -155,6 +215,8 @@ pub struct Scene {
     pub environment: Environment,
     /// Materials, referenced by index from meshes.
     pub materials: Vec<Material>,
+    /// Textures, referenced by [`TextureRef::index`] from materials.
+    pub textures: Vec<Texture>,
     /// Material names, parallel to `materials`.
     pub material_names: Vec<String>,
     /// Meshes in world space, one per `[[objects]]` entry (glTF files may add several).
@@ -168,8 +230,11 @@ pub struct Scene {
 pub struct LoadedMeshes {
     /// World-space meshes; `material` indexes `materials` (OBJ: 0, and `materials` is empty).
     pub meshes: Vec<Mesh>,
-    /// Materials defined by the file (glTF only), `(name, material)`.
+    /// Materials defined by the file (glTF only), `(name, material)`; their texture
+    /// references index `textures`.
     pub materials: Vec<(String, Material)>,
+    /// Textures of the file's materials (glTF only).
+    pub textures: Vec<Texture>,
     /// Things a user should know; each names the file.
     pub warnings: Vec<String>,
 }

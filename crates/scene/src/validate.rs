@@ -33,13 +33,21 @@ impl Material {
             Material::Ward { .. } => "ward",
             Material::CookTorrance { .. } => "cook_torrance",
             Material::Mirror { .. } => "mirror",
+            Material::Pbr { .. } => "pbr",
         }
     }
 
-    /// The diffuse reflectance (every type has one).
+    /// The diffuse reflectance (every type has one). For `pbr` it is the Lambertian part of
+    /// the `(1 − F)` diffuse term, `(1 − metallic) · 0.96 · base_color` (the Fresnel-dependent
+    /// rest, `−(1 − metallic) · 0.96 · s · base_color/π`, belongs to the view-dependent part).
     #[must_use]
     pub fn albedo(&self) -> Rgb {
         match *self {
+            Material::Pbr {
+                base_color,
+                metallic,
+                ..
+            } => base_color.map(|c| (1.0 - metallic) * 0.96 * c),
             Material::Lambert { albedo }
             | Material::Phong { albedo, .. }
             | Material::BlinnPhong { albedo, .. }
@@ -49,11 +57,17 @@ impl Material {
         }
     }
 
-    /// The specular reflectance (`None` for Lambert).
+    /// The specular reflectance (`None` for Lambert; for `pbr`, the reflectance at normal
+    /// incidence `F0 = 0.04 (1 − metallic) + metallic · base_color`).
     #[must_use]
     pub fn specular(&self) -> Option<Rgb> {
         match *self {
             Material::Lambert { .. } => None,
+            Material::Pbr {
+                base_color,
+                metallic,
+                ..
+            } => Some(base_color.map(|c| 0.04 * (1.0 - metallic) + metallic * c)),
             Material::Phong { specular, .. }
             | Material::BlinnPhong { specular, .. }
             | Material::Ward { specular, .. }
@@ -68,6 +82,21 @@ impl Material {
     /// # Errors
     /// `(parameter name, message)` of the first bad parameter.
     pub fn check(&self) -> Result<(), (&'static str, String)> {
+        if let Material::Pbr {
+            base_color,
+            metallic,
+            roughness,
+            ..
+        } = *self
+        {
+            check_rgb("base_color", base_color)?;
+            for (name, v) in [("metallic", metallic), ("roughness", roughness)] {
+                if !(0.0..=1.0).contains(&v) {
+                    return Err((name, format!("{v} is outside [0, 1]")));
+                }
+            }
+            return Ok(());
+        }
         check_rgb("albedo", self.albedo())?;
         if let Some(s) = self.specular() {
             check_rgb("specular", s)?;
@@ -85,7 +114,7 @@ impl Material {
                     return Err(("ior", format!("{ior} must be finite and > 1")));
                 }
             }
-            Material::Lambert { .. } | Material::Mirror { .. } => {}
+            Material::Lambert { .. } | Material::Mirror { .. } | Material::Pbr { .. } => {}
         }
         Ok(())
     }
@@ -198,6 +227,7 @@ impl Scene {
             environment,
             materials: Vec::new(),
             material_names: Vec::new(),
+            textures: Vec::new(),
             meshes: Vec::new(),
             render: RenderSettings::default(),
         }
@@ -296,12 +326,100 @@ impl Scene {
             if let Err(m) = check_mesh(mesh, self.materials.len()) {
                 return fail(format!("mesh {i} (`{}`): {m}", mesh.name));
             }
+            if let Err(m) = self.check_textures_of(mesh) {
+                return fail(format!(
+                    "mesh {i} (`{}`), material `{}`: {m}",
+                    mesh.name, self.material_names[mesh.material]
+                ));
+            }
+        }
+        for t in &self.textures {
+            if t.width == 0 || t.height == 0 || t.texels.len() != t.width * t.height {
+                return fail(format!(
+                    "texture `{}`: {}×{} with {} texels",
+                    t.name,
+                    t.width,
+                    t.height,
+                    t.texels.len()
+                ));
+            }
+            if let Some(k) = t
+                .texels
+                .iter()
+                .position(|v| !v.iter().all(|x| x.is_finite()))
+            {
+                return fail(format!("texture `{}`: texel {k} is not finite", t.name));
+            }
         }
         if self.render.spp == 0 {
             return fail("render spp is 0".into());
         }
         if self.render.bounces < -1 {
             return fail(format!("render bounces {} < -1", self.render.bounces));
+        }
+        Ok(())
+    }
+}
+
+impl Scene {
+    /// The texture references of `mesh`'s material must name a texture and a UV set the mesh
+    /// has; vertex attributes must have one value per vertex, all finite.
+    fn check_textures_of(&self, mesh: &Mesh) -> Result<(), String> {
+        let n = mesh.positions.len();
+        for (set, uv) in mesh.texcoords.iter().enumerate() {
+            if uv.len() != n {
+                return Err(format!(
+                    "TEXCOORD_{set} has {} values for {n} vertices",
+                    uv.len()
+                ));
+            }
+            if let Some(k) = uv
+                .iter()
+                .position(|v| !(v[0].is_finite() && v[1].is_finite()))
+            {
+                return Err(format!("TEXCOORD_{set} of vertex {k} is not finite"));
+            }
+        }
+        if !mesh.colors.is_empty() && mesh.colors.len() != n {
+            return Err(format!(
+                "COLOR_0 has {} values for {n} vertices",
+                mesh.colors.len()
+            ));
+        }
+        if let Some(k) = mesh
+            .colors
+            .iter()
+            .position(|c| !c.iter().all(|x| x.is_finite()))
+        {
+            return Err(format!("COLOR_0 of vertex {k} is not finite"));
+        }
+        if let Material::Pbr {
+            base_color_texture,
+            metallic_roughness_texture,
+            ..
+        } = self.materials[mesh.material]
+        {
+            for (what, t) in [
+                ("baseColorTexture", base_color_texture),
+                ("metallicRoughnessTexture", metallic_roughness_texture),
+            ] {
+                let Some(t) = t else { continue };
+                if t.index >= self.textures.len() {
+                    return Err(format!(
+                        "{what} is texture {} but there are {} textures",
+                        t.index,
+                        self.textures.len()
+                    ));
+                }
+                if t.texcoord >= mesh.texcoords.len() {
+                    return Err(format!(
+                        "{what} (`{}`) reads TEXCOORD_{} but the mesh has {} UV set(s)",
+                        self.textures[t.index].name,
+                        t.texcoord,
+                        mesh.texcoords.len()
+                    ));
+                }
+            }
         }
         Ok(())
     }

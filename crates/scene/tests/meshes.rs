@@ -1,7 +1,9 @@
 //! OBJ and glTF loading: every real asset, and small synthetic files with known answers.
 
 use glam::{DMat4, DVec3, Vec3};
-use prt_scene::{load_mesh, map_material, object_transform, LoadedMeshes, Material, SceneError};
+use prt_scene::{
+    load_mesh, map_material, object_transform, LoadedMeshes, Material, SceneError, TextureRef, Wrap,
+};
 use std::path::Path;
 
 /// The shared asset folder: `shared/assets` beside the checkout (as in CI), else
@@ -95,19 +97,24 @@ fn test02_real_asset_counts() {
     let engine = load_mesh(&assets.join("gltf/2CylinderEngine.glb"), &DMat4::IDENTITY).unwrap();
     // 29 meshes instanced by the nodes: more primitives in the world than meshes in the file.
     assert!(engine.meshes.len() > 29, "{}", engine.meshes.len());
-    // All materials are metallicFactor 0 with default roughness 1: Lambert with their colour.
-    assert!(engine
-        .materials
-        .iter()
-        .all(|(_, m)| matches!(m, Material::Lambert { .. })));
+    // All materials are metallicFactor 0 with default roughness 1 and no textures: the file's
+    // own metallic-roughness material with those factors.
+    assert!(engine.materials.iter().all(|(_, m)| matches!(
+        m,
+        Material::Pbr {
+            metallic: 0.0,
+            roughness: 1.0,
+            base_color_texture: None,
+            metallic_roughness_texture: None,
+            ..
+        }
+    )));
+    assert!(engine.textures.is_empty());
     assert!(engine
         .materials
         .iter()
         .any(|(n, m)| n == "2CylinderEngine.glb#Material_18"
-            && *m
-                == Material::Lambert {
-                    albedo: [0.85, 0.0, 0.0]
-                }));
+            && matches!(m, Material::Pbr { base_color, .. } if *base_color == [0.85, 0.0, 0.0])));
 
     let box_path = assets.join("gltf/BoxTextured-glTF/BoxTextured.gltf");
     let boxed = load_mesh(&box_path, &DMat4::IDENTITY).unwrap();
@@ -119,11 +126,51 @@ fn test02_real_asset_counts() {
         ),
         (24, 12)
     );
-    assert!(
-        boxed.warnings.iter().any(|w| w.contains("textures")),
-        "{:?}",
-        boxed.warnings
-    );
+    // Its material's base colour texture: the 211×211 palette PNG, sRGB-decoded, with the
+    // file's sampler (wrapS MIRRORED_REPEAT, wrapT CLAMP_TO_EDGE) and UV set 0.
+    assert_eq!(boxed.textures.len(), 1);
+    let t = &boxed.textures[0];
+    assert_eq!((t.width, t.height), (211, 211));
+    assert_eq!(t.wrap, [Wrap::MirroredRepeat, Wrap::ClampToEdge]);
+    assert!(matches!(
+        boxed.materials[0].1,
+        Material::Pbr {
+            metallic: 0.0,
+            roughness: 1.0,
+            base_color_texture: Some(TextureRef {
+                index: 0,
+                texcoord: 0
+            }),
+            metallic_roughness_texture: None,
+            ..
+        }
+    ));
+    assert_eq!(boxed.meshes[0].texcoords.len(), 1);
+    assert_eq!(boxed.meshes[0].texcoords[0].len(), 24);
+    // Texels read by PIL (tools/.venv): (0,0) = (220,220,220), (100,50) = (108,173,223),
+    // (150,180) = (92,135,39), 8-bit sRGB; decoded with the IEC 61966-2-1 curve.
+    let srgb = |v: f32| {
+        let v = v / 255.0;
+        if v <= 0.04045 {
+            v / 12.92
+        } else {
+            ((v + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    for ((x, y), rgb) in [
+        ((0, 0), [220.0, 220.0, 220.0]),
+        ((100, 50), [108.0, 173.0, 223.0]),
+        ((150, 180), [92.0, 135.0, 39.0]),
+    ] {
+        let got = t.texels[y * 211 + x];
+        for k in 0..3 {
+            assert!(
+                (got[k] - srgb(rgb[k])).abs() < 1e-6,
+                "texel ({x},{y}): {got:?}"
+            );
+        }
+        assert_eq!(got[3], 1.0);
+    }
     // The root node turns the file's Z-up box to Y-up; it stays a unit cube about the origin.
     let (lo, hi) = boxed.meshes[0].bounds().unwrap();
     assert!(
@@ -386,7 +433,13 @@ fn test11_gltf_node_transform_and_material() {
     assert_eq!(loaded.materials[0].0, "t.glb#shiny");
     assert_eq!(
         loaded.materials[0].1,
-        map_material([0.5, 0.25, 1.0], 1.0, 0.5)
+        Material::Pbr {
+            base_color: [0.5, 0.25, 1.0],
+            metallic: 1.0,
+            roughness: 0.5,
+            base_color_texture: None,
+            metallic_roughness_texture: None,
+        }
     );
 }
 

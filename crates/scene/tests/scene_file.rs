@@ -201,6 +201,21 @@ fn test04_validation_errors_name_file_and_key() {
             "type = \"cook_torrance\"\nspecular = [0.1, 0.1, 0.1]\nroughness = 0.3\nior = 1.0",
             "materials.stone.ior",
         ),
+        (
+            "type = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]",
+            "type = \"pbr\"\nbase_color = [0.8, 0.8, 0.8]\nmetallic = 0.5\nroughness = 1.5",
+            "materials.stone.roughness",
+        ),
+        (
+            "type = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]",
+            "type = \"pbr\"\nbase_color = [0.8, 0.8, 0.8]\nmetallic = -0.1\nroughness = 0.5",
+            "materials.stone.metallic",
+        ),
+        (
+            "type = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]",
+            "type = \"pbr\"\nmetallic = 0.0\nroughness = 0.5",
+            "materials.stone.base_color",
+        ),
         ("fov_y = 40.0", "fov_y = 180.0", "camera.fov_y"),
         ("fov_y = 40.0", "fov_y = 0.0", "camera.fov_y"),
         (
@@ -311,11 +326,54 @@ fn test06_gltf_objects_bring_their_materials() {
     let toml = toml + &format!("[[objects]]\nmesh = {gltf:?}\ntranslate = [3, 0, 0]\n");
     let loaded = try_scene(&toml).unwrap();
     let s = &loaded.scene;
-    // Both instances share one imported material (metallic 0, default roughness 1: Lambert).
+    // Both instances share one imported material (its own `pbr`, textured) and one texture.
     assert_eq!(s.material_names, vec!["stone", "BoxTextured.gltf#Texture"]);
     assert_eq!(s.meshes.len(), 2);
     assert!(s.meshes.iter().all(|m| m.material == 1));
-    assert!(loaded.warnings.iter().any(|w| w.contains("textures")));
+    assert_eq!(s.textures.len(), 1);
+    assert!(matches!(
+        s.materials[1],
+        Material::Pbr {
+            base_color_texture: Some(_),
+            ..
+        }
+    ));
+    // The texture's top-left texel is light grey (220/255 sRGB); the surface point of
+    // vertex 0 reads the texture at that vertex's UV.
+    let m = s.material_at(1, prt_scene::SurfacePoint::Vertex(0));
+    let uv = s.meshes[1]
+        .texcoord(0, prt_scene::SurfacePoint::Vertex(0))
+        .unwrap();
+    let expect = s.textures[0].sample(uv);
+    assert!(
+        matches!(m, Material::Pbr { base_color, base_color_texture: None, .. }
+        if (0..3).all(|k| (base_color[k] - expect[k]).abs() < 1e-7))
+    );
+
+    // A missing texture file is named with the material.
+    let dir = tempfile::tempdir().unwrap();
+    for f in ["BoxTextured.gltf", "BoxTextured0.bin"] {
+        std::fs::copy(box_dir.join(f), dir.path().join(f)).unwrap();
+    }
+    let copy = dir.path().join("BoxTextured.gltf").display().to_string();
+    let toml = GOOD.replace(
+        "mesh = \"tri.obj\"\nmaterial = \"stone\"",
+        &format!("mesh = {copy:?}"),
+    );
+    let err = try_scene(&toml).unwrap_err().to_string();
+    assert!(
+        err.contains("BoxTextured.gltf")
+            && err.contains("CesiumLogoFlat.png")
+            && err.contains("Texture"),
+        "{err}"
+    );
+    // A texture that is not an image.
+    std::fs::write(dir.path().join("CesiumLogoFlat.png"), b"not a png").unwrap();
+    let err = try_scene(&toml).unwrap_err().to_string();
+    assert!(
+        err.contains("CesiumLogoFlat.png") && err.contains("decode"),
+        "{err}"
+    );
 }
 
 #[test]

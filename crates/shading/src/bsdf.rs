@@ -9,6 +9,7 @@
 //! `f(ω_i, ω_o) cos θ_i / pdf` with the full BRDF, so one sample estimates the whole material.
 
 use crate::microfacet::{CookTorranceLobe, WardLobe};
+use crate::pbr::PbrLobe;
 use crate::phong::{BlinnPhongLobe, PhongLobe};
 use crate::{lambert, luminance, mirror, Frame};
 use glam::Vec3;
@@ -81,6 +82,8 @@ enum Parts {
         albedo: Vec3,
         specular: Vec3,
     },
+    /// The glTF metallic-roughness BRDF (its own mixture rule, see [`PbrLobe`]).
+    Pbr(PbrLobe),
 }
 
 fn parts(mat: &Material) -> Parts {
@@ -135,6 +138,14 @@ fn parts(mat: &Material) -> Parts {
             albedo: v(albedo),
             specular: v(specular),
         },
+        // Texture references are resolved by the caller (`Scene::material_at`); the factors
+        // are the material here.
+        Material::Pbr {
+            base_color,
+            metallic,
+            roughness,
+            ..
+        } => Parts::Pbr(PbrLobe::new(v(base_color), *metallic, *roughness)),
     }
 }
 
@@ -167,6 +178,7 @@ pub fn specular_selection_probability(mat: &Material, n: Vec3, wo: Vec3) -> f32 
             lobe,
         } => specular_probability(albedo, specular, &lobe, wo),
         Parts::Mirror { albedo, specular } => mirror::delta_probability(albedo, specular),
+        Parts::Pbr(l) => l.specular_probability(wo),
     }
 }
 
@@ -179,6 +191,7 @@ fn eval_local(p: &Parts, wo: Vec3, wi: Vec3) -> Vec3 {
             specular,
             lobe,
         } => lambert::eval(*albedo) + *specular * lobe.eval(wo, wi),
+        Parts::Pbr(l) => l.eval(wo, wi),
     }
 }
 
@@ -195,6 +208,10 @@ fn pdf_local(p: &Parts, wo: Vec3, wi: Vec3) -> f32 {
             (1.0 - ps) * lambert::pdf(wi) + spec
         }
         Parts::Mirror { albedo, specular } => mirror::pdf(*albedo, *specular, wi),
+        Parts::Pbr(l) => {
+            let ps = l.specular_probability(wo);
+            (1.0 - ps) * lambert::pdf(wi) + ps * l.specular_pdf(wo, wi)
+        }
     }
 }
 
@@ -249,6 +266,13 @@ pub fn sample(mat: &Material, n: Vec3, wo: Vec3, u: [f32; 3]) -> Option<BsdfSamp
             let ps = specular_probability(*albedo, *specular, lobe, wo_l);
             if u[0] < ps {
                 lobe.sample(wo_l, [u[1], u[2]])?
+            } else {
+                lambert::sample([u[1], u[2]])
+            }
+        }
+        Parts::Pbr(l) => {
+            if u[0] < l.specular_probability(wo_l) {
+                l.sample_specular(wo_l, [u[1], u[2]])?
             } else {
                 lambert::sample([u[1], u[2]])
             }

@@ -13,6 +13,7 @@
 //! | `BlinnPhong` | `(e+8)/(8π) (n·h)^e` | Blinn 1977 | `cos^(e+1) θ_h`, reflected |
 //! | `Ward` | `exp(−tan²θ_h/α²) / (4πα² √(cos θ_i cos θ_o))` | Ward 1992 (isotropic) | Beckmann `D cos θ_h` |
 //! | `CookTorrance` | `F D G / (4 cos θ_i cos θ_o)`, Beckmann `D`, V-groove `G` | Cook & Torrance 1982 | Beckmann `D cos θ_h` (Walter et al. 2007) |
+//! | `Pbr` | glTF 2.0 metallic-roughness: GGX `D`, height-correlated Smith `V`, Schlick `F`, `(1 − F)` diffuse | glTF 2.0 spec, Appendix B | GGX visible normals (Heitz 2018) |
 //! | `Mirror` | delta lobe of reflectance `specular` | — | discrete choice |
 //!
 //! Glossy materials choose a lobe with a probability from the lobes' luminance (see
@@ -49,6 +50,7 @@ mod fresnel;
 mod lambert;
 mod microfacet;
 mod mirror;
+mod pbr;
 mod phong;
 mod warp;
 
@@ -58,6 +60,7 @@ pub use envmap::{EnvSample, EnvSampler};
 pub use frame::Frame;
 pub use fresnel::{fresnel_amplitudes, fresnel_dielectric};
 pub use microfacet::{beckmann_d, sample_beckmann_half_vector};
+pub use pbr::{ggx_d, ggx_g1, pbr_terms, sample_ggx_visible_normal, MIN_ALPHA};
 pub use warp::{
     cosine_hemisphere_pdf, invert_cosine_hemisphere, invert_uniform_hemisphere,
     invert_uniform_sphere, sample_cosine_hemisphere, sample_uniform_hemisphere,

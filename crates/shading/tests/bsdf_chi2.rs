@@ -10,8 +10,9 @@ use prt_shading::chi2::{sidak, Chi2Test};
 use prt_shading::*;
 
 const ANGLES: [f32; 4] = [0.0, 30.0, 60.0, 85.0];
-/// warps 2, Lambert + Mirror 8, Phong 12 + pure + tilted, Blinn 12 + 1, Ward 8 + 1, CT 12 + 1.
-const SUITE_TESTS: usize = 2 + 8 + 14 + 13 + 9 + 13;
+/// warps 2, Lambert + Mirror 8, Phong 12 + pure + tilted, Blinn 12 + 1, Ward 8 + 1, CT 12 + 1,
+/// PBR 24 + tilted.
+const SUITE_TESTS: usize = 2 + 8 + 14 + 13 + 9 + 13 + 25;
 
 fn alpha() -> f64 {
     sidak(ALPHA, SUITE_TESTS)
@@ -115,4 +116,22 @@ fn test06_cook_torrance() {
         }
     }
     check(&cook(0.0, 1.0, 0.3), Vec3::Z, 60.0, 420);
+}
+
+#[test]
+fn test07_pbr() {
+    // Dielectric (diffuse + specular mixture) and metal (pure VNDF), narrow to wide.
+    for (i, r) in [0.1f32, 0.4, 1.0].iter().enumerate() {
+        for (k, t) in ANGLES.iter().enumerate() {
+            let seed = 500 + 10 * i as u64 + k as u64;
+            check(&pbr(0.6, 0.0, *r), Vec3::Z, *t, seed);
+            check(&pbr(0.8, 1.0, *r), Vec3::Z, *t, seed + 100);
+        }
+    }
+    check(
+        &pbr(0.5, 0.5, 0.3),
+        Vec3::new(0.3, -0.5, 0.8).normalize(),
+        40.0,
+        700,
+    );
 }

@@ -30,6 +30,17 @@ fn all_materials() -> Vec<Material> {
     for m in [0.05, 0.3, 0.8] {
         v.push(cook(0.3, 0.6, m));
     }
+    for r in [0.1, 0.5, 1.0] {
+        v.push(pbr(0.7, 0.0, r));
+        v.push(pbr(0.7, 1.0, r));
+    }
+    v.push(Material::Pbr {
+        base_color: [0.9, 0.4, 0.1],
+        metallic: 0.5,
+        roughness: 0.3,
+        base_color_texture: None,
+        metallic_roughness_texture: None,
+    });
     v
 }
 
@@ -180,6 +191,11 @@ fn test05_energy_and_white_furnace() {
         ("ct m=0.8", cook(0.0, 1.0, 0.8)),
         ("mix phong", phong(0.3, 0.6, 20.0)),
         ("mix ct", cook(0.5, 0.5, 0.3)),
+        ("pbr metal r=0.1", pbr(1.0, 1.0, 0.1)),
+        ("pbr metal r=0.5", pbr(1.0, 1.0, 0.5)),
+        ("pbr metal r=1", pbr(1.0, 1.0, 1.0)),
+        ("pbr diel r=0.3", pbr(0.8, 0.0, 0.3)),
+        ("pbr half r=0.6", pbr(0.5, 0.5, 0.6)),
     ];
     for (name, mat) in &mats {
         for t in [0.0f32, 30.0, 60.0, 85.0] {
@@ -196,14 +212,19 @@ fn test05_energy_and_white_furnace() {
             let mean = sum / n as f64;
             let sigma = ((sum2 / n as f64 - mean * mean).max(0.0) / n as f64).sqrt();
             println!("{name:>13} θo={t:>2}: {q:.5} | {mean:.5} ± {sigma:.5}");
-            // 5σ (plus quadrature slack) for each of 52 estimates: false alarms are negligible.
+            // 5σ (plus quadrature slack) for each of 72 estimates: false alarms are negligible.
             assert!(
                 (mean - q).abs() < 5.0 * sigma + 1e-4,
                 "{name} θo={t}: furnace {mean} ± {sigma} vs quadrature {q}"
             );
             // Blinn–Phong's (e+8)/(8π) is only approximately normalised: its albedo at normal
             // incidence exceeds 1 by up to ~7% (closed form in test04). Ward stays below 1 here.
-            let is_bounded = !matches!(mat, Material::BlinnPhong { .. });
+            // The glTF dielectric is not energy conserving at grazing view either: its `(1 − F)`
+            // diffuse term and `F·D·V` specular use the Fresnel of each ω_i's half vector, and
+            // with base colour 0.8 the sum reaches 1.10 at θo = 85° (measured here, and by the
+            // independent oracle in pbr_oracle.rs). Its metals are bounded.
+            let is_bounded = !matches!(mat, Material::BlinnPhong { .. })
+                && !matches!(mat, Material::Pbr { metallic, .. } if *metallic < 1.0);
             if is_bounded {
                 assert!(q <= 1.0 + 1e-4, "{name} θo={t}: albedo {q} > 1");
             }

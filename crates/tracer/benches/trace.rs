@@ -46,6 +46,7 @@ fn bunny() -> Mesh {
         normals: Vec::new(),
         indices: mesh.indices.chunks(3).map(|t| [t[0], t[1], t[2]]).collect(),
         material: 0,
+        ..Default::default()
     }
 }
 

@@ -18,7 +18,7 @@ use prt_shading::{eval, luminance, pdf, sample, sample_cosine_hemisphere, Frame}
 
 /// A surface point being shaded.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Vertex<'a> {
+pub(crate) struct Vertex {
     /// Position.
     pub p: Vec3,
     /// Unit geometric normal (any orientation).
@@ -28,10 +28,10 @@ pub(crate) struct Vertex<'a> {
     /// Spawn offset along `ng`.
     pub offset: f32,
     /// The BRDF.
-    pub mat: &'a Material,
+    pub mat: Material,
 }
 
-impl Vertex<'_> {
+impl Vertex {
     /// `(ng, ns)` turned towards `wo`.
     fn oriented(&self, wo: Vec3) -> (Vec3, Vec3) {
         let ng = if self.ng.dot(wo) < 0.0 {
@@ -70,7 +70,7 @@ pub(crate) fn mis_weight(h: MisHeuristic, a: f32, b: f32) -> f32 {
 
 impl Renderer<'_> {
     /// Radiance leaving `v` towards `wo` (or the AO fraction as grey), per the mode.
-    pub(crate) fn li_surface(&self, v: Vertex<'_>, wo: Vec3, s: &mut Sampler) -> Vec3 {
+    pub(crate) fn li_surface(&self, v: Vertex, wo: Vec3, s: &mut Sampler) -> Vec3 {
         match self.settings.mode {
             Mode::Path => self.li_path(v, wo, s),
             Mode::Unshadowed => self.li_unshadowed(v, wo, s),
@@ -91,7 +91,7 @@ impl Renderer<'_> {
         }
     }
 
-    fn li_path<'a>(&'a self, mut v: Vertex<'a>, mut wo: Vec3, s: &mut Sampler) -> Vec3 {
+    fn li_path(&self, mut v: Vertex, mut wo: Vec3, s: &mut Sampler) -> Vec3 {
         let h = self.settings.mis;
         let mut radiance = Vec3::ZERO;
         let mut beta = Vec3::ONE;
@@ -102,19 +102,19 @@ impl Renderer<'_> {
             if let Some(es) = self.env.sample(s.next_2d()) {
                 let cos = ns.dot(es.dir);
                 if es.pdf > 0.0 && cos > 0.0 && ng.dot(es.dir) > 0.0 {
-                    let f = eval(v.mat, ns, wo, es.dir);
+                    let f = eval(&v.mat, ns, wo, es.dir);
                     if f != Vec3::ZERO
                         && !self
                             .accel
                             .occluded(v.spawn(ng, es.dir), es.dir, f32::INFINITY)
                     {
-                        let w = mis_weight(h, es.pdf, pdf(v.mat, ns, wo, es.dir));
+                        let w = mis_weight(h, es.pdf, pdf(&v.mat, ns, wo, es.dir));
                         radiance += beta * f * es.radiance * (cos * w / es.pdf);
                     }
                 }
             }
             // BRDF sampling: continues the path and hits the environment with MIS.
-            let Some(bs) = sample(v.mat, ns, wo, s.next_3d()) else {
+            let Some(bs) = sample(&v.mat, ns, wo, s.next_3d()) else {
                 break;
             };
             if ng.dot(bs.wi) <= 0.0 {
@@ -155,19 +155,19 @@ impl Renderer<'_> {
         radiance
     }
 
-    fn li_unshadowed(&self, v: Vertex<'_>, wo: Vec3, s: &mut Sampler) -> Vec3 {
+    fn li_unshadowed(&self, v: Vertex, wo: Vec3, s: &mut Sampler) -> Vec3 {
         let h = self.settings.mis;
         let (_, ns) = v.oriented(wo);
         let mut radiance = Vec3::ZERO;
         if let Some(es) = self.env.sample(s.next_2d()) {
             let cos = ns.dot(es.dir);
             if es.pdf > 0.0 && cos > 0.0 {
-                let f = eval(v.mat, ns, wo, es.dir);
-                let w = mis_weight(h, es.pdf, pdf(v.mat, ns, wo, es.dir));
+                let f = eval(&v.mat, ns, wo, es.dir);
+                let w = mis_weight(h, es.pdf, pdf(&v.mat, ns, wo, es.dir));
                 radiance += f * es.radiance * (cos * w / es.pdf);
             }
         }
-        if let Some(bs) = sample(v.mat, ns, wo, s.next_3d()) {
+        if let Some(bs) = sample(&v.mat, ns, wo, s.next_3d()) {
             let w = if bs.is_delta {
                 1.0
             } else {
@@ -178,7 +178,7 @@ impl Renderer<'_> {
         radiance
     }
 
-    fn ambient_occlusion(&self, v: &Vertex<'_>, wo: Vec3, s: &mut Sampler, tmax: f32) -> f32 {
+    fn ambient_occlusion(&self, v: &Vertex, wo: Vec3, s: &mut Sampler, tmax: f32) -> f32 {
         let (ng, ns) = v.oriented(wo);
         let w = Frame::from_normal(ns).to_world(sample_cosine_hemisphere(s.next_2d()));
         if ng.dot(w) <= 0.0 || self.accel.occluded(v.spawn(ng, w), w, tmax) {

@@ -222,14 +222,19 @@ impl<'s> Renderer<'s> {
         &self.settings
     }
 
-    pub(crate) fn vertex(&self, hit: &Hit) -> Vertex<'s> {
-        let mesh = &self.scene.meshes[hit.mesh as usize];
+    pub(crate) fn vertex(&self, hit: &Hit) -> Vertex {
+        // Textures and vertex colours resolved at the hit (a copy of the material otherwise).
+        let at = prt_scene::SurfacePoint::Triangle {
+            tri: hit.tri,
+            u: hit.u,
+            v: hit.v,
+        };
         Vertex {
             p: hit.position,
             ng: hit.geometric_normal,
             ns: hit.shading_normal,
             offset: hit.offset,
-            mat: &self.scene.materials[mesh.material],
+            mat: self.scene.material_at(hit.mesh as usize, at),
         }
     }
 
@@ -553,7 +558,7 @@ impl<'s> Renderer<'s> {
                         ng: n,
                         ns: n,
                         offset: point_offset(p.position, max_abs),
-                        mat: &p.material,
+                        mat: p.material,
                     };
                     let wo = p.view_dir.normalize();
                     let mut sum = DVec3::ZERO;

@@ -72,6 +72,7 @@ pub fn quad(corner: Vec3, edge_u: Vec3, edge_v: Vec3) -> Mesh {
         normals: vec![n; 4],
         indices: vec![[0, 1, 2], [0, 2, 3]],
         material: 0,
+        ..Default::default()
     }
 }
 
@@ -184,5 +185,6 @@ pub fn scene(
         material_names,
         meshes,
         render: RenderSettings::default(),
+        textures: Vec::new(),
     }
 }

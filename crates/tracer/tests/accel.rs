@@ -181,6 +181,7 @@ fn test04_bug_b_barycentrics() {
         normals: vec![Vec3::X, Vec3::Y, Vec3::Z],
         indices: vec![[0, 1, 2]],
         material: 0,
+        ..Default::default()
     };
     let a = accel(std::slice::from_ref(&m));
     let mut rng = Pcg64::seed_from_u64(4);
@@ -378,6 +379,7 @@ fn test09_bug_c_tiny_feature_in_unit_scene() {
         normals: vec![],
         indices: vec![[0, 1, 2]],
         material: 0,
+        ..Default::default()
     };
     let a = accel(&[big, tiny]);
     let o = Vec3::new(0.2 * s, 0.2 * s, 3.0 * s);

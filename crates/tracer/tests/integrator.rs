@@ -117,6 +117,20 @@ fn materials() -> Vec<Material> {
             albedo: [0.2, 0.3, 0.1],
             specular: [0.7, 0.6, 0.5],
         },
+        Material::Pbr {
+            base_color: [0.8, 0.5, 0.3],
+            metallic: 0.0,
+            roughness: 0.4,
+            base_color_texture: None,
+            metallic_roughness_texture: None,
+        },
+        Material::Pbr {
+            base_color: [0.9, 0.7, 0.4],
+            metallic: 1.0,
+            roughness: 0.6,
+            base_color_texture: None,
+            metallic_roughness_texture: None,
+        },
     ]
 }
 
@@ -139,7 +153,7 @@ fn sphere_points(mat: &Material) -> Vec<SurfacePoint> {
                 position: p,
                 normal: n,
                 view_dir: view,
-                material: mat.clone(),
+                material: *mat,
             }
         })
         .collect()
@@ -198,7 +212,7 @@ fn test02_unshadowed_ignores_occluders() {
         position: Vec3::ZERO,
         normal: Vec3::Y,
         view_dir: Vec3::new(0.0, 0.6, 0.8),
-        material: mat.clone(),
+        material: mat,
     };
     let want = quadrature(&env, &mat, Vec3::Y, p.view_dir, 48);
     let r = Renderer::new(&scene, settings(Mode::Unshadowed, 0)).unwrap();
@@ -291,7 +305,7 @@ fn test04_white_furnace_convex_and_concave() {
         let scene = test_util::scene(
             cam,
             test_util::constant_environment([1.0; 3]),
-            vec![white.clone()],
+            vec![white],
             vec![shape],
         );
         let s = RenderSettings {

@@ -53,6 +53,17 @@ pub fn cook(albedo: f32, specular: f32, m: f32) -> Material {
     }
 }
 
+/// glTF metallic-roughness material with grey base colour, no textures.
+pub fn pbr(base: f32, metallic: f32, roughness: f32) -> Material {
+    Material::Pbr {
+        base_color: grey(base),
+        metallic,
+        roughness,
+        base_color_texture: None,
+        metallic_roughness_texture: None,
+    }
+}
+
 /// `∫_{H²} g(ω) dω` about +Z by nested adaptive Simpson in `(cos θ, φ)`.
 pub fn hemisphere_integral(g: impl Fn(Vec3) -> f64, tol: f64) -> f64 {
     integrate(
