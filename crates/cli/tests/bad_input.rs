@@ -724,6 +724,26 @@ fn gltf_rows() {
                 j["meshes"][0]["primitives"][0]["material"] = json!(0);
             }),
         ),
+        (
+            "texture_not_image.glb",
+            tetra_glb(|j, _| {
+                j["materials"] =
+                    json!([{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]);
+                j["textures"] = json!([{"source": 0}]);
+                j["images"] = json!([{"uri": "not_image.png"}]);
+                j["meshes"][0]["primitives"][0]["material"] = json!(0);
+            }),
+        ),
+        (
+            "texture_without_uv.glb",
+            tetra_glb(|j, _| {
+                j["materials"] =
+                    json!([{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]);
+                j["textures"] = json!([{"source": 0}]);
+                j["images"] = json!([{"uri": "good.png"}]);
+                j["meshes"][0]["primitives"][0]["material"] = json!(0);
+            }),
+        ),
     ];
     // GLB chunk lengths pointing past the end of the file.
     let mut chunk_past_end = valid.clone();
@@ -736,6 +756,10 @@ fn gltf_rows() {
         write(d, name, bytes);
         mesh_scene(d, name, name);
     }
+    write(d, "not_image.png", b"this is not a PNG image\n");
+    image::RgbImage::from_pixel(2, 2, image::Rgb([200, 100, 50]))
+        .save(d.join("good.png"))
+        .unwrap();
     // A .gltf whose buffer file is missing.
     let mut j = tetra_gltf_json();
     j["buffers"][0]["uri"] = json!("missing_buffer.bin");
@@ -851,6 +875,21 @@ fn gltf_rows() {
             "short_bin.gltf",
             &["expected 144 bytes but received 40"],
         ),
+        e(
+            "gltf_texture_missing",
+            "textured.glb",
+            &["missing.png", "material0", "No such file"],
+        ),
+        e(
+            "gltf_texture_not_an_image",
+            "texture_not_image.glb",
+            &["not_image.png", "material0", "decode"],
+        ),
+        e(
+            "gltf_texture_without_uvs",
+            "texture_without_uv.glb",
+            &["material0", "no TEXCOORD_0"],
+        ),
     ];
     run_table(&fail);
     let ok = vec![
@@ -867,13 +906,6 @@ fn gltf_rows() {
             &out,
             "nan_normal.glb",
             warn(&["normals"]),
-        ),
-        render_case(
-            "gltf_textures_ignored",
-            sc("textured.glb"),
-            &out,
-            "textured.glb",
-            warn(&["textures, which are ignored"]),
         ),
     ];
     run_table(&ok.into_iter().map(unwatch).collect::<Vec<_>>());
@@ -2104,7 +2136,7 @@ fn real_asset_rows() {
         (
             "asset_box_textured_gltf",
             "gltf/BoxTextured-glTF/BoxTextured.gltf",
-            warn(&["textures, which are ignored"]),
+            Expect::Clean,
         ),
     ] {
         let path = a.join(mesh);
