@@ -48,11 +48,16 @@
 //! gives a warning, and so does `albedo + specular > 1` in a channel. Materials are stored
 //! sorted by name.
 //!
-//! # glTF material mapping
-//! With `c` = baseColorFactor RGB, `m` = metallicFactor, `r` = roughnessFactor:
-//! `m < 0.5` and `r ≥ 0.8` gives `lambert { albedo = c }`; anything else gives
-//! `cook_torrance { albedo = (1−m)c, specular = m·c + (1−m), roughness = max(r², 0.01),
-//! ior = 1.5 + 18.5m }` (see [`map_material`]). Textures are ignored with a warning.
+//! `pbr` needs `base_color`, `metallic` and `roughness`, each in `[0, 1]`.
+//!
+//! # glTF materials
+//! A glTF object whose scene entry names no material uses the file's own metallic-roughness
+//! material as `pbr`: its factors, `baseColorTexture` (sRGB), `metallicRoughnessTexture`
+//! (B metallic, G roughness) and `COLOR_0`, resolved at a surface point by
+//! [`Scene::material_at`]. Textures are decoded once (PNG, JPEG) and sampled bilinearly with
+//! the glTF sampler's wrap modes (see [`Texture::sample`]); a texture that is missing, not an
+//! image, or reads a UV set the primitive lacks is an error naming the file and the material.
+//! The older factor-only mapping to our own BRDFs is still available as [`map_material`].
 //!
 //! # Meshes
 //! Positions must be finite and indices in range; degenerate triangles (a repeated index or
