@@ -199,6 +199,10 @@ pub fn bake_pass(
             .iter()
             .map(|m| scene.materials[m.material].albedo())
             .collect(),
+        scene,
+        varies: (0..scene.meshes.len())
+            .map(|m| scene.material_varies(m))
+            .collect(),
     };
     let vertex_mode = settings.points == PointKind::Vertex;
     let bounces = settings.bounces as usize;

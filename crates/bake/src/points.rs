@@ -57,6 +57,8 @@ pub struct PixelSample {
     /// `(mesh, point)` of the primary hit, `None` when the ray sees the environment. Shading
     /// normals face the camera.
     pub hit: Option<(usize, SamplePoint)>,
+    /// Where on its triangle the hit lies (for textured materials), `None` without a hit.
+    pub at: Option<prt_scene::SurfacePoint>,
 }
 
 /// The box footprints of every camera pixel, `samples_per_pixel` sub-pixel samples each, the
@@ -131,7 +133,13 @@ pub fn pixel_footprints(
             let (x, y) = (pixel % u64::from(w), pixel / u64::from(w));
             let [jx, jy] = subpixel_position(seed, pixel, j, k);
             let dir = cam.direction(x as f64 + jx, y as f64 + jy);
-            let hit = accel.closest_hit(eye, dir, f32::INFINITY).map(|hit| {
+            let found = accel.closest_hit(eye, dir, f32::INFINITY);
+            let at = found.as_ref().map(|h| prt_scene::SurfacePoint::Triangle {
+                tri: h.tri,
+                u: h.u,
+                v: h.v,
+            });
+            let hit = found.map(|hit| {
                 let mut n = hit.shading_normal;
                 let mut ng = hit.geometric_normal;
                 if ng.dot(dir) > 0.0 {
@@ -150,7 +158,7 @@ pub fn pixel_footprints(
                     },
                 )
             });
-            PixelSample { dir, hit }
+            PixelSample { dir, hit, at }
         })
         .collect();
     Ok(PixelFootprints {

@@ -278,6 +278,16 @@ pub fn refine(
                 })?;
                 mesh.positions.push(p);
                 mesh.normals.push(n);
+                // UVs and vertex colours at the midpoint (the texture is read there).
+                let (a, b) = (edges[i].0 as usize, edges[i].1 as usize);
+                for uv in &mut mesh.texcoords {
+                    uv.push([0.5 * (uv[a][0] + uv[b][0]), 0.5 * (uv[a][1] + uv[b][1])]);
+                }
+                if !mesh.colors.is_empty() {
+                    let (ca, cb) = (mesh.colors[a], mesh.colors[b]);
+                    mesh.colors
+                        .push(std::array::from_fn(|k| 0.5 * (ca[k] + cb[k])));
+                }
                 mid.insert(edges[i], index);
                 // The midpoint's probe is its transfer estimate for the next level.
                 transfer.push(at_edges[i].clone());

@@ -10,7 +10,8 @@
 //! `q` brings `q`'s outgoing radiance `(a_q/π) Σ_i L_i T^{b−1}_{q,i}` with `T^{b−1}_q`
 //! interpolated from `q`'s triangle vertices by the hit's barycentrics, so the next bounce is
 //! `T^b_{p,i} = (π/R) Σ_{hits} (a_q/π) T^{b−1}_{q,i} = (1/R) Σ_{hits} a_q T^{b−1}_{q,i}`,
-//! RGB through the albedos `a_q` (the diffuse albedo of `q`'s material; glossy lobes of
+//! RGB through the albedos `a_q` (the diffuse albedo of `q`'s material at the hit, textures
+//! and vertex colours applied; glossy lobes of
 //! intermediate surfaces are not represented). Rays that hit the back of a surface bring
 //! nothing (the transfer of `q` describes its front side) and are counted in the report.
 
@@ -168,8 +169,30 @@ pub struct MeshTransfer {
 pub struct GatherScene<'a> {
     /// Triangles of each mesh.
     pub indices: Vec<&'a [[u32; 3]]>,
-    /// Diffuse albedo of each mesh's material.
+    /// Diffuse albedo of each mesh's material (its factors, for a textured one).
     pub albedo: Vec<[f32; 3]>,
+    /// The scene, for the meshes whose material varies over the surface (textures, vertex
+    /// colours): their albedo is read at each hit.
+    pub scene: &'a prt_scene::Scene,
+    /// Whether each mesh's material varies ([`prt_scene::Scene::material_varies`]).
+    pub varies: Vec<bool>,
+}
+
+impl GatherScene<'_> {
+    /// The diffuse albedo at a hit.
+    fn albedo_at(&self, h: &HitRecord) -> [f32; 3] {
+        let m = h.mesh as usize;
+        if self.varies[m] {
+            let at = prt_scene::SurfacePoint::Triangle {
+                tri: h.tri,
+                u: h.u,
+                v: h.v,
+            };
+            self.scene.material_at(m, at).albedo()
+        } else {
+            self.albedo[m]
+        }
+    }
 }
 
 /// One bounce at one point: `(1/R) Σ_hits a_q T^{b−1}_q(u, v)`, RGB, `3 × order²` values
@@ -190,7 +213,7 @@ pub fn gather(
         let k = n2.min(m2);
         let tri = scene.indices[h.mesh as usize][h.tri as usize];
         let w = [1.0 - h.u - h.v, h.u, h.v];
-        let a = scene.albedo[h.mesh as usize];
+        let a = scene.albedo_at(h);
         for (corner, wc) in tri.iter().zip(w) {
             let base = *corner as usize * 3 * m2;
             for c in 0..3 {

@@ -71,6 +71,12 @@ pub struct RelightArgs {
     /// checking a reader of the format (tools/prtb_reader.py --relight).
     #[arg(long)]
     pub vertex_colours: Option<PathBuf>,
+    /// How glossy lobes without a zonal form (Blinn–Phong, Ward, Cook–Torrance, glTF `pbr`)
+    /// are relit: `fitted`, a zonal fit of the lobe per view elevation shaded at Phong's cost
+    /// (full order and adaptive); `exact`, the bake's per-elevation BRDF projections rotated
+    /// per point (O(order⁵) per point, full order; the reference for `fitted`).
+    #[arg(long, value_enum, default_value_t = GlossyArg::Fitted)]
+    pub glossy: GlossyArg,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -88,6 +94,15 @@ pub struct RelightArgs {
     /// print the PSNR reached and the best uniform truncation meeting the same target.
     #[arg(long)]
     pub verify: bool,
+}
+
+/// `--glossy` values (see [`prt_report::GlossyPath`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum GlossyArg {
+    /// Zonal fit per view elevation (fast).
+    Fitted,
+    /// Per-elevation BRDF projections from the bake (reference).
+    Exact,
 }
 
 /// `--stop` values (see [`StopRule`]).
@@ -168,6 +183,10 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         warmup_frames: 2,
         rotate_y_step_deg: 0.0,
         points: None,
+        glossy: match args.glossy {
+            GlossyArg::Fitted => prt_report::GlossyPath::Fitted,
+            GlossyArg::Exact => prt_report::GlossyPath::Exact,
+        },
     };
     let relit = prt_report::relight(&scene, &accel, &bake, &opt)?;
     let full_stats: Option<RelightStats> = if args.adaptive {
@@ -240,6 +259,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             "threshold_kind": args.adaptive.then_some(threshold_kind),
             "cost_exponent": args.adaptive.then_some(args.cost_exponent),
             "points": s.points,
+            "glossy": opt.glossy,
             "frames": args.frames,
             "fps": fps,
             "notes": s.notes,

@@ -16,7 +16,7 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use glam::DVec3;
 use prt_relight::{
     AdaptiveInput, AdaptiveParams, Adjacency, DiffuseParams, FrameLighting, Lighting, PhongParams,
-    Relighter, SpecularInput, Surface, TransferView, Viewer,
+    Relighter, SpecularInput, SpecularLobe, Surface, TransferView, Viewer,
 };
 use rayon::prelude::*;
 use std::hint::black_box;
@@ -80,10 +80,10 @@ impl Level<'_> {
                     normals: &self.b.normals,
                 },
                 viewer: Viewer::Eye([0.4, 0.8, 3.0]),
-                phong: PhongParams {
+                lobe: SpecularLobe::Phong(PhongParams {
                     specular: [0.5; 3],
                     exponent: 40.0,
-                },
+                }),
             }),
             adjacency: &self.b.adjacency,
         }

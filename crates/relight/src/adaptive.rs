@@ -6,7 +6,8 @@ use crate::adjacency::Adjacency;
 use crate::error::RelightError;
 use crate::input::{DiffuseParams, SpecularInput, TransferView};
 use crate::kernel::{level_costs, prefetch, rgb, Accum, Measure, Stop, Term, BLOCK, CHUNK};
-use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter};
+use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter, SpecularPoint};
+use prt_sh::MAX_GAUNT_ORDER;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
@@ -365,7 +366,8 @@ impl Relighter {
             None => None,
             Some(s) => {
                 let kernel = self.specular_kernel(frame)?;
-                let lobe = self.lobe(&s.phong)?;
+                let lobe = self.lobe(&s.lobe)?;
+                let order = self.order();
                 let s = *s;
                 let costs = level_costs(Term::Specular, self.order(), alpha);
                 Some(
@@ -380,13 +382,13 @@ impl Relighter {
                         w.resize(n2, 0.0);
                         // Two passes as for diffuse: the low bands (weights and visibility) of
                         // every point, then the points that go on, rows hinted ahead.
-                        let mut go_on = [(0usize, glam::Vec3::ZERO); BLOCK];
+                        let mut go_on = [(0usize, SpecularPoint::INACTIVE); BLOCK];
                         // The low weights of the points that go on, for their second pass.
                         let low_len = (low_top + 1) * (low_top + 1);
                         let mut low_w = [[0.0f32; 25]; BLOCK];
                         let mut n = 0;
                         for (k, (&v, acc)) in pts.iter().zip(accs.iter_mut()).enumerate() {
-                            let g = specular_point(&s, v);
+                            let g = specular_point(&s, v, &lobe, order);
                             if !g.active {
                                 *acc = Accum {
                                     last_level: top as u16,
@@ -395,7 +397,7 @@ impl Relighter {
                                 };
                                 continue;
                             }
-                            self.weights_low(&lobe, g.reflection, w);
+                            self.point_weights_low(&g, w);
                             let low = s.visibility.low_point(v);
                             if fresh {
                                 *acc = kernel.base(low, w, g.scale);
@@ -408,7 +410,7 @@ impl Relighter {
                                 stopped = kernel.extend(acc, low, w, to.min(low_top), stop);
                             }
                             if !stopped && to > acc.last_level as usize {
-                                go_on[n] = (k, g.reflection);
+                                go_on[n] = (k, g);
                                 low_w[n][..low_len].copy_from_slice(&w[..low_len]);
                                 n += 1;
                             }
@@ -418,31 +420,49 @@ impl Relighter {
                             .iter()
                             .take(PREFETCH_DISTANCE)
                             .for_each(|&(k, _)| hint(k));
-                        // One cursor for the block's points, restarted per point.
-                        let mut cursor = (n > 0)
-                            .then(|| prt_sh::BandCursor::new(self.basis(), glam::Vec3::Z).ok())
-                            .flatten();
-                        for (i, &(k, reflection)) in go_on[..n].iter().enumerate() {
+                        // One cursor per lobe axis for the block's points, restarted per point.
+                        let lobes = go_on[..n].iter().map(|(_, g)| g.count).max().unwrap_or(0);
+                        let mut cursors: Vec<prt_sh::BandCursor<'_>> = (0..lobes)
+                            .filter_map(|_| {
+                                prt_sh::BandCursor::new(self.basis(), glam::Vec3::Z).ok()
+                            })
+                            .collect();
+                        if cursors.len() < lobes {
+                            cursors.clear();
+                        }
+                        for (i, (k, g)) in go_on[..n].iter().enumerate() {
+                            let k = *k;
                             if let Some(&(next, _)) = go_on[..n].get(i + PREFETCH_DISTANCE) {
                                 hint(next);
                             }
                             let (acc, row) = (&mut accs[k], s.visibility.point(pts[k]));
                             // The weights band by band, only as far as the point goes (most
                             // stop within a few levels of the low ones).
-                            match cursor.as_mut() {
-                                Some(cursor) => {
+                            match (!cursors.is_empty()).then_some(&mut cursors) {
+                                Some(cursors) => {
                                     // (`w` is the block's scratch: the bands shaded so far
                                     // are this point's again first.) The low bands as the first
-                                    // pass formed them (the cursor steps over them), then the
-                                    // rest from the cursor.
+                                    // pass formed them (the cursors step over them), then the
+                                    // rest from the cursors, one per lobe axis, summed.
                                     w[..low_len].copy_from_slice(&low_w[i][..low_len]);
-                                    cursor.reset(reflection);
-                                    for _ in 0..=low_top {
-                                        cursor.skip_band();
+                                    for (c, axis) in cursors.iter_mut().zip(&g.axes[..g.count]) {
+                                        c.reset(*axis);
+                                        for _ in 0..=low_top {
+                                            c.skip_band();
+                                        }
                                     }
+                                    let mut band = [0.0f32; 2 * MAX_GAUNT_ORDER];
                                     let mut fill = |l: usize, w: &mut [f32]| {
-                                        // `y_i(r) A_l`, as `weights` forms it.
-                                        cursor.next_band_f32_scaled(&mut w[l * l..], lobe[l]);
+                                        // `Σ_k y_i(a_k) A^k_l`, as `point_weights` forms it.
+                                        let out = &mut w[l * l..];
+                                        cursors[0].next_band_f32_scaled(out, g.lobes[0][l]);
+                                        for j in 1..g.count {
+                                            cursors[j]
+                                                .next_band_f32_scaled(&mut band, g.lobes[j][l]);
+                                            for (a, b) in out[..2 * l + 1].iter_mut().zip(&band) {
+                                                *a += b;
+                                            }
+                                        }
                                     };
                                     for l in (low_top + 1)..=acc.last_level as usize {
                                         fill(l, w);
@@ -456,7 +476,8 @@ impl Relighter {
                                 }
                                 // (Orders above the cursor's limit have no specular anyway.)
                                 None => {
-                                    self.weights(&lobe, reflection, w);
+                                    let mut scratch = vec![0.0f32; n2];
+                                    self.point_weights(g, w, &mut scratch);
                                     kernel.extend(acc, row, w, to, stop);
                                 }
                             }

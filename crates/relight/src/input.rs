@@ -290,6 +290,53 @@ pub enum Viewer<'a> {
     Directions(&'a [[f32; 3]]),
 }
 
+/// Most zonal lobes a [`FittedLobe`] may sum per elevation.
+pub const MAX_FITTED_LOBES: usize = 4;
+
+/// A glossy lobe (Blinn–Phong, Ward, Cook–Torrance, the glTF metallic-roughness BRDF)
+/// approximated, per view elevation `θ_o`, by a sum of `K` zonal lobes about axes in the plane
+/// of the normal and the view (Ramamoorthi 2002, ch. 5: reparameterised about the reflection
+/// direction, a microfacet lobe is nearly zonal; where it is not — grazing views — further
+/// lobes beside the first capture its asymmetry). With `g(ω_i) = f_s(ω_i, ω_o) max(0, cos θ_i)`
+/// the table holds, per elevation, the axes `a_k` and the multipliers `A^k_l` of the
+/// least-squares fit `Σ_k Σ_l (2l+1)/(4π) A^k_l P_l(a_k·ω)` of `g` above the horizon, so the
+/// specular radiance is `scale_c Σ_lm w_lm (L ⊛ V)_lm` with `w_lm = Σ_k A^k_l y_lm(a_k)` — the
+/// products of the Phong path, with a per-point lobe whose weights cost `K` basis evaluations.
+/// Tables are linear in `θ_o` between rows.
+///
+/// The colour is `scale_c = a_c + b_c s̄(θ_o)`: for lobes without a Fresnel split `b = 0` and
+/// `a` is the specular colour; for the glTF material `a = F0`-like and `b` the Schlick part
+/// (see `prt_bake::brdf::FittedTable`), `s̄` the lobe-weighted mean of `(1 − ω_o·h)⁵`.
+#[derive(Clone, Copy, Debug)]
+pub struct FittedLobe<'a> {
+    /// View elevations `θ_o` in radians, strictly increasing, at least 2.
+    pub elevations: &'a [f32],
+    /// Zonal lobes per elevation, `1..=MAX_FITTED_LOBES`.
+    pub lobes: usize,
+    /// `[elevation][lobe]` axis angles from the normal toward the mirror direction (radians;
+    /// `θ_o` is the mirror direction itself).
+    pub axis: &'a [f32],
+    /// Order of the table's rows (at least the relighter's).
+    pub order: usize,
+    /// `[elevation][lobe][band]` multipliers `A^k_l`.
+    pub bands: &'a [f32],
+    /// Per elevation, the Fresnel factor `s̄` multiplying `colour_b`.
+    pub fresnel: &'a [f32],
+    /// Colour weight `a` per point, or one for all points.
+    pub colour_a: &'a [[f32; 3]],
+    /// Colour weight `b` per point, or one for all points.
+    pub colour_b: &'a [[f32; 3]],
+}
+
+/// A specular lobe the relighter can shade.
+#[derive(Clone, Copy, Debug)]
+pub enum SpecularLobe<'a> {
+    /// The `phong` material's lobe (zonal about the reflection direction; cosine frozen).
+    Phong(PhongParams),
+    /// A tabulated zonal fit of a glossy lobe ([`FittedLobe`]).
+    Fitted(FittedLobe<'a>),
+}
+
 /// Everything specular shading needs besides the lighting.
 #[derive(Clone, Copy, Debug)]
 pub struct SpecularInput<'a> {
@@ -300,5 +347,5 @@ pub struct SpecularInput<'a> {
     /// The viewer.
     pub viewer: Viewer<'a>,
     /// The material's specular lobe.
-    pub phong: PhongParams,
+    pub lobe: SpecularLobe<'a>,
 }

@@ -98,8 +98,8 @@ pub use adjacency::Adjacency;
 pub use compressed::{diffuse_cpca, CpcaTransfer};
 pub use error::RelightError;
 pub use input::{
-    low_bands, DiffuseParams, Lighting, PhongParams, SpecularInput, Surface, TransferView, Viewer,
-    LOW_ORDER,
+    low_bands, DiffuseParams, FittedLobe, Lighting, PhongParams, SpecularInput, SpecularLobe,
+    Surface, TransferView, Viewer, LOW_ORDER, MAX_FITTED_LOBES,
 };
 pub use kernel::BASE_ORDER;
 pub use relighter::{FrameLighting, Relighter};

@@ -1,7 +1,10 @@
 //! The relighter of one SH order, per-frame lighting, and full-order diffuse and specular shading.
 
 use crate::error::RelightError;
-use crate::input::{DiffuseParams, Lighting, PhongParams, SpecularInput, TransferView, Viewer};
+use crate::input::{
+    DiffuseParams, FittedLobe, Lighting, SpecularInput, SpecularLobe, TransferView, Viewer,
+    MAX_FITTED_LOBES,
+};
 use crate::kernel::{DiffuseKernel, SpecularKernel, Stop, CHUNK};
 use glam::Vec3;
 use prt_sh::{zonal, Basis, GauntTensor, MAX_GAUNT_ORDER};
@@ -45,14 +48,20 @@ impl FrameLighting {
     }
 }
 
-/// Per-point specular geometry: `w_i = A_l y_i(r)` is formed from `reflection`.
+/// Per-point specular geometry: `w_i = Σ_k A^k_l y_i(a_k)` is formed from `axes` and `lobes`.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SpecularPoint {
-    /// The reflection of the view direction, not normalised (the basis evaluations normalise).
-    pub reflection: Vec3,
-    /// `specular_c · (e+2)/(e+1) · cos θ_o`, zero when the point faces away.
+    /// The lobe axes: for Phong one, the reflection of the view direction, not normalised (the
+    /// basis evaluations normalise); a fitted lobe's axes.
+    pub axes: [Vec3; MAX_FITTED_LOBES],
+    /// Phong: `specular_c · (e+2)/(e+1) · cos θ_o`; fitted: `a_c + b_c s̄(θ_o)`; zero when the
+    /// point faces away.
     pub scale: [f32; 3],
     pub active: bool,
+    /// The band multipliers `A^k_l` of each axis (the first `order` are used).
+    pub lobes: [[f32; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES],
+    /// Axes in use.
+    pub count: usize,
 }
 
 impl Relighter {
@@ -257,25 +266,34 @@ impl Relighter {
             }
             Viewer::Directions(d) => check_len("view directions", d.len())?,
         }
-        let p = input.phong;
-        check_finite3(p.specular, "specular reflectance")?;
-        if p.exponent.is_nan() || p.exponent < 0.0 || p.exponent.is_infinite() {
-            return Err(RelightError::InvalidParameter(format!(
-                "Phong exponent {} must be finite and ≥ 0",
-                p.exponent
-            )));
+        match input.lobe {
+            SpecularLobe::Phong(p) => {
+                check_finite3(p.specular, "specular reflectance")?;
+                if p.exponent.is_nan() || p.exponent < 0.0 || p.exponent.is_infinite() {
+                    return Err(RelightError::InvalidParameter(format!(
+                        "Phong exponent {} must be finite and ≥ 0",
+                        p.exponent
+                    )));
+                }
+            }
+            SpecularLobe::Fitted(f) => check_fitted(&f, self.order, n)?,
         }
         Ok(n)
     }
 
-    /// Band multipliers of the normalised Phong lobe `(e+1)/(2π) cos^e`, f32.
-    pub(crate) fn lobe(&self, phong: &PhongParams) -> Result<Vec<f32>, RelightError> {
-        Ok(
-            zonal::phong_lobe_bands(f64::from(phong.exponent), self.order)?
-                .into_iter()
-                .map(|a| a as f32)
-                .collect(),
-        )
+    /// Band multipliers of the normalised Phong lobe `(e+1)/(2π) cos^e`, f32 (empty for a
+    /// fitted lobe, whose multipliers come per point).
+    pub(crate) fn lobe(&self, lobe: &SpecularLobe<'_>) -> Result<Vec<f32>, RelightError> {
+        match lobe {
+            SpecularLobe::Phong(phong) => Ok(zonal::phong_lobe_bands(
+                f64::from(phong.exponent),
+                self.order,
+            )?
+            .into_iter()
+            .map(|a| a as f32)
+            .collect()),
+            SpecularLobe::Fitted(_) => Ok(Vec::new()),
+        }
     }
 
     /// The basis of the relighter's order.
@@ -296,6 +314,32 @@ impl Relighter {
             }
         }
         self.weights_low(lobe, reflection, w);
+    }
+
+    /// Fills `w = Σ_k A^k_l y(a_k)` of a point, all bands (`scratch`: `order²` floats).
+    #[inline]
+    pub(crate) fn point_weights(&self, g: &SpecularPoint, w: &mut [f32], scratch: &mut [f32]) {
+        self.weights(&g.lobes[0][..self.order], g.axes[0], w);
+        for k in 1..g.count {
+            self.weights(&g.lobes[k][..self.order], g.axes[k], scratch);
+            for (a, b) in w.iter_mut().zip(scratch.iter()) {
+                *a += b;
+            }
+        }
+    }
+
+    /// [`Self::point_weights`] for the first `min(order, LOW_ORDER)²` weights only.
+    #[inline]
+    pub(crate) fn point_weights_low(&self, g: &SpecularPoint, w: &mut [f32]) {
+        self.weights_low(&g.lobes[0][..self.order], g.axes[0], w);
+        let low = crate::LOW_ORDER.min(self.order);
+        let mut tmp = [0.0f32; 25];
+        for k in 1..g.count {
+            self.weights_low(&g.lobes[k][..self.order], g.axes[k], &mut tmp);
+            for (a, b) in w[..low * low].iter_mut().zip(&tmp) {
+                *a += b;
+            }
+        }
     }
 
     /// Fills the first `min(order, LOW_ORDER)²` weights only (the rest of `w` is untouched),
@@ -324,7 +368,7 @@ impl Relighter {
         let n = self.check_specular(input)?;
         self.check_frame(frame)?;
         let kernel = self.specular_kernel(frame)?;
-        let lobe = self.lobe(&input.phong)?;
+        let lobe = self.lobe(&input.lobe)?;
         let n2 = self.order * self.order;
         let top = self.order - 1;
         let mut out = vec![[0.0f32; 3]; n];
@@ -332,13 +376,14 @@ impl Relighter {
             .enumerate()
             .for_each(|(ci, chunk)| {
                 let mut w = vec![0.0f32; n2];
+                let mut scratch = vec![0.0f32; n2];
                 for (k, o) in chunk.iter_mut().enumerate() {
                     let p = ci * CHUNK + k;
-                    let g = specular_point(input, p);
+                    let g = specular_point(input, p, &lobe, self.order);
                     if !g.active {
                         continue;
                     }
-                    self.weights(&lobe, g.reflection, &mut w);
+                    self.point_weights(&g, &mut w, &mut scratch);
                     let v = input.visibility.point(p);
                     let mut acc = kernel.base(v, &w, g.scale);
                     kernel.extend(&mut acc, v, &w, top, Stop::NEVER);
@@ -357,14 +402,28 @@ impl Relighter {
     }
 }
 
-/// View direction, reflection and scale of point `p`: `ω_o` toward the viewer, `r = 2(n·ω_o)n − ω_o`,
-/// scale `specular · (e+2)/(e+1) · n·ω_o`; inactive (zero) if `n·ω_o ≤ 0` or degenerate.
-pub(crate) fn specular_point(input: &SpecularInput<'_>, p: usize) -> SpecularPoint {
-    let inactive = SpecularPoint {
-        reflection: Vec3::ZERO,
+impl SpecularPoint {
+    /// A point facing away: no lobe, zero scale.
+    pub(crate) const INACTIVE: SpecularPoint = SpecularPoint {
+        axes: [Vec3::ZERO; MAX_FITTED_LOBES],
         scale: [0.0; 3],
         active: false,
+        lobes: [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES],
+        count: 0,
     };
+}
+
+/// View direction, reflection and scale of point `p`: `ω_o` toward the viewer, `r = 2(n·ω_o)n − ω_o`,
+/// scale `specular · (e+2)/(e+1) · n·ω_o` and the Phong lobe `phong_lobe` (or, for a fitted
+/// lobe, its axis, table row and colour at this point's `θ_o`); inactive (zero) if
+/// `n·ω_o ≤ 0` or degenerate.
+pub(crate) fn specular_point(
+    input: &SpecularInput<'_>,
+    p: usize,
+    phong_lobe: &[f32],
+    order: usize,
+) -> SpecularPoint {
+    let inactive = SpecularPoint::INACTIVE;
     let n_raw = Vec3::from_array(input.surface.normals[p]);
     let wo_raw = match input.viewer {
         Viewer::Eye(eye) => Vec3::from_array(eye) - Vec3::from_array(input.surface.positions[p]),
@@ -384,13 +443,118 @@ pub(crate) fn specular_point(input: &SpecularInput<'_>, p: usize) -> SpecularPoi
     if cos_o.is_nan() || cos_o <= 0.0 {
         return inactive;
     }
-    let e = input.phong.exponent;
-    let k = (e + 2.0) / (e + 1.0) * cos_o.min(1.0);
-    SpecularPoint {
-        reflection: (2.0 * d / nn) * n_raw - wo_raw,
-        scale: input.phong.specular.map(|s| s * k),
-        active: true,
+    let reflection = (2.0 * d / nn) * n_raw - wo_raw;
+    match input.lobe {
+        SpecularLobe::Phong(phong) => {
+            let e = phong.exponent;
+            let k = (e + 2.0) / (e + 1.0) * cos_o.min(1.0);
+            let mut lobes = [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
+            lobes[0][..order].copy_from_slice(&phong_lobe[..order]);
+            let mut axes = [Vec3::ZERO; MAX_FITTED_LOBES];
+            axes[0] = reflection;
+            SpecularPoint {
+                axes,
+                scale: phong.specular.map(|s| s * k),
+                active: true,
+                lobes,
+                count: 1,
+            }
+        }
+        SpecularLobe::Fitted(f) => {
+            let theta_o = cos_o.min(1.0).acos();
+            let e = f.elevations;
+            // Row interval and weight (clamped to the table's ends).
+            let (i, t) = if theta_o <= e[0] {
+                (0, 0.0)
+            } else if theta_o >= e[e.len() - 1] {
+                (e.len() - 2, 1.0)
+            } else {
+                let i = e.partition_point(|&x| x <= theta_o) - 1;
+                (i, (theta_o - e[i]) / (e[i + 1] - e[i]))
+            };
+            let lerp = |a: f32, b: f32| a + t * (b - a);
+            let k = f.lobes;
+            let mut lobes = [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
+            let mut axes = [Vec3::ZERO; MAX_FITTED_LOBES];
+            // The axes: `θ_k` from the normal toward the mirror direction, in the plane of
+            // the normal and the view (the normal itself when the view is along it).
+            let n = n_raw / nn.sqrt();
+            let tangent = reflection - reflection.dot(n) * n;
+            let len = tangent.length();
+            let t_hat = if len > 1e-6 * reflection.length() {
+                tangent / len
+            } else {
+                n.any_orthonormal_vector()
+            };
+            for j in 0..k {
+                let (r0, r1) = (
+                    &f.bands[(i * k + j) * f.order..],
+                    &f.bands[((i + 1) * k + j) * f.order..],
+                );
+                for l in 0..order {
+                    lobes[j][l] = lerp(r0[l], r1[l]);
+                }
+                let theta = lerp(f.axis[i * k + j], f.axis[(i + 1) * k + j]);
+                let (s, c) = theta.sin_cos();
+                axes[j] = c * n + s * t_hat;
+            }
+            let s_bar = lerp(f.fresnel[i], f.fresnel[i + 1]);
+            let pick = |v: &[[f32; 3]]| if v.len() == 1 { v[0] } else { v[p] };
+            let (a, b) = (pick(f.colour_a), pick(f.colour_b));
+            SpecularPoint {
+                axes,
+                scale: std::array::from_fn(|c| a[c] + b[c] * s_bar),
+                active: true,
+                lobes,
+                count: k,
+            }
+        }
     }
+}
+
+/// A fitted lobe's table must cover the order, have matching lengths, finite values and
+/// increasing elevations; colours one or one per point.
+fn check_fitted(f: &FittedLobe<'_>, order: usize, points: usize) -> Result<(), RelightError> {
+    let bad = |m: String| Err(RelightError::InvalidParameter(format!("fitted lobe: {m}")));
+    let e = f.elevations.len();
+    let k = f.lobes;
+    if !(1..=MAX_FITTED_LOBES).contains(&k) {
+        return bad(format!("{k} lobes (1 to {MAX_FITTED_LOBES})"));
+    }
+    if e < 2 || f.axis.len() != e * k || f.fresnel.len() != e || f.bands.len() != e * k * f.order {
+        return bad(format!(
+            "{e} elevations of {k} lobes, {} axes, {} Fresnel factors, {} band values of order {}",
+            f.axis.len(),
+            f.fresnel.len(),
+            f.bands.len(),
+            f.order
+        ));
+    }
+    if f.order > MAX_GAUNT_ORDER {
+        return bad(format!("table order {} above {MAX_GAUNT_ORDER}", f.order));
+    }
+    if f.order < order {
+        return bad(format!(
+            "table order {} below the relighter's {order}",
+            f.order
+        ));
+    }
+    if !f.elevations.windows(2).all(|w| w[0] < w[1]) {
+        return bad("elevations must increase".into());
+    }
+    let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+    if !(finite(f.elevations) && finite(f.axis) && finite(f.bands) && finite(f.fresnel)) {
+        return Err(RelightError::NonFinite("fitted lobe table"));
+    }
+    for (what, c) in [("colour a", f.colour_a), ("colour b", f.colour_b)] {
+        if c.len() != 1 && c.len() != points {
+            return bad(format!("{} {what} values for {points} points", c.len()));
+        }
+        if !c.iter().all(|v| v.iter().all(|x| x.is_finite())) {
+            return Err(RelightError::NonFinite("fitted lobe colour"));
+        }
+    }
+    Ok(())
 }
 
 pub(crate) fn check_finite3(v: [f32; 3], what: &'static str) -> Result<(), RelightError> {

@@ -5,9 +5,9 @@ mod common;
 
 use glam::DVec3;
 use prt_relight::{
-    AdaptiveFrame, AdaptiveInput, AdaptiveParams, Adjacency, DiffuseParams, FrameLighting,
-    Lighting, PhongParams, RelightError, Relighter, SpecularInput, StopRule, Surface, Threshold,
-    TransferView, Viewer,
+    AdaptiveFrame, AdaptiveInput, AdaptiveParams, Adjacency, DiffuseParams, FittedLobe,
+    FrameLighting, Lighting, PhongParams, RelightError, Relighter, SpecularInput, SpecularLobe,
+    StopRule, Surface, Threshold, TransferView, Viewer,
 };
 
 struct Scene {
@@ -60,10 +60,10 @@ impl Scene {
                     normals: &self.normals,
                 },
                 viewer: Viewer::Eye([0.4, 0.8, 3.0]),
-                phong: PhongParams {
+                lobe: SpecularLobe::Phong(PhongParams {
                     specular: [0.5; 3],
                     exponent: 40.0,
-                },
+                }),
             }),
             adjacency: &self.adjacency,
         }
@@ -557,4 +557,148 @@ fn test10_cost_exponent_raises_only_the_later_convergence_tests() {
 
 fn t_view(s: &Scene) -> TransferView<'_> {
     TransferView::new(s.order, 1, &s.diffuse).unwrap()
+}
+
+/// A fitted lobe of `k` zonal lobes per elevation: smooth made-up multipliers and axes (what
+/// the shading path does with them does not depend on where they came from).
+struct Fitted {
+    elevations: Vec<f32>,
+    axis: Vec<f32>,
+    bands: Vec<f32>,
+    fresnel: Vec<f32>,
+    k: usize,
+    order: usize,
+}
+
+impl Fitted {
+    fn new(k: usize, order: usize) -> Self {
+        let e = 16;
+        let elevations: Vec<f32> = (0..e)
+            .map(|i| (i as f32 + 0.5) / e as f32 * std::f32::consts::FRAC_PI_2)
+            .collect();
+        let mut axis = Vec::new();
+        let mut bands = Vec::new();
+        for t in &elevations {
+            for j in 0..k {
+                axis.push(t * (0.7 + 0.15 * j as f32));
+                for l in 0..order {
+                    bands.push((1.0 + 0.3 * j as f32) * (-0.05 * (l * l) as f32 * (1.0 + t)).exp());
+                }
+            }
+        }
+        let fresnel = elevations.iter().map(|t| (1.0 - t.cos()).powi(5)).collect();
+        Self {
+            elevations,
+            axis,
+            bands,
+            fresnel,
+            k,
+            order,
+        }
+    }
+
+    fn lobe<'a>(&'a self, a: &'a [[f32; 3]], b: &'a [[f32; 3]]) -> SpecularLobe<'a> {
+        SpecularLobe::Fitted(FittedLobe {
+            elevations: &self.elevations,
+            lobes: self.k,
+            axis: &self.axis,
+            order: self.order,
+            bands: &self.bands,
+            fresnel: &self.fresnel,
+            colour_a: a,
+            colour_b: b,
+        })
+    }
+}
+
+#[test]
+fn test11_fitted_lobes_are_exact_at_threshold_zero_and_thread_independent() {
+    for order in [3usize, 9] {
+        let s = scene(order, 2);
+        for k in [1usize, 3] {
+            let f = Fitted::new(k, order);
+            let (a, b) = ([[0.5f32, 0.4, 0.3]], [[0.5f32, 0.6, 0.7]]);
+            let mut input = s.input();
+            input.specular.as_mut().unwrap().lobe = f.lobe(&a, &b);
+            let full = s
+                .relighter
+                .specular(input.specular.as_ref().unwrap(), &s.frame)
+                .unwrap();
+            assert!(full.iter().any(|v| v[0] != 0.0));
+            for p in [AdaptiveParams::exact()].into_iter().chain(all_params(0.0)) {
+                let out = s.relighter.adaptive(&input, &s.frame, &p).unwrap();
+                assert_eq!(out.specular, full, "order {order}, {k} lobes, {p:?}");
+            }
+            let one = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap()
+                .install(|| {
+                    s.relighter
+                        .specular(input.specular.as_ref().unwrap(), &s.frame)
+                        .unwrap()
+                });
+            assert_eq!(one, full);
+        }
+    }
+}
+
+#[test]
+fn test12_one_fitted_lobe_about_the_mirror_is_the_phong_path() {
+    // Phong's multipliers at every elevation, the axis at the mirror direction (θ_a = θ_o,
+    // linear in θ_o, so interpolation is exact) and Phong's scale per point as colour: the
+    // same sums as the Phong path, up to the rounding of the axis (built from angles instead
+    // of 2(n·ω)n − ω).
+    let order = 9;
+    let s = scene(order, 2);
+    let e = 40.0f32;
+    let lobe: Vec<f32> = prt_sh::zonal::phong_lobe_bands(f64::from(e), order)
+        .unwrap()
+        .iter()
+        .map(|v| *v as f32)
+        .collect();
+    let elevations: Vec<f32> = (0..=32)
+        .map(|i| i as f32 / 32.0 * std::f32::consts::FRAC_PI_2)
+        .collect();
+    let bands: Vec<f32> = elevations.iter().flat_map(|_| lobe.clone()).collect();
+    let fresnel = vec![0.0; elevations.len()];
+    let eye = glam::Vec3::new(0.4, 0.8, 3.0);
+    let scale: Vec<[f32; 3]> = s
+        .positions
+        .iter()
+        .zip(&s.normals)
+        .map(|(p, n)| {
+            let n = glam::Vec3::from_array(*n).normalize();
+            let cos = n
+                .dot((eye - glam::Vec3::from_array(*p)).normalize())
+                .clamp(0.0, 1.0);
+            [0.5 * (e + 2.0) / (e + 1.0) * cos; 3]
+        })
+        .collect();
+    let zero = [[0.0f32; 3]];
+    let mut input = s.input();
+    let phong = s
+        .relighter
+        .specular(input.specular.as_ref().unwrap(), &s.frame)
+        .unwrap();
+    input.specular.as_mut().unwrap().lobe = SpecularLobe::Fitted(FittedLobe {
+        elevations: &elevations,
+        lobes: 1,
+        axis: &elevations,
+        order,
+        bands: &bands,
+        fresnel: &fresnel,
+        colour_a: &scale,
+        colour_b: &zero,
+    });
+    let fitted = s
+        .relighter
+        .specular(input.specular.as_ref().unwrap(), &s.frame)
+        .unwrap();
+    let peak = phong.iter().map(|v| v[0]).fold(0.0f32, f32::max);
+    for (a, b) in phong.iter().zip(&fitted) {
+        for c in 0..3 {
+            assert!((a[c] - b[c]).abs() <= 1e-4 * peak, "{a:?} vs {b:?}");
+        }
+    }
 }

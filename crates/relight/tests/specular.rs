@@ -5,7 +5,8 @@ mod common;
 
 use glam::{DMat3, DVec3, Vec3};
 use prt_relight::{
-    Lighting, PhongParams, RelightError, Relighter, SpecularInput, Surface, TransferView, Viewer,
+    Lighting, PhongParams, RelightError, Relighter, SpecularInput, SpecularLobe, Surface,
+    TransferView, Viewer,
 };
 use prt_sh::quadrature::gauss_legendre;
 use prt_sh::{reconstruct_rgb, Rotation};
@@ -80,7 +81,7 @@ fn shade_one(c: &Case, n: DVec3, wo: DVec3, phong: PhongParams) -> [f32; 3] {
             normals: &normals,
         },
         viewer: Viewer::Directions(&dirs),
-        phong,
+        lobe: SpecularLobe::Phong(phong),
     };
     r.specular(&input, &frame).unwrap()[0]
 }
@@ -278,7 +279,7 @@ fn test04_rotating_everything_changes_nothing() {
                     normals: nrm,
                 },
                 viewer: Viewer::Eye(eye.to_array()),
-                phong,
+                lobe: SpecularLobe::Phong(phong),
             };
             r.specular(&input, &frame).unwrap()
         };
@@ -326,10 +327,10 @@ fn test05_facing_away_is_black_and_bad_inputs_are_errors() {
             normals: &normals,
         },
         viewer: Viewer::Eye([0.0, 1.0, 0.0]),
-        phong: PhongParams {
+        lobe: SpecularLobe::Phong(PhongParams {
             specular: KS,
             exponent: 10.0,
-        },
+        }),
     };
     assert!(matches!(
         r.specular(&input, &frame),
@@ -340,13 +341,19 @@ fn test05_facing_away_is_black_and_bad_inputs_are_errors() {
         r.specular(&input, &frame),
         Err(RelightError::MissingProducts)
     ));
-    input.phong.exponent = -1.0;
+    input.lobe = SpecularLobe::Phong(PhongParams {
+        specular: [0.5; 3],
+        exponent: -1.0,
+    });
     assert!(matches!(
         r.specular(&input, &frame),
         Err(RelightError::InvalidParameter(_))
     ));
     let three = vec![0.0f32; 48];
-    input.phong.exponent = 1.0;
+    input.lobe = SpecularLobe::Phong(PhongParams {
+        specular: [0.5; 3],
+        exponent: 1.0,
+    });
     input.visibility = TransferView::new(4, 3, &three).unwrap();
     assert!(matches!(
         r.specular(&input, &frame),

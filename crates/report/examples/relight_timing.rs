@@ -93,6 +93,7 @@ fn run() -> Result<(), String> {
                 warmup_frames: warmup,
                 rotate_y_step_deg: 0.0,
                 points: None,
+                ..Default::default()
             };
             let r = prt_report::relight(&scene, &accel, &bake, &opt).map_err(|e| e.to_string())?;
             best[k] = best[k].min(r.stats.shade_ms);

@@ -68,10 +68,40 @@ pub fn glossy_specular(
     eye: [f32; 3],
     specular: [f32; 3],
 ) -> Result<Vec<[f32; 3]>, ReportError> {
-    if order > table.order as usize || order > prt_sh::MAX_GAUNT_ORDER {
+    let s = glossy_components(
+        &[table],
+        order,
+        lighting,
+        visibility,
+        positions,
+        normals,
+        eye,
+    )?;
+    Ok(s[0]
+        .iter()
+        .map(|v| std::array::from_fn(|c| (f64::from(specular[c]) * v[c]).max(0.0) as f32))
+        .collect())
+}
+
+/// The unweighted `Σ_i (D(M) (L_c ⊛ V))_i b^k_i(θ_o)` of every table `k` at every point
+/// (one Gaunt product and one rotation per point, shared by the tables): per table, per
+/// point, RGB in f64, not clamped. Points facing away get 0.
+pub fn glossy_components(
+    tables: &[&GlossyBrdfTable],
+    order: usize,
+    lighting: &[[f64; 3]],
+    visibility: &[f32],
+    positions: &[[f32; 3]],
+    normals: &[[f32; 3]],
+    eye: [f32; 3],
+) -> Result<Vec<Vec<[f64; 3]>>, ReportError> {
+    if let Some(t) = tables
+        .iter()
+        .find(|t| order > t.order as usize || order > prt_sh::MAX_GAUNT_ORDER)
+    {
         return Err(ReportError::Invalid(format!(
             "glossy relighting at order {order}: the BRDF table has order {} (Gaunt products up to {})",
-            table.order,
+            t.order,
             prt_sh::MAX_GAUNT_ORDER
         )));
     }
@@ -81,29 +111,37 @@ pub fn glossy_specular(
         .map(|c| lighting[..n2].iter().map(|v| v[c]).collect())
         .collect();
     let eye = DVec3::from_array(eye.map(f64::from));
-    (0..normals.len())
+    let per_point: Vec<Vec<[f64; 3]>> = (0..normals.len())
         .into_par_iter()
         .map(|p| {
+            let mut out = vec![[0.0f64; 3]; tables.len()];
             let n = DVec3::from_array(normals[p].map(f64::from)).normalize_or_zero();
             let wo = (eye - DVec3::from_array(positions[p].map(f64::from))).normalize_or_zero();
             let cos_o = n.dot(wo);
             if cos_o.is_nan() || cos_o <= 0.0 {
-                return Ok([0.0; 3]);
+                return Ok(out);
             }
             let v: Vec<f64> = visibility[p * n2..(p + 1) * n2]
                 .iter()
                 .map(|x| f64::from(*x))
                 .collect();
             let rot = Rotation::new(order, local_frame(n, wo))?;
-            let b = table_row(table, order, cos_o.clamp(-1.0, 1.0).acos());
-            let mut out = [0.0f32; 3];
+            let theta_o = cos_o.clamp(-1.0, 1.0).acos();
+            let rows: Vec<Vec<f64>> = tables
+                .iter()
+                .map(|t| table_row(t, order, theta_o))
+                .collect();
             for c in 0..3 {
                 let r = gaunt.product(&light[c], &v)?;
                 let local = rot.apply(&r)?;
-                let s: f64 = local.iter().zip(&b).map(|(a, b)| a * b).sum();
-                out[c] = (f64::from(specular[c]) * s.max(0.0)) as f32;
+                for (o, b) in out.iter_mut().zip(&rows) {
+                    o[c] = local.iter().zip(b).map(|(a, b)| a * b).sum();
+                }
             }
             Ok(out)
         })
-        .collect()
+        .collect::<Result<_, ReportError>>()?;
+    Ok((0..tables.len())
+        .map(|k| per_point.iter().map(|p| p[k]).collect())
+        .collect())
 }

@@ -9,7 +9,7 @@ use crate::error::ReportError;
 use crate::relit::Relit;
 use glam::{DMat3, Vec3};
 use prt_bake::points::PixelFootprints;
-use prt_scene::Scene;
+use prt_scene::{Material, Scene};
 use prt_tracer::{Accel, PinholeCamera};
 use rayon::prelude::*;
 
@@ -78,6 +78,52 @@ pub fn pixel_surface(scene: &Scene, footprints: &PixelFootprints, o: usize) -> V
                 (p / f64::from(count)).as_vec3().to_array(),
                 mean_n.to_array(),
             )
+        })
+        .collect()
+}
+
+/// Object `o`'s material resolved per pixel (textures, vertex colours): the mean of the
+/// resolved `pbr` parameters over the pixel's footprint samples that hit `o` (the transfer is
+/// such a mean too); pixels that do not see `o` get the material's factors.
+#[must_use]
+pub fn pixel_materials(scene: &Scene, footprints: &PixelFootprints, o: usize) -> Vec<Material> {
+    let factors = scene.materials[scene.meshes[o].material];
+    (0..footprints.pixel_count())
+        .map(|px| {
+            let (mut c, mut m, mut r, mut k) = ([0.0f64; 3], 0.0f64, 0.0f64, 0u32);
+            for s in footprints.pixel(px) {
+                let (Some((mesh, _)), Some(at)) = (s.hit, s.at) else {
+                    continue;
+                };
+                if mesh != o {
+                    continue;
+                }
+                if let Material::Pbr {
+                    base_color,
+                    metallic,
+                    roughness,
+                    ..
+                } = scene.material_at(o, at)
+                {
+                    for (a, b) in c.iter_mut().zip(base_color) {
+                        *a += f64::from(b);
+                    }
+                    m += f64::from(metallic);
+                    r += f64::from(roughness);
+                    k += 1;
+                }
+            }
+            if k == 0 {
+                return factors;
+            }
+            let n = f64::from(k);
+            Material::Pbr {
+                base_color: c.map(|v| (v / n) as f32),
+                metallic: (m / n) as f32,
+                roughness: (r / n) as f32,
+                base_color_texture: None,
+                metallic_roughness_texture: None,
+            }
         })
         .collect()
 }

@@ -29,5 +29,7 @@ pub mod viewer;
 
 pub use error::ReportError;
 pub use imaging::{form_image, object_mask, roi_image, RgbImage};
-pub use relit::{baked_scene, check_bake, relight, RelightOptions, RelightStats, Relit};
+pub use relit::{
+    baked_scene, check_bake, relight, GlossyPath, RelightOptions, RelightStats, Relit,
+};
 pub use report::{run_report, ObjectRays, ReferenceInfo, ReportData, ReportSettings};

@@ -38,6 +38,24 @@ pub struct RelightOptions {
     /// Shade only these points of each object (full order only; the others come out 0):
     /// what a quality estimate relights at full order. `None`: every point.
     pub points: Option<Vec<Vec<u32>>>,
+    /// How glossy lobes without a zonal form (Blinn–Phong, Ward, Cook–Torrance, `pbr`) are
+    /// relit.
+    pub glossy: GlossyPath,
+}
+
+/// The relighting path of glossy lobes without a zonal form.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GlossyPath {
+    /// A zonal fit of the lobe per view elevation about its mean direction
+    /// (`prt_bake::brdf::fitted_table`), shaded by the Phong kernels: full order and adaptive,
+    /// at Phong's cost.
+    #[default]
+    Fitted,
+    /// The bake's per-view-elevation BRDF projections, rotated per point and dotted with
+    /// `L ⊛ V` (Kautz, Sloan & Snyder 2002): exact up to the order, `O(order⁵)` per point —
+    /// the reference the fitted path is measured against.
+    Exact,
 }
 
 impl Default for RelightOptions {
@@ -50,6 +68,7 @@ impl Default for RelightOptions {
             warmup_frames: 2,
             rotate_y_step_deg: 0.0,
             points: None,
+            glossy: GlossyPath::Fitted,
         }
     }
 }
@@ -346,8 +365,49 @@ pub fn relight(
         let diffuse_low = prt_relight::low_bands(&diffuse_data, order);
         let diffuse_view =
             TransferView::new(order, channels, &diffuse_data)?.with_low_bands(&diffuse_low)?;
+        // Surface points: vertices, or pixel hits for per-pixel bakes.
+        let (positions, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = if per_pixel {
+            let fp = footprints
+                .as_ref()
+                .expect("per-pixel bakes have footprints");
+            crate::imaging::pixel_surface(scene, fp, o)
+                .into_iter()
+                .unzip()
+        } else {
+            (
+                mesh.positions.iter().map(|p| p.to_array()).collect(),
+                mesh.normals
+                    .iter()
+                    .map(|n| n.normalize_or(Vec3::Y).to_array())
+                    .collect(),
+            )
+        };
+        // Materials that vary over the surface (textures, vertex colours): resolved per point.
+        let point_materials: Option<Vec<Material>> = scene.material_varies(o).then(|| {
+            let all = match &footprints {
+                Some(fp) => crate::imaging::pixel_materials(scene, fp, o),
+                None => (0..mesh.positions.len() as u32)
+                    .map(|v| scene.material_at(o, prt_scene::SurfacePoint::Vertex(v)))
+                    .collect(),
+            };
+            match subset {
+                Some(sub) => sub.iter().map(|&i| all[i as usize]).collect(),
+                None => all,
+            }
+        });
+        let (positions, normals) = match subset {
+            Some(sub) => (
+                sub.iter().map(|&i| positions[i as usize]).collect(),
+                sub.iter().map(|&i| normals[i as usize]).collect(),
+            ),
+            None => (positions, normals),
+        };
+        let is_pbr = matches!(material, Material::Pbr { .. });
+        // The diffuse term is relit with unit albedo and scaled per point afterwards when the
+        // albedo varies or (pbr) depends on the view.
+        let per_point_diffuse = point_materials.is_some() || is_pbr;
         let albedo = material.albedo();
-        let dparams = DiffuseParams::from_albedo(albedo);
+        let dparams = DiffuseParams::from_albedo(if per_point_diffuse { [1.0; 3] } else { albedo });
         // A compressed diffuse block relights from its clustered-PCA form (full order only).
         let cpca = diffuse_block
             .cpca
@@ -378,10 +438,11 @@ pub fn relight(
                 specular: *specular,
                 exponent: *exponent,
             }),
-            Material::Lambert { .. } => None,
-            Material::BlinnPhong { .. } | Material::Ward { .. } | Material::CookTorrance { .. } => {
-                None
-            }
+            Material::Lambert { .. }
+            | Material::BlinnPhong { .. }
+            | Material::Ward { .. }
+            | Material::CookTorrance { .. }
+            | Material::Pbr { .. } => None,
             other => {
                 stats.notes.push(format!(
                     "{}: the specular lobe of a {} material is not relit (diffuse part only)",
@@ -391,26 +452,44 @@ pub fn relight(
                 None
             }
         };
-        // Glossy materials without a zonal lobe: the bake's per-view-elevation BRDF table.
+        let glossy = GlossyLobe::of(material, point_materials.as_deref(), &mut stats, &obj.name);
+        // The fitted lobe's table (built once per object, outside the timed frames).
+        let fitted = match (&glossy, opt.glossy) {
+            (Some(g), GlossyPath::Fitted) => {
+                let t = prt_bake::brdf::fitted_table(&g.shape, order)
+                    .expect("glossy materials have a fitted table");
+                Some(FittedF32::new(&t))
+            }
+            _ => None,
+        };
+        // The exact path's tables from the bake.
         let material_name = scene
             .material_names
             .get(mesh.material)
             .cloned()
             .unwrap_or_default();
-        let glossy_table = match material {
-            Material::BlinnPhong { specular, .. }
-            | Material::Ward { specular, .. }
-            | Material::CookTorrance { specular, .. } => {
-                match bake.glossy.iter().find(|t| t.material == material_name) {
-                    Some(t) => Some((t, *specular)),
-                    None => {
-                        stats.notes.push(format!(
-                            "{}: the bake has no BRDF table for {material_name}; specular not relit",
-                            obj.name
-                        ));
-                        None
-                    }
+        let exact_tables: Option<Vec<&prt_bakefile::GlossyBrdfTable>> = match (&glossy, opt.glossy)
+        {
+            (Some(_), GlossyPath::Exact) => {
+                let names: Vec<String> = if is_pbr {
+                    prt_bake::brdf::PbrComponent::ALL
+                        .iter()
+                        .map(|c| format!("{material_name}{}", c.suffix()))
+                        .collect()
+                } else {
+                    vec![material_name.clone()]
+                };
+                let found: Option<Vec<_>> = names
+                    .iter()
+                    .map(|n| bake.glossy.iter().find(|t| t.material == *n))
+                    .collect();
+                if found.is_none() {
+                    stats.notes.push(format!(
+                        "{}: the bake has no BRDF table for {material_name}; specular not relit",
+                        obj.name
+                    ));
                 }
+                found
             }
             _ => None,
         };
@@ -418,7 +497,7 @@ pub fn relight(
             .blocks
             .iter()
             .find(|b| b.kind == TransferKind::Visibility);
-        let wants_visibility = phong.is_some() || glossy_table.is_some();
+        let wants_visibility = phong.is_some() || fitted.is_some() || exact_tables.is_some();
         let vis_data = match (wants_visibility, vis_block) {
             (true, Some(b)) => Some(select(&b.data, baked, order, channels, 1, subset)),
             (true, None) => {
@@ -430,45 +509,67 @@ pub fn relight(
             }
             _ => None,
         };
-        // Surface points: vertices, or pixel hits for per-pixel bakes.
-        let (positions, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = if per_pixel {
-            let fp = footprints
-                .as_ref()
-                .expect("per-pixel bakes have footprints");
-            crate::imaging::pixel_surface(scene, fp, o)
-                .into_iter()
-                .unzip()
-        } else {
-            (
-                mesh.positions.iter().map(|p| p.to_array()).collect(),
-                mesh.normals
-                    .iter()
-                    .map(|n| n.normalize_or(Vec3::Y).to_array())
-                    .collect(),
-            )
-        };
-        let (positions, normals) = match subset {
-            Some(sub) => (
-                sub.iter().map(|&i| positions[i as usize]).collect(),
-                sub.iter().map(|&i| normals[i as usize]).collect(),
-            ),
-            None => (positions, normals),
-        };
         let vis_low = vis_data.as_ref().map(|v| prt_relight::low_bands(v, order));
-        let specular_input = match (phong, &vis_data, &vis_low) {
-            (Some(p), Some(v), Some(low)) => Some(SpecularInput {
+        let lobe = match (phong, &fitted, &glossy) {
+            (Some(p), _, _) => Some(prt_relight::SpecularLobe::Phong(p)),
+            (None, Some(f), Some(g)) => {
+                Some(prt_relight::SpecularLobe::Fitted(prt_relight::FittedLobe {
+                    elevations: &f.elevations,
+                    lobes: f.lobes,
+                    axis: &f.axis,
+                    order: f.order,
+                    bands: &f.bands,
+                    fresnel: &f.fresnel,
+                    colour_a: &g.colour_a,
+                    colour_b: &g.colour_b,
+                }))
+            }
+            _ => None,
+        };
+        let specular_input = match (lobe, &vis_data, &vis_low) {
+            (Some(lobe), Some(v), Some(low)) => Some(SpecularInput {
                 visibility: TransferView::new(order, 1, v)?.with_low_bands(low)?,
                 surface: Surface {
                     positions: &positions,
                     normals: &normals,
                 },
                 viewer: Viewer::Eye(eye),
-                phong: p,
+                lobe,
             }),
             _ => None,
         };
         let points = diffuse_view.point_count();
         stats.points += points;
+        // Per-point diffuse albedo (relit with unit albedo above): the resolved material's,
+        // and for `pbr` on the fitted path times `1 − s̄_d(θ_o)`, the cosine-weighted mean of
+        // the `(1 − F)` factor's Schlick part (the exact path has it as a table).
+        let diffuse_scale: Option<Vec<[f32; 3]>> = per_point_diffuse.then(|| {
+            (0..points)
+                .map(|p| {
+                    let a = point_materials.as_ref().map_or(albedo, |m| m[p].albedo());
+                    let keep = match (&fitted, is_pbr) {
+                        (Some(f), true) => {
+                            let n = Vec3::from_array(normals[p]);
+                            let wo = (Vec3::from_array(eye) - Vec3::from_array(positions[p]))
+                                .normalize_or_zero();
+                            1.0 - f.diffuse_fresnel_at(n.dot(wo))
+                        }
+                        _ => 1.0,
+                    };
+                    a.map(|x| x * keep)
+                })
+                .collect()
+        });
+        let scaled = |d: &[[f32; 3]]| -> Vec<[f32; 3]> {
+            match &diffuse_scale {
+                None => d.to_vec(),
+                Some(k) => d
+                    .iter()
+                    .zip(k)
+                    .map(|(v, k)| std::array::from_fn(|c| v[c] * k[c]))
+                    .collect(),
+            }
+        };
         let result: Vec<[f32; 3]>;
         let mut in_roi = vec![false; points];
         match (&opt.adaptive, per_pixel) {
@@ -503,7 +604,7 @@ pub fn relight(
                     *r = f.roi[0].get(i).copied().unwrap_or(false)
                         || f.roi[1].get(i).copied().unwrap_or(false);
                 }
-                result = sum_terms(&f.diffuse, &f.specular, points);
+                result = sum_terms(&scaled(&f.diffuse), &f.specular, points);
             }
             (Some(_), true) => return Err(ReportError::Invalid(
                 "adaptive relighting walks the mesh's vertex adjacency: it needs a per-vertex bake"
@@ -532,28 +633,41 @@ pub fn relight(
                         first = (d, s);
                     }
                 }
-                result = sum_terms(&first.0, &first.1, points);
+                result = sum_terms(&scaled(&first.0), &first.1, points);
             }
         }
-        let result = match (glossy_table, &vis_data) {
-            (Some((table, specular)), Some(v)) => {
+        let result = match (&exact_tables, &vis_data, &glossy) {
+            (Some(tables), Some(v), Some(g)) => {
                 if opt.adaptive.is_some() {
                     stats.notes.push(format!(
-                        "{}: the glossy-table specular is shaded at full order (the adaptive scheme covers zonal lobes)",
+                        "{}: the exact glossy specular is shaded at full order (the adaptive scheme covers the fitted path)",
                         obj.name
                     ));
                 }
                 let start = Instant::now();
-                let s = crate::glossy::glossy_specular(
-                    table,
+                let parts = crate::glossy::glossy_components(
+                    tables,
                     order,
                     &env_rotated,
                     v,
                     &positions,
                     &normals,
                     eye,
-                    specular,
                 )?;
+                let pick = |w: &[[f32; 3]], p: usize| if w.len() == 1 { w[0] } else { w[p] };
+                let weights = [&g.colour_a, &g.colour_b, &g.colour_c];
+                let s: Vec<[f32; 3]> = (0..points)
+                    .map(|p| {
+                        std::array::from_fn(|c| {
+                            let sum: f64 = parts
+                                .iter()
+                                .zip(weights)
+                                .map(|(part, w)| f64::from(pick(w, p)[c]) * part[p][c])
+                                .sum();
+                            sum.max(0.0) as f32
+                        })
+                    })
+                    .collect();
                 let dt = start.elapsed().as_secs_f64();
                 times.iter_mut().for_each(|t| *t += dt);
                 frame_seconds += dt * times.len() as f64;
@@ -676,4 +790,126 @@ fn sum_terms(d: &[[f32; 3]], s: &[[f32; 3]], n: usize) -> Vec<[f32; 3]> {
             [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
         })
         .collect()
+}
+
+/// A glossy lobe without a zonal form at one object: the material whose lobe shape is fitted
+/// (for a `pbr` material that varies, its mean roughness), and the colour weights of its
+/// components per point (one entry when uniform): `a`, `b` and, for the exact path of `pbr`,
+/// `c` — the weights of the `D·V`, `s·D·V` and `s/π` tables (see
+/// `prt_bake::brdf::PbrComponent`); for the other lobes `a` is the specular colour.
+struct GlossyLobe {
+    shape: Material,
+    colour_a: Vec<[f32; 3]>,
+    colour_b: Vec<[f32; 3]>,
+    colour_c: Vec<[f32; 3]>,
+}
+
+impl GlossyLobe {
+    fn of(
+        material: &Material,
+        points: Option<&[Material]>,
+        stats: &mut RelightStats,
+        object: &str,
+    ) -> Option<Self> {
+        match *material {
+            Material::BlinnPhong { specular, .. }
+            | Material::Ward { specular, .. }
+            | Material::CookTorrance { specular, .. } => Some(Self {
+                shape: *material,
+                colour_a: vec![specular],
+                colour_b: vec![[0.0; 3]],
+                colour_c: vec![[0.0; 3]],
+            }),
+            Material::Pbr { roughness, .. } => {
+                let mats: Vec<Material> = points.map_or_else(|| vec![*material], <[_]>::to_vec);
+                let weights = |k: prt_bake::brdf::PbrComponent| -> Vec<[f32; 3]> {
+                    mats.iter()
+                        .map(|m| match *m {
+                            Material::Pbr {
+                                base_color,
+                                metallic,
+                                ..
+                            } => base_color.map(|c| k.weight(c, metallic)),
+                            _ => [0.0; 3],
+                        })
+                        .collect()
+                };
+                use prt_bake::brdf::PbrComponent as C;
+                let rough: Vec<f32> = mats
+                    .iter()
+                    .map(|m| match *m {
+                        Material::Pbr { roughness, .. } => roughness,
+                        _ => roughness,
+                    })
+                    .collect();
+                let mean = rough.iter().sum::<f32>() / rough.len().max(1) as f32;
+                let spread = rough.iter().fold(0.0f32, |a, r| a.max((r - mean).abs()));
+                if spread > 0.05 {
+                    stats.notes.push(format!(
+                        "{object}: roughness varies over the surface ({:.2}–{:.2}); the specular lobe is relit at the mean, {mean:.3}",
+                        mean - spread,
+                        mean + spread
+                    ));
+                }
+                Some(Self {
+                    shape: Material::Pbr {
+                        base_color: [1.0; 3],
+                        metallic: 1.0,
+                        roughness: mean,
+                        base_color_texture: None,
+                        metallic_roughness_texture: None,
+                    },
+                    colour_a: weights(C::Dv),
+                    colour_b: weights(C::SchlickDv),
+                    colour_c: weights(C::SchlickDiffuse),
+                })
+            }
+            _ => None,
+        }
+    }
+}
+
+/// A [`prt_bake::brdf::FittedTable`] in the f32 arrays prt-relight reads.
+struct FittedF32 {
+    order: usize,
+    lobes: usize,
+    elevations: Vec<f32>,
+    axis: Vec<f32>,
+    bands: Vec<f32>,
+    fresnel: Vec<f32>,
+    diffuse_fresnel: Vec<f32>,
+}
+
+impl FittedF32 {
+    fn new(t: &prt_bake::brdf::FittedTable) -> Self {
+        let f = |v: &[f64]| v.iter().map(|x| *x as f32).collect();
+        Self {
+            order: t.order,
+            lobes: t.lobes,
+            elevations: f(&t.elevations),
+            axis: f(&t.axis),
+            bands: f(&t.bands),
+            fresnel: f(&t.fresnel),
+            diffuse_fresnel: f(&t.diffuse_fresnel),
+        }
+    }
+
+    /// `s̄_d` at `cos θ_o` (linear between rows, clamped to the ends).
+    fn diffuse_fresnel_at(&self, cos_o: f32) -> f32 {
+        let theta = cos_o
+            .clamp(-1.0, 1.0)
+            .acos()
+            .min(std::f32::consts::FRAC_PI_2);
+        let e = &self.elevations;
+        let v = &self.diffuse_fresnel;
+        if theta <= e[0] {
+            return v[0];
+        }
+        if theta >= e[e.len() - 1] {
+            return v[v.len() - 1];
+        }
+        let i = e.partition_point(|&x| x <= theta) - 1;
+        let t = (theta - e[i]) / (e[i + 1] - e[i]);
+        v[i] + t * (v[i + 1] - v[i])
+    }
 }

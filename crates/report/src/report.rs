@@ -683,6 +683,7 @@ pub fn run_report(
         warmup_frames: 0,
         rotate_y_step_deg: 0.0,
         points: None,
+        ..Default::default()
     };
     let relit_image = |b: &Bake, order: usize| -> Result<Vec<Vec3>, ReportError> {
         let r = relight(scene, &accel, b, &once(order))?;
@@ -752,6 +753,7 @@ pub fn run_report(
             warmup_frames: 2,
             rotate_y_step_deg: 0.0,
             points: None,
+            ..Default::default()
         };
         let full = relight(scene, &accel, &bake, &full_opt)?;
         let ad_opt = RelightOptions {

@@ -336,6 +336,7 @@ pub fn relight_to_target(
         warmup_frames: opt.warmup_frames,
         rotate_y_step_deg: 0.0,
         points: None,
+        ..Default::default()
     };
     let mut t = threshold_value(&opt.adaptive);
     let mut frames = Vec::new();

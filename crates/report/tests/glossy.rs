@@ -28,6 +28,38 @@ fn albedo_and_norm(m: &Material, theta_o: f64) -> (f64, f64) {
 
 #[test]
 fn ward_specular_from_the_brdf_table_matches_the_integral() {
+    let ward = Material::Ward {
+        albedo: [0.0; 3],
+        specular: [1.0; 3],
+        roughness: 0.3,
+    };
+    check(ward, prt_report::GlossyPath::Exact);
+}
+
+#[test]
+fn fitted_lobes_match_the_integral_within_their_fit_error() {
+    let ward = Material::Ward {
+        albedo: [0.0; 3],
+        specular: [1.0; 3],
+        roughness: 0.3,
+    };
+    check(ward, prt_report::GlossyPath::Fitted);
+    // A white metal: f = D·V exactly (Schlick's term vanishes with base colour 1).
+    let metal = Material::Pbr {
+        base_color: [1.0; 3],
+        metallic: 1.0,
+        roughness: 0.6,
+        base_color_texture: None,
+        metallic_roughness_texture: None,
+    };
+    check(metal, prt_report::GlossyPath::Fitted);
+    check(metal, prt_report::GlossyPath::Exact);
+}
+
+/// Relights a sphere under a uniform environment by `path` and checks every vertex against
+/// the lobe's directional albedo with a bound derived from the bake's and the table's own
+/// error figures.
+fn check(material: Material, path: prt_report::GlossyPath) {
     // Albedo 0, specular 1: the image is the specular lobe alone. A convex sphere under a
     // uniform environment of radiance 1: R = L ⊛ V = V exactly (a product with a constant),
     // and the true radiance is the lobe's directional albedo ρ(θ_o) = ∫ V f_s cos, with V the
@@ -37,11 +69,12 @@ fn ward_specular_from_the_brdf_table_matches_the_integral() {
     // projection error at the order, stored in the bake; ‖V‖ = √(2π)), and linear
     // interpolation between tabulated elevations errs by at most the albedo's change between
     // the two neighbouring elevations.
-    let ward = Material::Ward {
-        albedo: [0.0; 3],
-        specular: [1.0; 3],
-        roughness: 0.3,
-    };
+    //
+    // The fitted path (`GlossyPath::Fitted`) relights `Σ_i V̂_i w_i` with `w` the fitted lobe
+    // `ĝ = Σ_k Σ_l c_kl P_l(a_k·ω)`: its error is `≤ ‖V̂ − V_n‖ ‖w‖ + √(2π) e_fit ‖f cos‖`
+    // (Cauchy–Schwarz over the hemisphere, `e_fit` the fit's relative error above the horizon,
+    // the larger of the two neighbouring elevations) plus the same interpolation term.
+    let ward = material;
     let cam = Camera::look_at(DVec3::new(0.0, 0.0, 4.0), DVec3::ZERO, 40.0, 16, 16);
     let mut scene = Scene::new(cam, Environment::uniform([1.0; 3]));
     let m = scene.add_material("ward", ward);
@@ -61,6 +94,7 @@ fn ward_specular_from_the_brdf_table_matches_the_integral() {
     .unwrap();
     let table = &out.bake.glossy[0];
     let e_n = table.projection_error[order - 1];
+    let fitted = prt_bake::brdf::fitted_table(&ward, order).unwrap();
     let relit = prt_report::relight(
         &scene,
         &accel,
@@ -69,6 +103,7 @@ fn ward_specular_from_the_brdf_table_matches_the_integral() {
             order: Some(order),
             timing_frames: 1,
             warmup_frames: 0,
+            glossy: path,
             ..Default::default()
         },
     )
@@ -104,13 +139,45 @@ fn ward_specular_from_the_brdf_table_matches_the_integral() {
             .map(|(a, b)| (f64::from(*a) - 2.0 * std::f64::consts::PI * b).powi(2))
             .sum::<f64>()
             .sqrt();
-        let b = prt_report::glossy::table_row(table, order, theta_o);
-        let b_norm = b.iter().map(|x| x * x).sum::<f64>().sqrt();
         let (rho, f_norm) = albedo_and_norm(&ward, theta_o);
-        let el = &table.elevations;
-        let i = el.partition_point(|&t| t <= theta_o).clamp(1, el.len() - 1);
-        let interp = (albedo_and_norm(&ward, el[i - 1]).0 - albedo_and_norm(&ward, el[i]).0).abs();
-        let bound = dv * b_norm + (2.0 * std::f64::consts::PI).sqrt() * e_n * f_norm + interp;
+        let bound = match path {
+            prt_report::GlossyPath::Exact => {
+                let b = prt_report::glossy::table_row(table, order, theta_o);
+                let b_norm = b.iter().map(|x| x * x).sum::<f64>().sqrt();
+                let el = &table.elevations;
+                let i = el.partition_point(|&t| t <= theta_o).clamp(1, el.len() - 1);
+                let interp =
+                    (albedo_and_norm(&ward, el[i - 1]).0 - albedo_and_norm(&ward, el[i]).0).abs();
+                dv * b_norm + (2.0 * std::f64::consts::PI).sqrt() * e_n * f_norm + interp
+            }
+            prt_report::GlossyPath::Fitted => {
+                let el = &fitted.elevations;
+                let i = el.partition_point(|&t| t <= theta_o).clamp(1, el.len() - 1);
+                let e_fit = fitted.error[i - 1].max(fitted.error[i]);
+                // ‖w‖ ≤ Σ_k ‖A^k_l y(a_k)‖ = Σ_k √(Σ_l (2l+1)/(4π) (A^k_l)²), either row.
+                let k = fitted.lobes;
+                let w_norm = [i - 1, i]
+                    .iter()
+                    .map(|&e| {
+                        (0..k)
+                            .map(|j| {
+                                let row = &fitted.bands[(e * k + j) * order..][..order];
+                                row.iter()
+                                    .enumerate()
+                                    .map(|(l, a)| {
+                                        (2 * l + 1) as f64 / (4.0 * std::f64::consts::PI) * a * a
+                                    })
+                                    .sum::<f64>()
+                                    .sqrt()
+                            })
+                            .sum::<f64>()
+                    })
+                    .fold(0.0, f64::max);
+                let interp =
+                    (albedo_and_norm(&ward, el[i - 1]).0 - albedo_and_norm(&ward, el[i]).0).abs();
+                dv * w_norm + (2.0 * std::f64::consts::PI).sqrt() * e_fit * f_norm + interp
+            }
+        };
         let got = f64::from(relit.radiance[0][p][0]);
         assert!(
             (got - rho).abs() <= bound,
@@ -123,5 +190,5 @@ fn ward_specular_from_the_brdf_table_matches_the_integral() {
         }
     }
     assert!(checked > 10, "only {checked} vertices checked");
-    eprintln!("Ward α = 0.3, order {order}: worst relative error {worst:.4} over {checked} vertices (table error e_n = {e_n:.4})");
+    eprintln!("{} {path:?}, order {order}: worst relative error {worst:.4} over {checked} vertices (table error e_n = {e_n:.4})", ward.type_name());
 }
