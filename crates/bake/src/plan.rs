@@ -149,3 +149,54 @@ pub fn plan(scene: &Scene, settings: &BakeSettings) -> (Vec<ObjectPlan>, Vec<Dec
     }
     (plans, log)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use prt_scene::test_util::icosphere;
+    use prt_scene::{Camera, Environment};
+
+    /// The order of a `pbr` object follows its roughness: the sharper the lobe, the more bands
+    /// its `D·V` table needs for the same share of its energy (measured: 14, 6, 6 bands for
+    /// roughness 0.6, 0.8, 1 at a 1 % target).
+    #[test]
+    fn pbr_order_follows_roughness() {
+        let orders: Vec<usize> = [0.6f32, 0.8, 1.0]
+            .iter()
+            .map(|&roughness| {
+                let cam = Camera::look_at(
+                    glam::DVec3::new(0.0, 0.0, 4.0),
+                    glam::DVec3::ZERO,
+                    40.0,
+                    8,
+                    8,
+                );
+                let mut scene = Scene::new(cam, Environment::uniform([1.0; 3]));
+                let m = scene.add_material(
+                    "m",
+                    Material::Pbr {
+                        base_color: [0.8; 3],
+                        metallic: 1.0,
+                        roughness,
+                        base_color_texture: None,
+                        metallic_roughness_texture: None,
+                    },
+                );
+                scene.add_mesh(icosphere(1), m);
+                let settings = BakeSettings {
+                    max_order: 20,
+                    error_target: 0.01,
+                    ..BakeSettings::default()
+                };
+                let (plans, _) = plan(&scene, &settings);
+                assert!(plans[0].needs_visibility);
+                plans[0].order
+            })
+            .collect();
+        assert!(
+            orders[0] >= orders[1] && orders[1] >= orders[2] && orders[0] > orders[2],
+            "{orders:?}"
+        );
+        assert!(orders[2] >= lambert_order(0.01));
+    }
+}

@@ -1,5 +1,6 @@
 //! Relighting of precomputed radiance transfer (PRT) under a distant environment given by SH
-//! coefficients: full order and locally adaptive, diffuse and Phong specular, on plain
+//! coefficients: full order and locally adaptive, diffuse and glossy specular (Phong, and any
+//! isotropic lobe given as a per-view-elevation sum of zonal lobes, [`FittedLobe`]), on plain
 //! in-memory arrays laid out as a bake stores them.
 //!
 //! # What is implemented, and after whom
@@ -15,6 +16,13 @@
 //!   Ramamoorthi & Hanrahan 2004, "Triple product wavelet integrals for all-frequency
 //!   relighting") of the lighting and the per-point visibility, convolved with the zonal Phong
 //!   lobe and evaluated at the reflection direction `r = 2(n·ω_o)n − ω_o`.
+//! - **Glossy lobes without a zonal form** (Blinn–Phong, Ward, Cook–Torrance, the glTF
+//!   metallic-roughness BRDF): after Ramamoorthi's reparameterisation of a microfacet lobe
+//!   about the reflection direction (thesis, ch. 5), where it is nearly zonal, but with `K`
+//!   zonal lobes about axes in the plane of the normal and the view, fitted per view elevation
+//!   by least squares above the horizon (`prt_bake::brdf::fitted_table`), so that grazing,
+//!   horizon-clipped lobes are held too. Shading is the Phong path's `Σ w_i (L ⊛ V)_i` with
+//!   `w = Σ_k A^k_l y(a_k)` ([`SpecularLobe::Fitted`]).
 //! - **Locally adaptive relighting** (Lee & Kim 2014, chapter 5): bands `0..3` for every
 //!   point, then band by band only while the accumulated difference from the base stays above
 //!   a threshold (Algorithms 1–3, with the incremental product of Algorithm 3), ROI refinement
