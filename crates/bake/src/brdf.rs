@@ -226,6 +226,9 @@ pub struct FittedTable {
     pub axis: Vec<f64>,
     /// `[elevation][lobe][band]` multipliers `A_l`.
     pub bands: Vec<f64>,
+    /// `pbr` only (else empty): the same fit of `s·g` (`s = (1 − ω_o·h)⁵`, `g` the `D·V` lobe)
+    /// on the same axes, so that a point's lobe `A·(D·V) + B·(s·D·V)` is a mix of two rows.
+    pub bands_b: Vec<f64>,
     /// Per elevation: lobe-weighted mean Schlick factor `s̄ = ∫ s g / ∫ g` (`pbr`; else 0).
     pub fresnel: Vec<f64>,
     /// Per elevation: cosine-weighted mean of `s` over the hemisphere, `(1/π) ∫ s cos θ_i dω`,
@@ -349,6 +352,7 @@ pub fn fitted_table_with(material: &Material, order: usize, lobes: usize) -> Opt
         lobes,
         axis: Vec::new(),
         bands: Vec::new(),
+        bands_b: Vec::new(),
         fresnel: Vec::new(),
         diffuse_fresnel: Vec::new(),
         error: Vec::new(),
@@ -371,7 +375,7 @@ pub fn fitted_table_with(material: &Material, order: usize, lobes: usize) -> Opt
                 let d = r * ct + (frame_u * cp + frame_v * sp) * st;
                 let w = wt * st * dphi;
                 if d.z <= 0.0 {
-                    samples.push((d, w, 0.0, false));
+                    samples.push((d, w, 0.0, 0.0, false));
                     continue;
                 }
                 let (f, s) = lobe(wo.as_vec3(), d.normalize().as_vec3());
@@ -380,7 +384,7 @@ pub fn fitted_table_with(material: &Material, order: usize, lobes: usize) -> Opt
                 g2 += w * g * g;
                 gsum += w * g;
                 gs += w * g * s;
-                samples.push((d, w, g, true));
+                samples.push((d, w, g, g * s, true));
             }
         }
         let axis = m.normalize_or(r);
@@ -388,7 +392,7 @@ pub fn fitted_table_with(material: &Material, order: usize, lobes: usize) -> Opt
         let theta_mean = (-axis.x).atan2(axis.z);
         // The lobe's asymmetry about its mean axis: what one zonal lobe of 48 bands misses.
         let mut a = vec![0.0; ASYM];
-        for &(d, w, g, up) in &samples {
+        for &(d, w, g, _, up) in &samples {
             if up && g != 0.0 {
                 legendre(axis.dot(d).clamp(-1.0, 1.0), &mut p);
                 for (al, pl) in a.iter_mut().zip(&p) {
@@ -405,19 +409,27 @@ pub fn fitted_table_with(material: &Material, order: usize, lobes: usize) -> Opt
             0.0
         };
         // The K-lobe fit for each axis spacing tried; the best one is kept.
-        let mut best: Option<(f64, Vec<f64>, Vec<f64>)> = None;
+        let mut best: Option<(f64, Vec<f64>, Vec<f64>, Vec<f64>)> = None;
         let spacings: &[f64] = if lobes == 1 { &[0.0] } else { &FIT_SPACINGS };
         for &spacing in spacings {
             let delta = spacing * width.max(0.05).sqrt();
             let angles: Vec<f64> = (0..lobes)
                 .map(|k| theta_mean + delta * (k as f64 - 0.5 * (lobes as f64 - 1.0)))
                 .collect();
-            let (coeffs, err2) = fit_lobes(&samples, &angles, order, g2);
+            let (coeffs, coeffs_b, err2) = fit_lobes(&samples, &angles, order, g2);
             if best.as_ref().is_none_or(|b| err2 < b.0) {
-                best = Some((err2, angles, coeffs));
+                best = Some((err2, angles, coeffs, coeffs_b));
             }
         }
-        let (fit_err2, angles, coeffs) = best.expect("at least one spacing");
+        let (fit_err2, angles, coeffs, coeffs_b) = best.expect("at least one spacing");
+        if is_pbr {
+            table.bands_b.extend(
+                coeffs_b
+                    .iter()
+                    .enumerate()
+                    .map(|(i, cl)| cl * 4.0 * std::f64::consts::PI / (2 * (i % order) + 1) as f64),
+            );
+        }
         // Kernel multipliers: Σ c_l P_l(a·ω) has SH coefficients c_l 4π/(2l+1) y_lm(a).
         let bands: Vec<f64> = coeffs
             .iter()
@@ -458,14 +470,16 @@ pub fn fitted_table_with(material: &Material, order: usize, lobes: usize) -> Opt
 
 /// Least-squares fit of `Σ_k Σ_l c_kl P_l(a_k·ω)` (axes `a_k` in the view plane at `angles`
 /// from the normal toward the mirror side) to `g` over the upper hemisphere, with the lower
-/// hemisphere weighted by [`FIT_BELOW_WEIGHT`]: returns `c` (`[lobe][band]`) and the squared
-/// error above the horizon. `samples` are `(direction, weight, g, above)`, `g2 = ∫ g²`.
+/// hemisphere weighted by [`FIT_BELOW_WEIGHT`]: returns `c` (`[lobe][band]`), the same fit of
+/// the second function `g_b` on the same axes, and the squared error of `g`'s fit above the
+/// horizon. `samples` are `(direction, weight, g, g_b, above)`, `g2 = ∫ g²`.
+#[allow(clippy::type_complexity)]
 fn fit_lobes(
-    samples: &[(DVec3, f64, f64, bool)],
+    samples: &[(DVec3, f64, f64, f64, bool)],
     angles: &[f64],
     order: usize,
     g2: f64,
-) -> (Vec<f64>, f64) {
+) -> (Vec<f64>, Vec<f64>, f64) {
     let k = angles.len();
     let n = k * order;
     let axes: Vec<DVec3> = angles
@@ -474,8 +488,9 @@ fn fit_lobes(
         .collect();
     let (mut g_up, mut g_down) = (vec![0.0; n * n], vec![0.0; n * n]);
     let mut rhs = vec![0.0; n];
+    let mut rhs_b = vec![0.0; n];
     let mut phi = vec![0.0; n];
-    for &(d, w, g, up) in samples {
+    for &(d, w, g, gb, up) in samples {
         for (j, a) in axes.iter().enumerate() {
             legendre(
                 a.dot(d).clamp(-1.0, 1.0),
@@ -495,6 +510,7 @@ fn fit_lobes(
         if up && g != 0.0 {
             for i in 0..n {
                 rhs[i] += w * g * phi[i];
+                rhs_b[i] += w * gb * phi[i];
             }
         }
     }
@@ -506,10 +522,17 @@ fn fit_lobes(
             + FIT_BELOW_WEIGHT * full(i, j, &g_down)
             + if i == j { ridge } else { 0.0 }
     });
-    let c = gram
-        .cholesky()
-        .map(|ch| ch.solve(&nalgebra::DVector::from_column_slice(&rhs)))
-        .map_or_else(|| vec![0.0; n], |v| v.as_slice().to_vec());
+    let (c, c_b) = match gram.cholesky() {
+        Some(ch) => (
+            ch.solve(&nalgebra::DVector::from_column_slice(&rhs))
+                .as_slice()
+                .to_vec(),
+            ch.solve(&nalgebra::DVector::from_column_slice(&rhs_b))
+                .as_slice()
+                .to_vec(),
+        ),
+        None => (vec![0.0; n], vec![0.0; n]),
+    };
     let mut quad = 0.0;
     for i in 0..n {
         for j in 0..n {
@@ -517,7 +540,7 @@ fn fit_lobes(
         }
     }
     let err2 = g2 - 2.0 * c.iter().zip(&rhs).map(|(x, y)| x * y).sum::<f64>() + quad;
-    (c, err2)
+    (c, c_b, err2)
 }
 
 #[cfg(test)]

@@ -304,9 +304,12 @@ pub const MAX_FITTED_LOBES: usize = 4;
 /// products of the Phong path, with a per-point lobe whose weights cost `K` basis evaluations.
 /// Tables are linear in `θ_o` between rows.
 ///
-/// The colour is `scale_c = a_c + b_c s̄(θ_o)`: for lobes without a Fresnel split `b = 0` and
-/// `a` is the specular colour; for the glTF material `a = F0`-like and `b` the Schlick part
-/// (see `prt_bake::brdf::FittedTable`), `s̄` the lobe-weighted mean of `(1 − ω_o·h)⁵`.
+/// Colour: with one lobe shape the radiance is `a_c` times it. With two (`bands_b`), channel
+/// `c` wants `a_c·A + b_c·B` — a shape per channel, where the kernels take one: the point's
+/// shape is the luminance mix `α·A + β·B` (`α = lum(a)`, `β = lum(b)`) and each channel is
+/// scaled to its own energy, `(a_c E_A + b_c E_B) / (α E_A + β E_B)` with `E` a lobe's
+/// integral (`Σ_k A^k_0`). Exact when `a` and `b` are proportional across channels — every
+/// dielectric of the glTF material (`a = 0.04`, `b = 0.96`) and grey metals.
 #[derive(Clone, Copy, Debug)]
 pub struct FittedLobe<'a> {
     /// View elevations `θ_o` in radians, strictly increasing, at least 2.
@@ -320,11 +323,12 @@ pub struct FittedLobe<'a> {
     pub order: usize,
     /// `[elevation][lobe][band]` multipliers `A^k_l`.
     pub bands: &'a [f32],
-    /// Per elevation, the Fresnel factor `s̄` multiplying `colour_b`.
-    pub fresnel: &'a [f32],
+    /// Empty, or a second lobe on the same axes (`[elevation][lobe][band]`) for materials
+    /// whose colour weights two lobe shapes (the glTF material: `A·(D·V) + B·(s·D·V)`).
+    pub bands_b: &'a [f32],
     /// Colour weight `a` per point, or one for all points.
     pub colour_a: &'a [[f32; 3]],
-    /// Colour weight `b` per point, or one for all points.
+    /// Colour weight `b` of `bands_b` per point, or one for all points (ignored without it).
     pub colour_b: &'a [[f32; 3]],
 }
 

@@ -54,8 +54,8 @@ pub(crate) struct SpecularPoint {
     /// The lobe axes: for Phong one, the reflection of the view direction, not normalised (the
     /// basis evaluations normalise); a fitted lobe's axes.
     pub axes: [Vec3; MAX_FITTED_LOBES],
-    /// Phong: `specular_c · (e+2)/(e+1) · cos θ_o`; fitted: `a_c + b_c s̄(θ_o)`; zero when the
-    /// point faces away.
+    /// Phong: `specular_c · (e+2)/(e+1) · cos θ_o`; fitted: the colour of [`FittedLobe`]; zero
+    /// when the point faces away.
     pub scale: [f32; 3],
     pub active: bool,
     /// The band multipliers `A^k_l` of each axis (the first `order` are used).
@@ -486,24 +486,46 @@ pub(crate) fn specular_point(
             } else {
                 n.any_orthonormal_vector()
             };
+            let pick = |v: &[[f32; 3]]| if v.len() == 1 { v[0] } else { v[p] };
+            let (a, b) = (pick(f.colour_a), pick(f.colour_b));
+            let two = !f.bands_b.is_empty();
+            let lum = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+            let (alpha, beta) = if two { (lum(a), lum(b)) } else { (1.0, 0.0) };
+            // Energies of the two shapes (Σ_k A^k_0) for the per-channel scale.
+            let (mut e_a, mut e_b) = (0.0f32, 0.0f32);
             for j in 0..k {
-                let (r0, r1) = (
-                    &f.bands[(i * k + j) * f.order..],
-                    &f.bands[((i + 1) * k + j) * f.order..],
-                );
+                let (o0, o1) = ((i * k + j) * f.order, ((i + 1) * k + j) * f.order);
+                let (r0, r1) = (&f.bands[o0..], &f.bands[o1..]);
                 for l in 0..order {
                     lobes[j][l] = lerp(r0[l], r1[l]);
+                }
+                e_a += lobes[j][0];
+                if two {
+                    let (q0, q1) = (&f.bands_b[o0..], &f.bands_b[o1..]);
+                    e_b += lerp(q0[0], q1[0]);
+                    for l in 0..order {
+                        lobes[j][l] = alpha * lobes[j][l] + beta * lerp(q0[l], q1[l]);
+                    }
                 }
                 let theta = lerp(f.axis[i * k + j], f.axis[(i + 1) * k + j]);
                 let (s, c) = theta.sin_cos();
                 axes[j] = c * n + s * t_hat;
             }
-            let s_bar = lerp(f.fresnel[i], f.fresnel[i + 1]);
-            let pick = |v: &[[f32; 3]]| if v.len() == 1 { v[0] } else { v[p] };
-            let (a, b) = (pick(f.colour_a), pick(f.colour_b));
+            let scale = if two {
+                let mixed = alpha * e_a + beta * e_b;
+                std::array::from_fn(|c| {
+                    if mixed.abs() > 0.0 {
+                        (a[c] * e_a + b[c] * e_b) / mixed
+                    } else {
+                        0.0
+                    }
+                })
+            } else {
+                a
+            };
             SpecularPoint {
                 axes,
-                scale: std::array::from_fn(|c| a[c] + b[c] * s_bar),
+                scale,
                 active: true,
                 lobes,
                 count: k,
@@ -521,12 +543,16 @@ fn check_fitted(f: &FittedLobe<'_>, order: usize, points: usize) -> Result<(), R
     if !(1..=MAX_FITTED_LOBES).contains(&k) {
         return bad(format!("{k} lobes (1 to {MAX_FITTED_LOBES})"));
     }
-    if e < 2 || f.axis.len() != e * k || f.fresnel.len() != e || f.bands.len() != e * k * f.order {
+    if e < 2
+        || f.axis.len() != e * k
+        || f.bands.len() != e * k * f.order
+        || !(f.bands_b.is_empty() || f.bands_b.len() == f.bands.len())
+    {
         return bad(format!(
-            "{e} elevations of {k} lobes, {} axes, {} Fresnel factors, {} band values of order {}",
+            "{e} elevations of {k} lobes, {} axes, {} + {} band values of order {}",
             f.axis.len(),
-            f.fresnel.len(),
             f.bands.len(),
+            f.bands_b.len(),
             f.order
         ));
     }
@@ -543,7 +569,7 @@ fn check_fitted(f: &FittedLobe<'_>, order: usize, points: usize) -> Result<(), R
         return bad("elevations must increase".into());
     }
     let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
-    if !(finite(f.elevations) && finite(f.axis) && finite(f.bands) && finite(f.fresnel)) {
+    if !(finite(f.elevations) && finite(f.axis) && finite(f.bands) && finite(f.bands_b)) {
         return Err(RelightError::NonFinite("fitted lobe table"));
     }
     for (what, c) in [("colour a", f.colour_a), ("colour b", f.colour_b)] {

@@ -565,7 +565,7 @@ struct Fitted {
     elevations: Vec<f32>,
     axis: Vec<f32>,
     bands: Vec<f32>,
-    fresnel: Vec<f32>,
+    bands_b: Vec<f32>,
     k: usize,
     order: usize,
 }
@@ -586,12 +586,13 @@ impl Fitted {
                 }
             }
         }
-        let fresnel = elevations.iter().map(|t| (1.0 - t.cos()).powi(5)).collect();
+        // A second shape, as the glTF material mixes two per point.
+        let bands_b = bands.iter().map(|b| 0.5 * b * b).collect();
         Self {
             elevations,
             axis,
             bands,
-            fresnel,
+            bands_b,
             k,
             order,
         }
@@ -604,7 +605,7 @@ impl Fitted {
             axis: &self.axis,
             order: self.order,
             bands: &self.bands,
-            fresnel: &self.fresnel,
+            bands_b: &self.bands_b,
             colour_a: a,
             colour_b: b,
         })
@@ -661,7 +662,6 @@ fn test12_one_fitted_lobe_about_the_mirror_is_the_phong_path() {
         .map(|i| i as f32 / 32.0 * std::f32::consts::FRAC_PI_2)
         .collect();
     let bands: Vec<f32> = elevations.iter().flat_map(|_| lobe.clone()).collect();
-    let fresnel = vec![0.0; elevations.len()];
     let eye = glam::Vec3::new(0.4, 0.8, 3.0);
     let scale: Vec<[f32; 3]> = s
         .positions
@@ -687,7 +687,7 @@ fn test12_one_fitted_lobe_about_the_mirror_is_the_phong_path() {
         axis: &elevations,
         order,
         bands: &bands,
-        fresnel: &fresnel,
+        bands_b: &[],
         colour_a: &scale,
         colour_b: &zero,
     });

@@ -519,7 +519,7 @@ pub fn relight(
                     axis: &f.axis,
                     order: f.order,
                     bands: &f.bands,
-                    fresnel: &f.fresnel,
+                    bands_b: &f.bands_b,
                     colour_a: &g.colour_a,
                     colour_b: &g.colour_b,
                 }))
@@ -876,7 +876,7 @@ struct FittedF32 {
     elevations: Vec<f32>,
     axis: Vec<f32>,
     bands: Vec<f32>,
-    fresnel: Vec<f32>,
+    bands_b: Vec<f32>,
     diffuse_fresnel: Vec<f32>,
 }
 
@@ -889,7 +889,7 @@ impl FittedF32 {
             elevations: f(&t.elevations),
             axis: f(&t.axis),
             bands: f(&t.bands),
-            fresnel: f(&t.fresnel),
+            bands_b: f(&t.bands_b),
             diffuse_fresnel: f(&t.diffuse_fresnel),
         }
     }
