@@ -409,7 +409,9 @@ pub fn fitted_table_with(material: &Material, order: usize, lobes: usize) -> Opt
             0.0
         };
         // The K-lobe fit for each axis spacing tried; the best one is kept.
-        let mut best: Option<(f64, Vec<f64>, Vec<f64>, Vec<f64>)> = None;
+        // (squared error, axis angles, coefficients of g, coefficients of s·g)
+        type Fit = (f64, Vec<f64>, Vec<f64>, Vec<f64>);
+        let mut best: Option<Fit> = None;
         let spacings: &[f64] = if lobes == 1 { &[0.0] } else { &FIT_SPACINGS };
         for &spacing in spacings {
             let delta = spacing * width.max(0.05).sqrt();
