@@ -1311,6 +1311,22 @@ fn scene_file_rows() {
             vec!["materials.m.roughness"],
         ),
         (
+            "toml_pbr_roughness_above_one",
+            edit(
+                "type = \"lambert\"",
+                "type = \"pbr\"\nbase_color = [0.5, 0.5, 0.5]\nmetallic = 0.0\nroughness = 1.5",
+            ),
+            vec!["materials.m.roughness", "outside [0, 1]"],
+        ),
+        (
+            "toml_pbr_metallic_negative",
+            edit(
+                "type = \"lambert\"",
+                "type = \"pbr\"\nbase_color = [0.5, 0.5, 0.5]\nmetallic = -0.5\nroughness = 0.5",
+            ),
+            vec!["materials.m.metallic", "outside [0, 1]"],
+        ),
+        (
             "toml_undefined_material",
             edit("material = \"m\"", "material = \"gold\""),
             vec!["objects[0].material", "`gold` is not defined"],
