@@ -210,6 +210,74 @@ mod tests {
         assert_eq!(t.sample([-3.0, 0.25])[0], 0.0);
     }
 
+    /// `metallicRoughnessTexture`: B scales metallic, G roughness (glTF 2.0, "Metallic
+    /// Roughness Material"); `baseColorTexture` and `COLOR_0` scale the base colour; the
+    /// result is clamped to `[0, 1]` and carries no texture references.
+    #[test]
+    fn material_at_applies_textures_and_vertex_colours() {
+        let cam = crate::Camera::default();
+        let mut scene = Scene::new(cam, crate::Environment::uniform([1.0; 3]));
+        scene.textures = vec![
+            Texture {
+                name: "base".into(),
+                width: 1,
+                height: 1,
+                texels: vec![[0.5, 0.25, 1.0, 1.0]],
+                wrap: [Wrap::Repeat; 2],
+            },
+            Texture {
+                name: "mr".into(),
+                width: 1,
+                height: 1,
+                texels: vec![[0.9, 0.5, 0.25, 1.0]],
+                wrap: [Wrap::Repeat; 2],
+            },
+        ];
+        let m = scene.add_material(
+            "m",
+            Material::Pbr {
+                base_color: [1.0, 0.8, 0.6],
+                metallic: 0.8,
+                roughness: 0.6,
+                base_color_texture: Some(TextureRef {
+                    index: 0,
+                    texcoord: 0,
+                }),
+                metallic_roughness_texture: Some(TextureRef {
+                    index: 1,
+                    texcoord: 1,
+                }),
+            },
+        );
+        let mut mesh = crate::test_util::floor_quad(1.0, 0.0);
+        mesh.texcoords = vec![vec![[0.5; 2]; 4], vec![[0.25; 2]; 4]];
+        mesh.colors = vec![[1.0, 0.5, 0.5]; 4];
+        let o = scene.add_mesh(mesh, m);
+        assert!(scene.material_varies(o));
+        let got = scene.material_at(
+            o,
+            SurfacePoint::Triangle {
+                tri: 1,
+                u: 0.2,
+                v: 0.3,
+            },
+        );
+        assert_eq!(
+            got,
+            Material::Pbr {
+                base_color: [0.5, 0.8 * 0.5 * 0.25, 0.6 * 0.5],
+                metallic: 0.8 * 0.25,
+                roughness: 0.6 * 0.5,
+                base_color_texture: None,
+                metallic_roughness_texture: None,
+            }
+        );
+        // A UV set the mesh lacks is a validation error naming it.
+        scene.meshes[o].texcoords.truncate(1);
+        let err = scene.validate().unwrap_err().to_string();
+        assert!(err.contains("TEXCOORD_1") && err.contains("mr"), "{err}");
+    }
+
     #[test]
     fn wrap_modes_follow_gltf() {
         assert_eq!(wrap_index(-1, 4, Wrap::Repeat), 3);
