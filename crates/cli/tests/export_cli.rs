@@ -201,3 +201,56 @@ fn export_validates_reads_back_and_relights() {
     );
     assert!(!dir.path().join("px.glb").exists() && !dir.path().join("x.glb").exists());
 }
+
+/// A textured glTF asset (Khronos BoxTextured in `scenes/box_textured.toml`): the box's
+/// diffuse albedo per vertex (texture at the vertex's UV, times the factor's `(1 − m)·0.96`)
+/// travels as `COLOR_0`, the untextured floor keeps its factor; the file validates cleanly.
+#[test]
+fn textured_asset_exports_its_vertex_albedo() {
+    let scene =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/box_textured.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let bake = dir.path().join("box.prtb");
+    run(prt()
+        .arg("bake")
+        .arg(&scene)
+        .args(["--rays", "32", "--order", "3", "--bounces", "0", "--out"])
+        .arg(&bake));
+    let glb = dir.path().join("box.glb");
+    run(prt()
+        .arg("export")
+        .arg(&scene)
+        .arg("--bake")
+        .arg(&bake)
+        .arg("--out")
+        .arg(&glb));
+    let back = prt_report::export::read_export(&glb).unwrap();
+    let boxed = back
+        .iter()
+        .find(|e| e.name.starts_with("BoxTextured"))
+        .unwrap();
+    let colors = boxed.colors.as_ref().expect("COLOR_0 on the textured box");
+    assert_eq!(colors.len(), boxed.positions.len());
+    // The texture is sRGB-decoded colour in [0, 1]; the dielectric's diffuse albedo is 0.96
+    // of it.
+    assert!(colors
+        .iter()
+        .flatten()
+        .all(|c| (0.0..=0.96 + 1e-6).contains(c)));
+    let floor = back.iter().find(|e| e.name == "floor.obj").unwrap();
+    assert!(floor.colors.is_none());
+    if validator_available() {
+        let out = Command::new("node")
+            .arg(tools().join("gltf_validate.js"))
+            .arg(&glb)
+            .output()
+            .unwrap();
+        let report = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success()
+                && report.contains("\"errors\":0")
+                && report.contains("\"warnings\":0"),
+            "{report}"
+        );
+    }
+}

@@ -10,7 +10,9 @@
 //! the only float type core glTF has; the file stores exactly the bake's numbers). Exit
 //! radiance of a vertex is `(albedo/π) Σ_i t_{c,i} L_{c,i}` with the environment's SH
 //! coefficients `L`, which `extras.prt.environment` carries (`[coefficient][r, g, b]`, the
-//! bake's projection), and `albedo` the material's `baseColorFactor`.
+//! bake's projection), and `albedo` the material's `baseColorFactor` — times the vertex's
+//! `COLOR_0` when the scene material varies over the surface (textures, vertex colours): the
+//! diffuse albedo there, with the factor 1. View-dependent terms are not exported.
 
 use crate::error::ReportError;
 use prt_bakefile::{Bake, SampleKind};
@@ -168,7 +170,25 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
         attributes = attributes.max(names.len());
         vertices += v;
         let material = &scene.materials[scene_mesh.material];
-        let albedo = material.albedo();
+        // A material that varies (textures, vertex colours): the diffuse albedo at each vertex
+        // as COLOR_0, the factor 1.
+        let varies = scene.material_varies(o) && scene_mesh.positions.len() == v;
+        let albedo = if varies {
+            let colours = (0..v as u32).flat_map(|i| {
+                scene
+                    .material_at(o, prt_scene::SurfacePoint::Vertex(i))
+                    .albedo()
+            });
+            let a = bin.add(
+                &f32_bytes(colours),
+                ARRAY_BUFFER,
+                json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
+            );
+            attrs.insert("COLOR_0".into(), json!(a));
+            [1.0; 3]
+        } else {
+            material.albedo()
+        };
         materials.push(json!({
             "name": scene.material_names.get(scene_mesh.material).cloned().unwrap_or_default(),
             "pbrMetallicRoughness": {
@@ -189,7 +209,7 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
                     "attributes": names,
                     "layout": "coefficient i (SH index l(l+1)+m) of channel c is component i mod 4 of the FLOAT VEC4 attribute _PRT_C{c}_{floor(i/4)}; unused components are 0",
                     "sh": {"basis": "real-orthonormal", "phase": "condon-shortley", "index_order": "l(l+1)+m", "angles": "theta-from-+Z, phi=atan2(y,x)"},
-                    "radiance": "exit radiance of channel c = (albedo_c / pi) * sum_i t[c or 0][i] * environment[i][c]; albedo = the material's baseColorFactor",
+                    "radiance": "exit radiance of channel c = (albedo_c / pi) * sum_i t[c or 0][i] * environment[i][c]; albedo = the material's baseColorFactor, times the vertex's COLOR_0 when the primitive has one (the scene material's diffuse albedo at the vertex, textures applied); view-dependent terms (specular lobes) are not in the file",
                     "albedo_in_transfer": false,
                     "environment": env_rows,
                     "geometry_hash": format!("0x{:016x}", obj.geometry_hash),
@@ -260,6 +280,8 @@ pub struct ExportedObject {
     pub positions: Vec<[f32; 3]>,
     /// Transfer, `[vertex][channel][coefficient]`.
     pub transfer: Vec<f32>,
+    /// `COLOR_0` (the diffuse albedo per vertex of a textured material), if written.
+    pub colors: Option<Vec<[f32; 3]>>,
 }
 
 /// Reads an export back with the `gltf` crate (the layout of [`export_glb`]).
@@ -331,12 +353,22 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
                 }
             }
         }
+        let colors = match attrs.get("COLOR_0") {
+            Some(acc) => Some(
+                floats(acc)?
+                    .chunks_exact(3)
+                    .map(|c| [c[0], c[1], c[2]])
+                    .collect(),
+            ),
+            None => None,
+        };
         out.push(ExportedObject {
             name: mesh.name().unwrap_or_default().to_owned(),
             order,
             channels,
             positions,
             transfer,
+            colors,
         });
     }
     Ok(out)
