@@ -456,9 +456,7 @@ pub fn relight(
         // The fitted lobe's table (built once per object, outside the timed frames).
         let fitted = match (&glossy, opt.glossy) {
             (Some(g), GlossyPath::Fitted) => {
-                let t = prt_bake::brdf::fitted_table(&g.shape, order)
-                    .expect("glossy materials have a fitted table");
-                Some(FittedF32::new(&t))
+                Some(fitted_cached(&g.shape, order))
             }
             _ => None,
         };
@@ -867,6 +865,26 @@ impl GlossyLobe {
             _ => None,
         }
     }
+}
+
+/// The fitted table of a lobe shape at an order, built once per process (a report relights
+/// the same objects at many orders and settings; a table takes ~0.5 s to fit).
+fn fitted_cached(shape: &Material, order: usize) -> std::sync::Arc<FittedF32> {
+    type Cache = std::sync::Mutex<Vec<(Material, usize, std::sync::Arc<FittedF32>)>>;
+    static CACHE: std::sync::OnceLock<Cache> = std::sync::OnceLock::new();
+    let cache = CACHE.get_or_init(|| std::sync::Mutex::new(Vec::new()));
+    if let Ok(c) = cache.lock() {
+        if let Some((_, _, t)) = c.iter().find(|(m, o, _)| m == shape && *o == order) {
+            return t.clone();
+        }
+    }
+    let t = std::sync::Arc::new(FittedF32::new(
+        &prt_bake::brdf::fitted_table(shape, order).expect("glossy materials have a fitted table"),
+    ));
+    if let Ok(mut c) = cache.lock() {
+        c.push((*shape, order, t.clone()));
+    }
+    t
 }
 
 /// A [`prt_bake::brdf::FittedTable`] in the f32 arrays prt-relight reads.
