@@ -314,6 +314,12 @@ pub const MAX_FITTED_LOBES: usize = 4;
 pub struct FittedLobe<'a> {
     /// View elevations `θ_o` in radians, strictly increasing, at least 2.
     pub elevations: &'a [f32],
+    /// Roughness levels the table holds, increasing (one level: a single table). The rows
+    /// below are stacked `[level][elevation]`; a point's row is bilinear in (its roughness,
+    /// `θ_o`), clamped to the grid.
+    pub roughness: &'a [f32],
+    /// Each point's roughness, or one for all points.
+    pub point_roughness: &'a [f32],
     /// Zonal lobes per elevation, `1..=MAX_FITTED_LOBES`.
     pub lobes: usize,
     /// `[elevation][lobe]` axis angles from the normal toward the mirror direction (radians;

@@ -462,17 +462,34 @@ pub(crate) fn specular_point(
         }
         SpecularLobe::Fitted(f) => {
             let theta_o = cos_o.min(1.0).acos();
-            let e = f.elevations;
-            // Row interval and weight (clamped to the table's ends).
-            let (i, t) = if theta_o <= e[0] {
-                (0, 0.0)
-            } else if theta_o >= e[e.len() - 1] {
-                (e.len() - 2, 1.0)
-            } else {
-                let i = e.partition_point(|&x| x <= theta_o) - 1;
-                (i, (theta_o - e[i]) / (e[i + 1] - e[i]))
+            // Interval and weight of `x` in increasing `grid` (clamped to its ends; a grid of
+            // one value is that value).
+            let locate = |grid: &[f32], x: f32| -> (usize, f32) {
+                if grid.len() < 2 || x <= grid[0] {
+                    (0, 0.0)
+                } else if x >= grid[grid.len() - 1] {
+                    (grid.len() - 2, 1.0)
+                } else {
+                    let i = grid.partition_point(|&g| g <= x) - 1;
+                    (i, (x - grid[i]) / (grid[i + 1] - grid[i]))
+                }
             };
-            let lerp = |a: f32, b: f32| a + t * (b - a);
+            let ne = f.elevations.len();
+            let (ie, te) = locate(f.elevations, theta_o);
+            let rough = if f.point_roughness.len() == 1 {
+                f.point_roughness[0]
+            } else {
+                f.point_roughness.get(p).copied().unwrap_or(0.0)
+            };
+            let (ir, tr) = locate(f.roughness, rough);
+            // The table rows and bilinear weights of (roughness, θ_o).
+            let r_next = usize::from(f.roughness.len() > 1);
+            let rows = [
+                (ir * ne + ie, (1.0 - tr) * (1.0 - te)),
+                (ir * ne + ie + 1, (1.0 - tr) * te),
+                ((ir + r_next) * ne + ie, tr * (1.0 - te)),
+                ((ir + r_next) * ne + ie + 1, tr * te),
+            ];
             let k = f.lobes;
             let mut lobes = [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
             let mut axes = [Vec3::ZERO; MAX_FITTED_LOBES];
@@ -494,20 +511,26 @@ pub(crate) fn specular_point(
             // Energies of the two shapes (Σ_k A^k_0) for the per-channel scale.
             let (mut e_a, mut e_b) = (0.0f32, 0.0f32);
             for j in 0..k {
-                let (o0, o1) = ((i * k + j) * f.order, ((i + 1) * k + j) * f.order);
-                let (r0, r1) = (&f.bands[o0..], &f.bands[o1..]);
-                for l in 0..order {
-                    lobes[j][l] = lerp(r0[l], r1[l]);
-                }
-                e_a += lobes[j][0];
-                if two {
-                    let (q0, q1) = (&f.bands_b[o0..], &f.bands_b[o1..]);
-                    e_b += lerp(q0[0], q1[0]);
-                    for l in 0..order {
-                        lobes[j][l] = alpha * lobes[j][l] + beta * lerp(q0[l], q1[l]);
+                let mut theta = 0.0f32;
+                for &(row, w) in &rows {
+                    if w == 0.0 {
+                        continue;
                     }
+                    let o = (row * k + j) * f.order;
+                    let r = &f.bands[o..o + order];
+                    for l in 0..order {
+                        lobes[j][l] += w * alpha * r[l];
+                    }
+                    e_a += w * r[0];
+                    if two {
+                        let q = &f.bands_b[o..o + order];
+                        for l in 0..order {
+                            lobes[j][l] += w * beta * q[l];
+                        }
+                        e_b += w * q[0];
+                    }
+                    theta += w * f.axis[row * k + j];
                 }
-                let theta = lerp(f.axis[i * k + j], f.axis[(i + 1) * k + j]);
                 let (s, c) = theta.sin_cos();
                 axes[j] = c * n + s * t_hat;
             }
@@ -538,12 +561,21 @@ pub(crate) fn specular_point(
 /// increasing elevations; colours one or one per point.
 fn check_fitted(f: &FittedLobe<'_>, order: usize, points: usize) -> Result<(), RelightError> {
     let bad = |m: String| Err(RelightError::InvalidParameter(format!("fitted lobe: {m}")));
-    let e = f.elevations.len();
+    let e = f.elevations.len() * f.roughness.len().max(1);
     let k = f.lobes;
+    if f.roughness.is_empty() || !f.roughness.windows(2).all(|w| w[0] < w[1]) {
+        return bad("roughness levels must be at least one, increasing".into());
+    }
+    if f.point_roughness.len() != 1 && f.point_roughness.len() != points {
+        return bad(format!(
+            "{} roughness values for {points} points",
+            f.point_roughness.len()
+        ));
+    }
     if !(1..=MAX_FITTED_LOBES).contains(&k) {
         return bad(format!("{k} lobes (1 to {MAX_FITTED_LOBES})"));
     }
-    if e < 2
+    if f.elevations.len() < 2
         || f.axis.len() != e * k
         || f.bands.len() != e * k * f.order
         || !(f.bands_b.is_empty() || f.bands_b.len() == f.bands.len())
@@ -569,7 +601,12 @@ fn check_fitted(f: &FittedLobe<'_>, order: usize, points: usize) -> Result<(), R
         return bad("elevations must increase".into());
     }
     let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
-    if !(finite(f.elevations) && finite(f.axis) && finite(f.bands) && finite(f.bands_b)) {
+    if !(finite(f.elevations)
+        && finite(f.axis)
+        && finite(f.bands)
+        && finite(f.bands_b)
+        && finite(f.point_roughness))
+    {
         return Err(RelightError::NonFinite("fitted lobe table"));
     }
     for (what, c) in [("colour a", f.colour_a), ("colour b", f.colour_b)] {

@@ -601,6 +601,8 @@ impl Fitted {
     fn lobe<'a>(&'a self, a: &'a [[f32; 3]], b: &'a [[f32; 3]]) -> SpecularLobe<'a> {
         SpecularLobe::Fitted(FittedLobe {
             elevations: &self.elevations,
+            roughness: &[0.5],
+            point_roughness: &[0.5],
             lobes: self.k,
             axis: &self.axis,
             order: self.order,
@@ -683,6 +685,8 @@ fn test12_one_fitted_lobe_about_the_mirror_is_the_phong_path() {
         .unwrap();
     input.specular.as_mut().unwrap().lobe = SpecularLobe::Fitted(FittedLobe {
         elevations: &elevations,
+        roughness: &[0.5],
+        point_roughness: &[0.5],
         lobes: 1,
         axis: &elevations,
         order,
@@ -699,6 +703,68 @@ fn test12_one_fitted_lobe_about_the_mirror_is_the_phong_path() {
     for (a, b) in phong.iter().zip(&fitted) {
         for c in 0..3 {
             assert!((a[c] - b[c]).abs() <= 1e-4 * peak, "{a:?} vs {b:?}");
+        }
+    }
+}
+
+#[test]
+fn test13_roughness_levels_interpolate_per_point() {
+    // Two roughness levels whose tables differ by a factor 2 (same axes): a point at the
+    // first level gets the one-level result, at the second twice it, half-way 1.5 times it
+    // (the rows are bilinear in roughness and θ_o, and the shading is linear in the rows).
+    let order = 5;
+    let s = scene(order, 2);
+    let f = Fitted::new(2, order);
+    let bands2: Vec<f32> = f
+        .bands
+        .iter()
+        .chain(f.bands.iter())
+        .enumerate()
+        .map(|(i, b)| if i < f.bands.len() { *b } else { 2.0 * b })
+        .collect();
+    let axis2: Vec<f32> = f.axis.iter().chain(f.axis.iter()).copied().collect();
+    let colour = [[0.5f32, 0.4, 0.3]];
+    let zero = [[0.0f32; 3]];
+    let shade = |lobe: SpecularLobe<'_>| {
+        let mut input = s.input();
+        input.specular.as_mut().unwrap().lobe = lobe;
+        s.relighter
+            .specular(input.specular.as_ref().unwrap(), &s.frame)
+            .unwrap()
+    };
+    let one = shade(SpecularLobe::Fitted(FittedLobe {
+        elevations: &f.elevations,
+        roughness: &[0.3],
+        point_roughness: &[0.3],
+        lobes: f.k,
+        axis: &f.axis,
+        order,
+        bands: &f.bands,
+        bands_b: &[],
+        colour_a: &colour,
+        colour_b: &zero,
+    }));
+    for (r, factor) in [(0.2f32, 1.0f32), (0.6, 2.0), (0.4, 1.5)] {
+        let got = shade(SpecularLobe::Fitted(FittedLobe {
+            elevations: &f.elevations,
+            roughness: &[0.2, 0.6],
+            point_roughness: &[r],
+            lobes: f.k,
+            axis: &axis2,
+            order,
+            bands: &bands2,
+            bands_b: &[],
+            colour_a: &colour,
+            colour_b: &zero,
+        }));
+        let peak = one.iter().map(|v| v[0].abs()).fold(0.0f32, f32::max);
+        for (a, b) in one.iter().zip(&got) {
+            for c in 0..3 {
+                assert!(
+                    (factor * a[c] - b[c]).abs() <= 1e-5 * peak,
+                    "roughness {r}: {b:?} vs {factor} × {a:?}"
+                );
+            }
         }
     }
 }

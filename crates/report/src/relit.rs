@@ -456,7 +456,8 @@ pub fn relight(
         // The fitted lobe's table (built once per object, outside the timed frames).
         let fitted = match (&glossy, opt.glossy) {
             (Some(g), GlossyPath::Fitted) => {
-                Some(fitted_cached(&g.shape, order))
+                let tables: Vec<_> = g.levels.iter().map(|m| fitted_cached(m, order)).collect();
+                Some(FittedF32::stacked(&tables))
             }
             _ => None,
         };
@@ -513,6 +514,8 @@ pub fn relight(
             (None, Some(f), Some(g)) => {
                 Some(prt_relight::SpecularLobe::Fitted(prt_relight::FittedLobe {
                     elevations: &f.elevations,
+                    roughness: &g.level_roughness,
+                    point_roughness: &g.point_roughness,
                     lobes: f.lobes,
                     axis: &f.axis,
                     order: f.order,
@@ -796,7 +799,13 @@ fn sum_terms(d: &[[f32; 3]], s: &[[f32; 3]], n: usize) -> Vec<[f32; 3]> {
 /// `c` — the weights of the `D·V`, `s·D·V` and `s/π` tables (see
 /// `prt_bake::brdf::PbrComponent`); for the other lobes `a` is the specular colour.
 struct GlossyLobe {
-    shape: Material,
+    /// The lobe shape at each roughness level the fit is made at (one unless a texture varies
+    /// a `pbr` roughness).
+    levels: Vec<Material>,
+    /// Those levels' roughness (0 for the non-`pbr` lobes: one level).
+    level_roughness: Vec<f32>,
+    /// Each point's roughness (one value when uniform).
+    point_roughness: Vec<f32>,
     colour_a: Vec<[f32; 3]>,
     colour_b: Vec<[f32; 3]>,
     colour_c: Vec<[f32; 3]>,
@@ -813,7 +822,9 @@ impl GlossyLobe {
             Material::BlinnPhong { specular, .. }
             | Material::Ward { specular, .. }
             | Material::CookTorrance { specular, .. } => Some(Self {
-                shape: *material,
+                levels: vec![*material],
+                level_roughness: vec![0.0],
+                point_roughness: vec![0.0],
                 colour_a: vec![specular],
                 colour_b: vec![[0.0; 3]],
                 colour_c: vec![[0.0; 3]],
@@ -840,23 +851,32 @@ impl GlossyLobe {
                         _ => roughness,
                     })
                     .collect();
-                let mean = rough.iter().sum::<f32>() / rough.len().max(1) as f32;
-                let spread = rough.iter().fold(0.0f32, |a, r| a.max((r - mean).abs()));
-                if spread > 0.05 {
+                let lo = rough.iter().copied().fold(f32::INFINITY, f32::min);
+                let hi = rough.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+                // A roughness texture: the lobe fitted at ROUGHNESS_LEVELS levels over the
+                // points' range, each point's lobe bilinear in (roughness, θ_o).
+                let (level_roughness, point_roughness) = if hi - lo > 0.02 {
                     stats.notes.push(format!(
-                        "{object}: roughness varies over the surface ({:.2}–{:.2}); the specular lobe is relit at the mean, {mean:.3}",
-                        mean - spread,
-                        mean + spread
+                        "{object}: roughness varies over the surface ({lo:.2}–{hi:.2}); the specular lobe is fitted at {ROUGHNESS_LEVELS} levels"
                     ));
-                }
+                    let levels = (0..ROUGHNESS_LEVELS)
+                        .map(|i| lo + (hi - lo) * i as f32 / (ROUGHNESS_LEVELS - 1) as f32)
+                        .collect();
+                    (levels, rough)
+                } else {
+                    (vec![lo], vec![lo])
+                };
+                let shape = |r: f32| Material::Pbr {
+                    base_color: [1.0; 3],
+                    metallic: 1.0,
+                    roughness: r,
+                    base_color_texture: None,
+                    metallic_roughness_texture: None,
+                };
                 Some(Self {
-                    shape: Material::Pbr {
-                        base_color: [1.0; 3],
-                        metallic: 1.0,
-                        roughness: mean,
-                        base_color_texture: None,
-                        metallic_roughness_texture: None,
-                    },
+                    levels: level_roughness.iter().map(|&r| shape(r)).collect(),
+                    level_roughness,
+                    point_roughness,
                     colour_a: weights(C::Dv),
                     colour_b: weights(C::SchlickDv),
                     colour_c: weights(C::SchlickDiffuse),
@@ -866,6 +886,9 @@ impl GlossyLobe {
         }
     }
 }
+
+/// Roughness levels of the fit when a texture varies a `pbr` roughness.
+const ROUGHNESS_LEVELS: usize = 5;
 
 /// The fitted table of a lobe shape at an order, built once per process (a report relights
 /// the same objects at many orders and settings; a table takes ~0.5 s to fit).
@@ -909,6 +932,23 @@ impl FittedF32 {
             bands: f(&t.bands),
             bands_b: f(&t.bands_b),
             diffuse_fresnel: f(&t.diffuse_fresnel),
+        }
+    }
+
+    /// The tables of several roughness levels stacked `[level][elevation]` (their elevations
+    /// and diffuse Fresnel factors are the same: neither depends on roughness).
+    fn stacked(tables: &[std::sync::Arc<FittedF32>]) -> Self {
+        let first = &tables[0];
+        let cat =
+            |f: fn(&FittedF32) -> &Vec<f32>| tables.iter().flat_map(|t| f(t).clone()).collect();
+        Self {
+            order: first.order,
+            lobes: first.lobes,
+            elevations: first.elevations.clone(),
+            axis: cat(|t| &t.axis),
+            bands: cat(|t| &t.bands),
+            bands_b: cat(|t| &t.bands_b),
+            diffuse_fresnel: first.diffuse_fresnel.clone(),
         }
     }
 
