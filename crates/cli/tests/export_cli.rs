@@ -25,6 +25,35 @@ fn validator_available() -> bool {
             .is_ok_and(|o| o.status.success())
 }
 
+/// The Khronos glTF-Validator on `glb`: no error, no warning (skipped, with a line, when it is
+/// not installed, unless `PRT_REQUIRE_GLTF_VALIDATOR=1`).
+fn assert_validates(glb: &std::path::Path) {
+    if validator_available() {
+        let out = Command::new("node")
+            .arg(tools().join("gltf_validate.js"))
+            .arg(glb)
+            .output()
+            .unwrap();
+        let report = String::from_utf8_lossy(&out.stdout);
+        eprintln!("glTF-Validator: {report}");
+        assert!(
+            out.status.success(),
+            "{report}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            report.contains("\"errors\":0") && report.contains("\"warnings\":0"),
+            "{report}"
+        );
+    } else {
+        assert!(
+            std::env::var("PRT_REQUIRE_GLTF_VALIDATOR").as_deref() != Ok("1"),
+            "PRT_REQUIRE_GLTF_VALIDATOR=1 but tools/node_modules/gltf-validator or node is missing"
+        );
+        eprintln!("skipped the validator: npm install --prefix tools gltf-validator");
+    }
+}
+
 #[test]
 fn export_validates_reads_back_and_relights() {
     let dir = tempfile::tempdir().unwrap();
@@ -129,30 +158,7 @@ fn export_validates_reads_back_and_relights() {
         assert_eq!(checked, e.positions.len());
 
         // The Khronos validator: no error, no warning.
-        if validator_available() {
-            let out = Command::new("node")
-                .arg(tools().join("gltf_validate.js"))
-                .arg(&glb)
-                .output()
-                .unwrap();
-            let report = String::from_utf8_lossy(&out.stdout);
-            eprintln!("glTF-Validator: {report}");
-            assert!(
-                out.status.success(),
-                "{report}{}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            assert!(
-                report.contains("\"errors\":0") && report.contains("\"warnings\":0"),
-                "{report}"
-            );
-        } else {
-            assert!(
-                std::env::var("PRT_REQUIRE_GLTF_VALIDATOR").as_deref() != Ok("1"),
-                "PRT_REQUIRE_GLTF_VALIDATOR=1 but tools/node_modules/gltf-validator or node is missing"
-            );
-            eprintln!("skipped the validator: npm install --prefix tools gltf-validator");
-        }
+        assert_validates(&glb);
     }
 
     // Refusals: a per-pixel bake, a bake of another scene; nothing written.
@@ -239,18 +245,5 @@ fn textured_asset_exports_its_vertex_albedo() {
         .all(|c| (0.0..=0.96 + 1e-6).contains(c)));
     let floor = back.iter().find(|e| e.name == "floor.obj").unwrap();
     assert!(floor.colors.is_none());
-    if validator_available() {
-        let out = Command::new("node")
-            .arg(tools().join("gltf_validate.js"))
-            .arg(&glb)
-            .output()
-            .unwrap();
-        let report = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success()
-                && report.contains("\"errors\":0")
-                && report.contains("\"warnings\":0"),
-            "{report}"
-        );
-    }
+    assert_validates(&glb);
 }
