@@ -260,30 +260,13 @@ fn legendre(x: f64, out: &mut [f64]) {
     }
 }
 
-/// Nodes and weights of `n`-point Gauss–Legendre on `[0, 1]` (Newton on the recurrence).
+/// Nodes and weights of `n`-point Gauss–Legendre on `[0, 1]` (prt-sh's rule on `[−1, 1]`,
+/// mapped).
 fn gauss_legendre_unit(n: usize) -> Vec<(f64, f64)> {
-    (0..n)
-        .map(|i| {
-            let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-            let mut dp = 1.0;
-            for _ in 0..100 {
-                let (mut p0, mut p1) = (1.0, x);
-                for k in 2..=n {
-                    let kf = k as f64;
-                    let p2 = ((2.0 * kf - 1.0) * x * p1 - (kf - 1.0) * p0) / kf;
-                    p0 = p1;
-                    p1 = p2;
-                }
-                dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
-                let dx = p1 / dp;
-                x -= dx;
-                if dx.abs() < 1e-15 {
-                    break;
-                }
-            }
-            let w = 2.0 / ((1.0 - x * x) * dp * dp);
-            (0.5 * (1.0 - x), 0.5 * w)
-        })
+    let (x, w) = prt_sh::quadrature::gauss_legendre(n);
+    x.iter()
+        .zip(&w)
+        .map(|(x, w)| (0.5 * (x + 1.0), 0.5 * w))
         .collect()
 }
 
