@@ -632,10 +632,16 @@ mod fitted_tests {
 }
 
 #[cfg(test)]
-mod fitted_debug {
+mod fitted_errors {
+    /// Fit error against the number of zonal lobes, per roughness and view elevation (the
+    /// table in crates/relight/README.md: `cargo test -p prt-bake --release fit_errors --
+    /// --nocapture`). The claim the README and ARCHITECTURE make is checked: where one zonal
+    /// lobe fails (views 30–81° off the normal, roughness 0.6 and 0.9), three remove at least
+    /// a third of its error (measured: 40–91 %). (Not "never worse": the middle of three axes
+    /// is the one lobe's, but the least squares trade the upper hemisphere's error against
+    /// the lower one's weight, so near the normal three lobes can be 1e-3 worse above it.)
     #[test]
-    #[ignore]
-    fn print_fit_errors() {
+    fn fit_errors_by_lobe_count() {
         for r in [0.3f32, 0.6, 0.9] {
             let m = prt_scene::Material::Pbr {
                 base_color: [1.0; 3],
@@ -647,6 +653,17 @@ mod fitted_debug {
             let ts: Vec<_> = (1..=4)
                 .map(|k| super::fitted_table_with(&m, 11, k).unwrap())
                 .collect();
+            for k in 0..super::FITTED_ELEVATIONS {
+                let theta = ts[0].elevations[k].to_degrees();
+                if r >= 0.6 && (30.0..=81.0).contains(&theta) {
+                    assert!(
+                        ts[2].error[k] <= (2.0 / 3.0) * ts[0].error[k],
+                        "roughness {r}, θo {theta:.1}°: three lobes {} vs one {}",
+                        ts[2].error[k],
+                        ts[0].error[k]
+                    );
+                }
+            }
             for k in (0..32).step_by(4).chain([29, 31]) {
                 println!(
                     "r {r} θo {:.1}° asym {:.4} err K=1..4 {:.4} {:.4} {:.4} {:.4}",
