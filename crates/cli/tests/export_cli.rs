@@ -25,6 +25,31 @@ fn validator_available() -> bool {
             .is_ok_and(|o| o.status.success())
 }
 
+/// `prt bake SCENE ARGS --out DIR/NAME.prtb`, then `prt export` of it to `DIR/NAME.glb`.
+fn bake_and_export(
+    scene: &std::path::Path,
+    dir: &std::path::Path,
+    name: &str,
+    args: &[&str],
+) -> (std::path::PathBuf, std::path::PathBuf) {
+    let bake = dir.join(format!("{name}.prtb"));
+    run(prt()
+        .arg("bake")
+        .arg(scene)
+        .args(args)
+        .arg("--out")
+        .arg(&bake));
+    let glb = dir.join(format!("{name}.glb"));
+    run(prt()
+        .arg("export")
+        .arg(scene)
+        .arg("--bake")
+        .arg(&bake)
+        .arg("--out")
+        .arg(&glb));
+    (bake, glb)
+}
+
 /// The Khronos glTF-Validator on `glb`: no error, no warning (skipped, with a line, when it is
 /// not installed, unless `PRT_REQUIRE_GLTF_VALIDATOR=1`).
 fn assert_validates(glb: &std::path::Path) {
@@ -59,28 +84,12 @@ fn export_validates_reads_back_and_relights() {
     let dir = tempfile::tempdir().unwrap();
     let scene = write_scene(dir.path(), 3);
     for (bounces, order) in [("0", "4"), ("1", "5")] {
-        let bake = dir.path().join(format!("b{bounces}.prtb"));
-        run(prt()
-            .arg("bake")
-            .arg(&scene)
-            .args([
-                "--rays",
-                "64",
-                "--order",
-                order,
-                "--bounces",
-                bounces,
-                "--out",
-            ])
-            .arg(&bake));
-        let glb = dir.path().join(format!("b{bounces}.glb"));
-        run(prt()
-            .arg("export")
-            .arg(&scene)
-            .arg("--bake")
-            .arg(&bake)
-            .arg("--out")
-            .arg(&glb));
+        let (bake, glb) = bake_and_export(
+            &scene,
+            dir.path(),
+            &format!("b{bounces}"),
+            &["--rays", "64", "--order", order, "--bounces", bounces],
+        );
 
         // Read back: the same positions and transfer, bit for bit.
         let back = prt_report::export::read_export(&glb).unwrap();
@@ -216,20 +225,12 @@ fn textured_asset_exports_its_vertex_albedo() {
     let scene =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/box_textured.toml");
     let dir = tempfile::tempdir().unwrap();
-    let bake = dir.path().join("box.prtb");
-    run(prt()
-        .arg("bake")
-        .arg(&scene)
-        .args(["--rays", "32", "--order", "3", "--bounces", "0", "--out"])
-        .arg(&bake));
-    let glb = dir.path().join("box.glb");
-    run(prt()
-        .arg("export")
-        .arg(&scene)
-        .arg("--bake")
-        .arg(&bake)
-        .arg("--out")
-        .arg(&glb));
+    let (_, glb) = bake_and_export(
+        &scene,
+        dir.path(),
+        "box",
+        &["--rays", "32", "--order", "3", "--bounces", "0"],
+    );
     let back = prt_report::export::read_export(&glb).unwrap();
     let boxed = back
         .iter()

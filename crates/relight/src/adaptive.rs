@@ -7,6 +7,7 @@ use crate::error::RelightError;
 use crate::input::{DiffuseParams, SpecularInput, TransferView};
 use crate::kernel::{level_costs, prefetch, rgb, Accum, Measure, Stop, Term, BLOCK, CHUNK};
 use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter, SpecularPoint};
+use crate::MAX_FITTED_LOBES;
 use prt_sh::MAX_GAUNT_ORDER;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -421,15 +422,19 @@ impl Relighter {
                             .take(PREFETCH_DISTANCE)
                             .for_each(|&(k, _)| hint(k));
                         // One cursor per lobe axis for the block's points, restarted per point.
+                        // (A fixed array: no allocation per block; only the axes in use
+                        // get a cursor, one for Phong.)
                         let lobes = go_on[..n].iter().map(|(_, g)| g.count).max().unwrap_or(0);
-                        let mut cursors: Vec<prt_sh::BandCursor<'_>> = (0..lobes)
-                            .filter_map(|_| {
-                                prt_sh::BandCursor::new(self.basis(), glam::Vec3::Z).ok()
-                            })
-                            .collect();
-                        if cursors.len() < lobes {
-                            cursors.clear();
-                        }
+                        let mut cursors: [Option<prt_sh::BandCursor<'_>>; MAX_FITTED_LOBES] =
+                            std::array::from_fn(|j| {
+                                (j < lobes)
+                                    .then(|| {
+                                        prt_sh::BandCursor::new(self.basis(), glam::Vec3::Z).ok()
+                                    })
+                                    .flatten()
+                            });
+                        let have_cursors =
+                            lobes > 0 && cursors[..lobes].iter().all(Option::is_some);
                         for (i, (k, g)) in go_on[..n].iter().enumerate() {
                             let k = *k;
                             if let Some(&(next, _)) = go_on[..n].get(i + PREFETCH_DISTANCE) {
@@ -438,14 +443,16 @@ impl Relighter {
                             let (acc, row) = (&mut accs[k], s.visibility.point(pts[k]));
                             // The weights band by band, only as far as the point goes (most
                             // stop within a few levels of the low ones).
-                            match (!cursors.is_empty()).then_some(&mut cursors) {
-                                Some(cursors) => {
+                            match have_cursors {
+                                true => {
                                     // (`w` is the block's scratch: the bands shaded so far
                                     // are this point's again first.) The low bands as the first
                                     // pass formed them (the cursors step over them), then the
                                     // rest from the cursors, one per lobe axis, summed.
                                     w[..low_len].copy_from_slice(&low_w[i][..low_len]);
-                                    for (c, axis) in cursors.iter_mut().zip(&g.axes[..g.count]) {
+                                    for (c, axis) in
+                                        cursors.iter_mut().flatten().zip(&g.axes[..g.count])
+                                    {
                                         c.reset(*axis);
                                         for _ in 0..=low_top {
                                             c.skip_band();
@@ -455,10 +462,12 @@ impl Relighter {
                                     let mut fill = |l: usize, w: &mut [f32]| {
                                         // `Σ_k y_i(a_k) A^k_l`, as `point_weights` forms it.
                                         let out = &mut w[l * l..];
-                                        cursors[0].next_band_f32_scaled(out, g.lobes[0][l]);
-                                        for j in 1..g.count {
-                                            cursors[j]
-                                                .next_band_f32_scaled(&mut band, g.lobes[j][l]);
+                                        let mut each = cursors.iter_mut().flatten();
+                                        if let Some(c) = each.next() {
+                                            c.next_band_f32_scaled(out, g.lobes[0][l]);
+                                        }
+                                        for (j, c) in each.enumerate().take(g.count - 1) {
+                                            c.next_band_f32_scaled(&mut band, g.lobes[j + 1][l]);
                                             for (a, b) in out[..2 * l + 1].iter_mut().zip(&band) {
                                                 *a += b;
                                             }
@@ -475,7 +484,7 @@ impl Relighter {
                                     }
                                 }
                                 // (Orders above the cursor's limit have no specular anyway.)
-                                None => {
+                                false => {
                                     let mut scratch = vec![0.0f32; n2];
                                     self.point_weights(g, w, &mut scratch);
                                     kernel.extend(acc, row, w, to, stop);
