@@ -6,7 +6,7 @@ use crate::adjacency::Adjacency;
 use crate::error::RelightError;
 use crate::input::{DiffuseParams, SpecularInput, TransferView};
 use crate::kernel::{level_costs, prefetch, rgb, Accum, Measure, Stop, Term, BLOCK, CHUNK};
-use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter, SpecularPoint};
+use crate::relighter::{check_finite3, specular_point, FrameLighting, Relighter};
 use crate::MAX_FITTED_LOBES;
 use prt_sh::MAX_GAUNT_ORDER;
 use rayon::prelude::*;
@@ -383,13 +383,16 @@ impl Relighter {
                         w.resize(n2, 0.0);
                         // Two passes as for diffuse: the low bands (weights and visibility) of
                         // every point, then the points that go on, rows hinted ahead.
-                        let mut go_on = [(0usize, SpecularPoint::INACTIVE); BLOCK];
+                        let mut go_on = [0usize; BLOCK];
+                        let mut rows = [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
+                        // Phong's one axis per point going on (its lobe row is shared).
+                        let mut axis0 = [glam::Vec3::ZERO; BLOCK];
                         // The low weights of the points that go on, for their second pass.
                         let low_len = (low_top + 1) * (low_top + 1);
                         let mut low_w = [[0.0f32; 25]; BLOCK];
                         let mut n = 0;
                         for (k, (&v, acc)) in pts.iter().zip(accs.iter_mut()).enumerate() {
-                            let g = specular_point(&s, v, &lobe, order);
+                            let g = specular_point(&s, v, &lobe, order, &mut rows);
                             if !g.active {
                                 *acc = Accum {
                                     last_level: top as u16,
@@ -411,7 +414,8 @@ impl Relighter {
                                 stopped = kernel.extend(acc, low, w, to.min(low_top), stop);
                             }
                             if !stopped && to > acc.last_level as usize {
-                                go_on[n] = (k, g);
+                                go_on[n] = k;
+                                axis0[n] = g.axes[0];
                                 low_w[n][..low_len].copy_from_slice(&w[..low_len]);
                                 n += 1;
                             }
@@ -420,11 +424,62 @@ impl Relighter {
                         go_on[..n]
                             .iter()
                             .take(PREFETCH_DISTANCE)
-                            .for_each(|&(k, _)| hint(k));
-                        // One cursor per lobe axis for the block's points, restarted per point.
-                        // (A fixed array: no allocation per block; only the axes in use
-                        // get a cursor, one for Phong.)
-                        let lobes = go_on[..n].iter().map(|(_, g)| g.count).max().unwrap_or(0);
+                            .for_each(|&k| hint(k));
+                        let fitted_lobes = match s.lobe {
+                            crate::SpecularLobe::Phong(_) => None,
+                            crate::SpecularLobe::Fitted(f) => Some(f.lobes),
+                        };
+                        let Some(lobes) = fitted_lobes else {
+                            // Phong: one axis and the shared lobe row, one cursor for the
+                            // block's points, restarted per point.
+                            let mut cursor = (n > 0)
+                                .then(|| prt_sh::BandCursor::new(self.basis(), glam::Vec3::Z).ok())
+                                .flatten();
+                            for (i, &k) in go_on[..n].iter().enumerate() {
+                                if let Some(&next) = go_on[..n].get(i + PREFETCH_DISTANCE) {
+                                    hint(next);
+                                }
+                                let (acc, row) = (&mut accs[k], s.visibility.point(pts[k]));
+                                // The weights band by band, only as far as the point goes
+                                // (most stop within a few levels of the low ones).
+                                match cursor.as_mut() {
+                                    Some(cursor) => {
+                                        // (`w` is the block's scratch: the bands shaded so far
+                                        // are this point's again first.) The low bands as the
+                                        // first pass formed them (the cursor steps over them),
+                                        // then the rest from the cursor.
+                                        w[..low_len].copy_from_slice(&low_w[i][..low_len]);
+                                        cursor.reset(axis0[i]);
+                                        for _ in 0..=low_top {
+                                            cursor.skip_band();
+                                        }
+                                        let mut fill = |l: usize, w: &mut [f32]| {
+                                            // `y_i(r) A_l`, as `weights` forms it.
+                                            cursor.next_band_f32_scaled(&mut w[l * l..], lobe[l]);
+                                        };
+                                        for l in (low_top + 1)..=acc.last_level as usize {
+                                            fill(l, w);
+                                        }
+                                        for l in (acc.last_level as usize + 1)..=to {
+                                            fill(l, w);
+                                            if kernel.extend(acc, row, w, l, stop) {
+                                                break;
+                                            }
+                                        }
+                                    }
+                                    // (Orders above the cursor's limit have no specular anyway.)
+                                    None => {
+                                        self.weights(&lobe, axis0[i], w);
+                                        kernel.extend(acc, row, w, to, stop);
+                                    }
+                                }
+                            }
+                            return;
+                        };
+                        // Fitted lobes: one cursor per lobe axis (a fixed array: no
+                        // allocation per block), restarted per point; the point's lobe state
+                        // formed again (cheaper than keeping a block of them).
+                        let lobes = if n > 0 { lobes } else { 0 };
                         let mut cursors: [Option<prt_sh::BandCursor<'_>>; MAX_FITTED_LOBES] =
                             std::array::from_fn(|j| {
                                 (j < lobes)
@@ -435,14 +490,12 @@ impl Relighter {
                             });
                         let have_cursors =
                             lobes > 0 && cursors[..lobes].iter().all(Option::is_some);
-                        for (i, (k, g)) in go_on[..n].iter().enumerate() {
-                            let k = *k;
-                            if let Some(&(next, _)) = go_on[..n].get(i + PREFETCH_DISTANCE) {
+                        for (i, &k) in go_on[..n].iter().enumerate() {
+                            if let Some(&next) = go_on[..n].get(i + PREFETCH_DISTANCE) {
                                 hint(next);
                             }
                             let (acc, row) = (&mut accs[k], s.visibility.point(pts[k]));
-                            // The weights band by band, only as far as the point goes (most
-                            // stop within a few levels of the low ones).
+                            let g = &specular_point(&s, pts[k], &lobe, order, &mut rows);
                             match have_cursors {
                                 true => {
                                     // (`w` is the block's scratch: the bands shaded so far
@@ -464,10 +517,10 @@ impl Relighter {
                                         let out = &mut w[l * l..];
                                         let mut each = cursors.iter_mut().flatten();
                                         if let Some(c) = each.next() {
-                                            c.next_band_f32_scaled(out, g.lobes[0][l]);
+                                            c.next_band_f32_scaled(out, g.lobe(0)[l]);
                                         }
                                         for (j, c) in each.enumerate().take(g.count - 1) {
-                                            c.next_band_f32_scaled(&mut band, g.lobes[j + 1][l]);
+                                            c.next_band_f32_scaled(&mut band, g.lobe(j + 1)[l]);
                                             for (a, b) in out[..2 * l + 1].iter_mut().zip(&band) {
                                                 *a += b;
                                             }

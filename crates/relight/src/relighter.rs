@@ -50,7 +50,7 @@ impl FrameLighting {
 
 /// Per-point specular geometry: `w_i = Σ_k A^k_l y_i(a_k)` is formed from `axes` and `lobes`.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct SpecularPoint {
+pub(crate) struct SpecularPoint<'a> {
     /// The lobe axes: for Phong one, the reflection of the view direction, not normalised (the
     /// basis evaluations normalise); a fitted lobe's axes.
     pub axes: [Vec3; MAX_FITTED_LOBES],
@@ -59,10 +59,22 @@ pub(crate) struct SpecularPoint {
     pub scale: [f32; 3],
     pub active: bool,
     /// The band multipliers `A^k_l` of each axis (the first `order` are used).
-    pub lobes: [[f32; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES],
+    rows: LobeRows<'a>,
     /// Axes in use.
     pub count: usize,
 }
+
+/// A point's band multipliers: Phong's one row shared by every point, or a fitted lobe's rows
+/// interpolated for this point into the caller's [`FittedRows`]. (Borrowed either way: the
+/// point state stays a few words, cheap to return and keep per block.)
+#[derive(Clone, Copy, Debug)]
+enum LobeRows<'a> {
+    Shared(&'a [f32]),
+    Fitted(&'a FittedRows),
+}
+
+/// Scratch for a fitted point's band multipliers, one row per axis.
+pub(crate) type FittedRows = [[f32; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
 
 impl Relighter {
     /// A relighter of `order` bands. Specular shading needs `order ≤ MAX_GAUNT_ORDER` (32);
@@ -319,9 +331,9 @@ impl Relighter {
     /// Fills `w = Σ_k A^k_l y(a_k)` of a point, all bands (`scratch`: `order²` floats).
     #[inline]
     pub(crate) fn point_weights(&self, g: &SpecularPoint, w: &mut [f32], scratch: &mut [f32]) {
-        self.weights(&g.lobes[0][..self.order], g.axes[0], w);
+        self.weights(&g.lobe(0)[..self.order], g.axes[0], w);
         for k in 1..g.count {
-            self.weights(&g.lobes[k][..self.order], g.axes[k], scratch);
+            self.weights(&g.lobe(k)[..self.order], g.axes[k], scratch);
             for (a, b) in w.iter_mut().zip(scratch.iter()) {
                 *a += b;
             }
@@ -331,11 +343,11 @@ impl Relighter {
     /// [`Self::point_weights`] for the first `min(order, LOW_ORDER)²` weights only.
     #[inline]
     pub(crate) fn point_weights_low(&self, g: &SpecularPoint, w: &mut [f32]) {
-        self.weights_low(&g.lobes[0][..self.order], g.axes[0], w);
+        self.weights_low(&g.lobe(0)[..self.order], g.axes[0], w);
         let low = crate::LOW_ORDER.min(self.order);
         let mut tmp = [0.0f32; 25];
         for k in 1..g.count {
-            self.weights_low(&g.lobes[k][..self.order], g.axes[k], &mut tmp);
+            self.weights_low(&g.lobe(k)[..self.order], g.axes[k], &mut tmp);
             for (a, b) in w[..low * low].iter_mut().zip(&tmp) {
                 *a += b;
             }
@@ -377,9 +389,10 @@ impl Relighter {
             .for_each(|(ci, chunk)| {
                 let mut w = vec![0.0f32; n2];
                 let mut scratch = vec![0.0f32; n2];
+                let mut rows = [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
                 for (k, o) in chunk.iter_mut().enumerate() {
                     let p = ci * CHUNK + k;
-                    let g = specular_point(input, p, &lobe, self.order);
+                    let g = specular_point(input, p, &lobe, self.order, &mut rows);
                     if !g.active {
                         continue;
                     }
@@ -402,27 +415,37 @@ impl Relighter {
     }
 }
 
-impl SpecularPoint {
+impl SpecularPoint<'_> {
     /// A point facing away: no lobe, zero scale.
-    pub(crate) const INACTIVE: SpecularPoint = SpecularPoint {
+    pub(crate) const INACTIVE: SpecularPoint<'static> = SpecularPoint {
         axes: [Vec3::ZERO; MAX_FITTED_LOBES],
         scale: [0.0; 3],
         active: false,
-        lobes: [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES],
+        rows: LobeRows::Shared(&[]),
         count: 0,
     };
+
+    /// The band multipliers of axis `j` (`j < count`).
+    #[inline]
+    pub(crate) fn lobe(&self, j: usize) -> &[f32] {
+        match &self.rows {
+            LobeRows::Shared(row) => row,
+            LobeRows::Fitted(rows) => &rows[j],
+        }
+    }
 }
 
 /// View direction, reflection and scale of point `p`: `ω_o` toward the viewer, `r = 2(n·ω_o)n − ω_o`,
 /// scale `specular · (e+2)/(e+1) · n·ω_o` and the Phong lobe `phong_lobe` (or, for a fitted
 /// lobe, its axis, table row and colour at this point's `θ_o`); inactive (zero) if
-/// `n·ω_o ≤ 0` or degenerate.
-pub(crate) fn specular_point(
+/// `n·ω_o ≤ 0` or degenerate. A fitted lobe's rows are formed in `fitted_rows`.
+pub(crate) fn specular_point<'a>(
     input: &SpecularInput<'_>,
     p: usize,
-    phong_lobe: &[f32],
+    phong_lobe: &'a [f32],
     order: usize,
-) -> SpecularPoint {
+    fitted_rows: &'a mut FittedRows,
+) -> SpecularPoint<'a> {
     let inactive = SpecularPoint::INACTIVE;
     let n_raw = Vec3::from_array(input.surface.normals[p]);
     let wo_raw = match input.viewer {
@@ -448,15 +471,13 @@ pub(crate) fn specular_point(
         SpecularLobe::Phong(phong) => {
             let e = phong.exponent;
             let k = (e + 2.0) / (e + 1.0) * cos_o.min(1.0);
-            let mut lobes = [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
-            lobes[0][..order].copy_from_slice(&phong_lobe[..order]);
             let mut axes = [Vec3::ZERO; MAX_FITTED_LOBES];
             axes[0] = reflection;
             SpecularPoint {
                 axes,
                 scale: phong.specular.map(|s| s * k),
                 active: true,
-                lobes,
+                rows: LobeRows::Shared(&phong_lobe[..order]),
                 count: 1,
             }
         }
@@ -491,7 +512,10 @@ pub(crate) fn specular_point(
                 ((ir + r_next) * ne + ie + 1, tr * te),
             ];
             let k = f.lobes;
-            let mut lobes = [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
+            let lobes = fitted_rows;
+            for row in lobes.iter_mut().take(k) {
+                row[..order].fill(0.0);
+            }
             let mut axes = [Vec3::ZERO; MAX_FITTED_LOBES];
             // The axes: `θ_k` from the normal toward the mirror direction, in the plane of
             // the normal and the view (the normal itself when the view is along it).
@@ -550,7 +574,7 @@ pub(crate) fn specular_point(
                 axes,
                 scale,
                 active: true,
-                lobes,
+                rows: LobeRows::Fitted(lobes),
                 count: k,
             }
         }
