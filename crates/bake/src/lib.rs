@@ -36,6 +36,7 @@ pub mod points;
 pub mod sequence;
 mod settings;
 pub mod subdivide;
+pub mod texels;
 pub mod transfer;
 
 pub use error::BakeError;
