@@ -10,12 +10,19 @@ import os
 OUT = os.path.join(os.path.dirname(__file__), "..", "scenes", "hard")
 
 
-def write(name, verts, faces, normals=None, header=""):
+def write(name, verts, faces, normals=None, header="", uvs=None):
     with open(os.path.join(OUT, name), "w") as f:
         f.write(f"# {header}\n# Written by tools/make_hard_scenes.py.\n")
         for v in verts:
             f.write("v %.9g %.9g %.9g\n" % v)
-        if normals:
+        if uvs:
+            for t in uvs:
+                f.write("vt %.9g %.9g\n" % t)
+            for n in normals:
+                f.write("vn %.9g %.9g %.9g\n" % n)
+            for tri in faces:
+                f.write("f " + " ".join(f"{i+1}/{i+1}/{i+1}" for i in tri) + "\n")
+        elif normals:
             for n in normals:
                 f.write("vn %.9g %.9g %.9g\n" % n)
             for a, b, c in faces:
@@ -95,8 +102,12 @@ def main():
     write("open_box.obj", verts, faces, None, "Open box [-1,1]^3 without its top, faces pointing inward: concave.")
     # The coarsest possible floor: two triangles spanning [-1,1]^2 at y = 0, facing +Y (scaled
     # to tens of metres in the mixed-scale scenes, its triangles are as large as the scene).
-    write("quad.obj", [(-1, 0, -1), (-1, 0, 1), (1, 0, 1), (1, 0, -1)], [(0, 1, 2), (0, 2, 3)],
-          [(0, 1, 0)] * 4, "Two-triangle square [-1,1]^2 at y = 0, facing +Y.")
+    # Its UVs map the square onto the unit square (u = (x+1)/2, vt = (1-z)/2): a lightmap for
+    # per-texel bakes (`prt bake --per-texel SIZE`).
+    quad = [(-1, 0, -1), (-1, 0, 1), (1, 0, 1), (1, 0, -1)]
+    write("quad.obj", quad, [(0, 1, 2), (0, 2, 3)], [(0, 1, 0)] * 4,
+          "Two-triangle square [-1,1]^2 at y = 0, facing +Y, with planar UVs.",
+          uvs=[((x + 1) / 2, (1 - z) / 2) for x, _, z in quad])
 
 
 def write_hdr(name, w, h, f):

@@ -25,6 +25,15 @@ pub enum BakeError {
     /// The scene has no geometry to bake.
     #[error("the scene has no triangles to bake")]
     EmptyScene,
+
+    /// An object's lightmap UVs cannot be baked per texel.
+    #[error("object {object}: {reason}")]
+    Lightmap {
+        /// The object (mesh name).
+        object: String,
+        /// What is wrong, and how much.
+        reason: String,
+    },
     /// From the SH core.
     #[error(transparent)]
     Sh(#[from] prt_sh::ShError),

@@ -129,10 +129,13 @@ fn progress(settings: &BakeSettings, len: u64, what: &str) -> ProgressBar {
 #[must_use]
 pub fn memory_estimate(scene: &Scene, settings: &BakeSettings, max_order: usize) -> u64 {
     let vertices: u64 = scene.meshes.iter().map(|m| m.positions.len() as u64).sum();
-    let pixels = if settings.points == PointKind::Pixel {
-        u64::from(scene.camera.width) * u64::from(scene.camera.height)
-    } else {
-        0
+    let pixels = match settings.points {
+        PointKind::Pixel => u64::from(scene.camera.width) * u64::from(scene.camera.height),
+        // Every object's lightmap, as if all had UVs (an upper bound).
+        PointKind::Texel { width, height } => {
+            u64::from(width) * u64::from(height) * scene.meshes.len() as u64
+        }
+        PointKind::Vertex => 0,
     };
     let points = vertices + pixels;
     let n2 = (max_order * max_order) as u64;
@@ -205,7 +208,10 @@ pub fn bake_pass(
             .map(|m| scene.material_varies(m))
             .collect(),
     };
-    let vertex_mode = settings.points == PointKind::Vertex;
+    // Per-texel bakes run as per-vertex ones (the bounce chain lives at vertices) with the
+    // lightmapped objects' points replaced by their texels at assembly.
+    let vertex_mode = settings.points != PointKind::Pixel;
+    let lightmaps = lightmaps(scene, &plans, settings, &mut decisions)?;
     let bounces = settings.bounces as usize;
     // Vertex bounces needed: all B in vertex mode; B − 1 feed the pixels in pixel mode.
     let vertex_bounces = if vertex_mode {
@@ -223,7 +229,11 @@ pub fn bake_pass(
         "bounces": settings.bounces,
         // A string, like the JSON `seed` (SPEC §3.9): exact in every JSON parser.
         "seed": settings.seed.to_string(),
-        "points": if vertex_mode { "vertex" } else { "pixel" },
+        "points": match settings.points {
+            PointKind::Vertex => "vertex",
+            PointKind::Pixel => "pixel",
+            PointKind::Texel { .. } => "texel",
+        },
         "unshadowed": settings.unshadowed,
     });
     let mut settings_json = settings_json;
@@ -231,6 +241,24 @@ pub fn bake_pass(
     settings_json["albedo_in_transfer"] = false.into();
     if !vertex_mode {
         settings_json["pixel_samples"] = settings.pixel_samples.into();
+    }
+    if let PointKind::Texel { width, height } = settings.points {
+        // Which UV set each lightmapped object used, and a hash of those UVs, so that
+        // relighting refuses a scene whose lightmap UVs changed (SPEC §3.9).
+        settings_json["lightmaps"] = plans
+            .iter()
+            .zip(&lightmaps)
+            .map(|(p, l)| match l {
+                Some(l) => serde_json::json!({
+                    "object": p.name,
+                    "width": width,
+                    "height": height,
+                    "uv_set": l.uv_set,
+                    "uv_hash": uv_hash(&scene.meshes[p.mesh].texcoords[l.uv_set]).to_string(),
+                }),
+                None => serde_json::Value::Null,
+            })
+            .collect();
     }
     // The environment's projection (also what a distributed pass checks its input against).
     let env = &scene.environment;
@@ -306,6 +334,15 @@ pub fn bake_pass(
                 (0, p.len() as u64)
             }
         })
+        .zip(&lightmaps)
+        // A lightmapped object's vertices are traced only for the bounce chain.
+        .map(|(r, l)| {
+            if l.is_some() && bounces == 0 {
+                (0, 0)
+            } else {
+                r
+            }
+        })
         .collect();
     let mut vertex_direct: Vec<Vec<DirectResult>> = vec![Vec::new(); plans.len()];
     // Pass k ≥ 1: this shard's part of the previous pass's merged file.
@@ -341,7 +378,8 @@ pub fn bake_pass(
                 let opt = DirectOptions {
                     rays: settings.rays,
                     record_hits: vertex_bounces > 0,
-                    visibility: vertex_mode && plan.needs_visibility,
+                    // (A lightmapped object's vertices only feed the bounce chain.)
+                    visibility: vertex_mode && plan.needs_visibility && lightmaps[o].is_none(),
                     seed: settings.seed,
                     object: plan.mesh as u64,
                     first_ray: 0,
@@ -356,7 +394,7 @@ pub fn bake_pass(
         let mut it = results.into_iter();
         for (o, out) in vertex_direct.iter_mut().enumerate() {
             out.extend(it.by_ref().take(vertex_ranges[o].1 as usize));
-            let vis = u64::from(vertex_mode && plans[o].needs_visibility);
+            let vis = u64::from(vertex_mode && plans[o].needs_visibility && lightmaps[o].is_none());
             rays_traced += vertex_ranges[o].1 * u64::from(settings.rays) * (1 + vis);
         }
     }
@@ -489,9 +527,30 @@ pub fn bake_pass(
     let mut reports = Vec::with_capacity(plans.len());
     let sample_kind;
     if vertex_mode {
-        sample_kind = SampleKind::Vertex;
+        sample_kind = match settings.points {
+            PointKind::Texel { width, height } => SampleKind::Texel { width, height },
+            _ => SampleKind::Vertex,
+        };
         for (o, plan) in plans.iter().enumerate() {
             let mesh = &scene.meshes[plan.mesh];
+            if let Some(lm) = &lightmaps[o] {
+                let t = TexelBake {
+                    accel,
+                    plan,
+                    mesh,
+                    lightmap: lm,
+                    settings,
+                    chain: &chain,
+                    gs: &gs,
+                    basis: &bases[o],
+                };
+                let (object, report, stats, rays) = t.run();
+                objects.push(object);
+                reports.push(report);
+                ray_stats.push(stats);
+                rays_traced += rays;
+                continue;
+            }
             let (first, count) = shard_range(mesh.positions.len() as u64, settings.shard);
             let n2 = plan.order * plan.order;
             let direct_rows = &vertex_direct[o];
@@ -1001,6 +1060,249 @@ pub fn camera_info(c: &Camera) -> CameraInfo {
         fov_y_degrees: c.fov_y_deg,
         width: c.width,
         height: c.height,
+    }
+}
+
+/// The lightmap of every object of a per-texel bake (`None` for objects without UVs, baked
+/// per vertex, with a decision saying so); all `None` for other bakes.
+fn lightmaps(
+    scene: &Scene,
+    plans: &[plan::ObjectPlan],
+    settings: &BakeSettings,
+    decisions: &mut Vec<Decision>,
+) -> Result<Vec<Option<texels::Lightmap>>, BakeError> {
+    let PointKind::Texel { width, height } = settings.points else {
+        return Ok(vec![None; plans.len()]);
+    };
+    let mut out = Vec::with_capacity(plans.len());
+    for p in plans {
+        let mesh = &scene.meshes[p.mesh];
+        match texels::lightmap(mesh, width, height) {
+            Ok(l) => {
+                let covered = l.covered();
+                if covered == 0 {
+                    return Err(BakeError::Lightmap {
+                        object: p.name.clone(),
+                        reason: format!(
+                            "its lightmap UVs cover none of the {width}×{height} texels (every triangle is degenerate in UV space)"
+                        ),
+                    });
+                }
+                decisions.push(Decision {
+                    object: Some(p.name.clone()),
+                    decision: format!("per texel: {covered} of {width}×{height} texels"),
+                    reason: format!(
+                        "lightmap UVs from {} ({:.1} % of the lightmap covered)",
+                        match (l.uv_set, mesh.texcoords.len()) {
+                            (1, _) => "TEXCOORD_1".to_owned(),
+                            (k, _) => format!("UV set {k} (TEXCOORD_{k} / OBJ vt)"),
+                        },
+                        100.0 * covered as f64 / (f64::from(width) * f64::from(height))
+                    ),
+                });
+                out.push(Some(l));
+            }
+            Err(texels::LightmapError::NoUvs) => {
+                decisions.push(Decision {
+                    object: Some(p.name.clone()),
+                    decision: "per vertex".into(),
+                    reason: "no texture coordinates for a lightmap (glTF TEXCOORD_1 or TEXCOORD_0, OBJ vt)".into(),
+                });
+                out.push(None);
+            }
+            Err(e) => {
+                return Err(BakeError::Lightmap {
+                    object: p.name.clone(),
+                    reason: e.to_string(),
+                })
+            }
+        }
+    }
+    if out.iter().all(Option::is_none) {
+        return Err(BakeError::InvalidSettings(
+            "--per-texel: no object has texture coordinates for a lightmap (glTF TEXCOORD_1 or TEXCOORD_0, OBJ vt); bake per vertex instead".into(),
+        ));
+    }
+    Ok(out)
+}
+
+/// FNV-1a 64 of a UV set's bytes (little-endian f32 pairs): the `uv_hash` of a per-texel
+/// bake's `settings.lightmaps` (SPEC §3.9).
+#[must_use]
+pub fn uv_hash(uvs: &[[f32; 2]]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in uvs.iter().flatten().flat_map(|v| v.to_le_bytes()) {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
+/// One lightmapped object of a per-texel bake: direct transfer at every covered texel's
+/// surface point, plus the bounces gathered from the vertex chain (as per-pixel bakes do).
+struct TexelBake<'a> {
+    accel: &'a Accel,
+    plan: &'a plan::ObjectPlan,
+    mesh: &'a Mesh,
+    lightmap: &'a texels::Lightmap,
+    settings: &'a BakeSettings,
+    chain: &'a [Vec<MeshTransfer>],
+    gs: &'a GatherScene<'a>,
+    basis: &'a Basis,
+}
+
+impl TexelBake<'_> {
+    /// The object's bake, report, ray statistics and rays traced.
+    fn run(&self) -> (ObjectBake, ObjectReport, RayStats, u64) {
+        let (plan, settings) = (self.plan, self.settings);
+        let bounces = settings.bounces as usize;
+        let n2 = plan.order * plan.order;
+        let channels = if bounces > 0 { 3 } else { 1 };
+        let stride = channels * n2;
+        let extent = self.accel.mesh_extent(plan.mesh);
+        let bar = progress(settings, self.lightmap.texels.len() as u64, "texels");
+        struct Row {
+            diffuse: Vec<f64>,
+            visibility: Option<Vec<f64>>,
+            unshadowed: Option<Vec<f64>>,
+            stats: RayStats,
+            hits: u64,
+        }
+        let rows: Vec<Option<Row>> = self
+            .lightmap
+            .texels
+            .par_iter()
+            .enumerate()
+            .with_min_len(16)
+            .map(|(k, t)| {
+                bar.inc(1);
+                let t = t.as_ref()?;
+                let point = points::SamplePoint {
+                    position: t.position,
+                    normal: t.normal,
+                    offset_normal: t.geometric_normal,
+                    offset: prt_tracer::point_offset(t.position, extent),
+                };
+                let opt = DirectOptions {
+                    rays: settings.rays,
+                    record_hits: bounces > 0,
+                    visibility: plan.needs_visibility,
+                    seed: settings.seed,
+                    // Texel streams: their own key space beside vertices and pixels.
+                    object: plan.mesh as u64 | (2 << 32),
+                    first_ray: 0,
+                    basis: self.basis,
+                };
+                let d = direct(self.accel, &point, k as u64, &opt);
+                let mut diffuse = vec![0.0f64; stride];
+                for c in 0..channels {
+                    add_scaled(&mut diffuse[c * n2..(c + 1) * n2], &d.shadowed, 1.0);
+                }
+                for b in 1..=bounces {
+                    let g = gather(
+                        &d.hits,
+                        settings.rays,
+                        &self.chain[b - 1],
+                        self.gs,
+                        plan.order,
+                    );
+                    add_scaled(&mut diffuse, &g, 1.0);
+                }
+                let per_channel = |v: &[f64]| -> Vec<f64> {
+                    (0..channels).flat_map(|_| v.iter().copied()).collect()
+                };
+                let mut stats = RayStats::default();
+                stats.add(&point_stats(&d, settings.rays));
+                Some(Row {
+                    diffuse,
+                    visibility: d.visibility.as_deref().map(per_channel),
+                    unshadowed: settings
+                        .unshadowed
+                        .then(|| per_channel(&transfer::unshadowed(plan.order, t.normal))),
+                    stats,
+                    hits: u64::from(d.hit_count),
+                })
+            })
+            .collect();
+        bar.finish_and_clear();
+        let texels = rows.len();
+        let mut diffuse = vec![0.0f32; texels * stride];
+        let mut vis = plan.needs_visibility.then(|| vec![0.0f32; texels * stride]);
+        let mut unsh = settings.unshadowed.then(|| vec![0.0f32; texels * stride]);
+        let mut stats = RayStats {
+            object: plan.name.clone(),
+            ..RayStats::default()
+        };
+        let mut hits = 0u64;
+        for (k, r) in rows.iter().enumerate() {
+            let Some(r) = r else { continue };
+            let dst = k * stride..(k + 1) * stride;
+            store(&mut diffuse[dst.clone()], &r.diffuse);
+            if let (Some(v), Some(src)) = (vis.as_mut(), &r.visibility) {
+                store(&mut v[dst.clone()], src);
+            }
+            if let (Some(u), Some(src)) = (unsh.as_mut(), &r.unshadowed) {
+                store(&mut u[dst], src);
+            }
+            stats.add(&r.stats);
+            hits += r.hits;
+        }
+        let rays = stats.rays * (1 + u64::from(plan.needs_visibility));
+        let kind = if bounces > 0 {
+            TransferKind::InterreflectedDiffuse {
+                bounces: settings.bounces,
+            }
+        } else {
+            TransferKind::ShadowedDiffuse
+        };
+        let mut blocks = vec![TransferBlock {
+            cpca: None,
+            kind,
+            data: diffuse,
+        }];
+        if let Some(v) = vis {
+            blocks.push(TransferBlock {
+                cpca: None,
+                kind: TransferKind::Visibility,
+                data: v,
+            });
+        }
+        if let Some(u) = unsh {
+            blocks.push(TransferBlock {
+                cpca: None,
+                kind: TransferKind::UnshadowedDiffuse,
+                data: u,
+            });
+        }
+        blocks.sort_by_key(|b| b.kind);
+        let covered = rows.iter().filter(|r| r.is_some()).count() as u64;
+        let report = ObjectReport {
+            name: plan.name.clone(),
+            order: plan.order,
+            points: covered,
+            hit_fraction: hits as f64 / stats.rays.max(1) as f64,
+            backface_fraction: stats.backface_fraction(),
+            inside_fraction: stats.inside_fraction(),
+            kinds: blocks.iter().map(|b| b.kind.name().to_owned()).collect(),
+        };
+        let object = ObjectBake {
+            name: plan.name.clone(),
+            geometry_hash: geometry_hash(self.mesh.positions.as_slice(), &self.mesh.indices),
+            point_count: texels as u64,
+            point_first: 0,
+            points_in_file: texels as u64,
+            order: plan.order as u32,
+            channels: channels as u32,
+            blocks,
+            mesh: Some(mesh_geometry(self.mesh)),
+            // One sample per texel: 1 where the texel has a surface point (SPEC §3.11).
+            coverage: Some(Coverage {
+                pixel_samples: 1,
+                hits: rows.iter().map(|r| u32::from(r.is_some())).collect(),
+            }),
+            pass: None,
+        };
+        (object, report, stats, rays)
     }
 }
 

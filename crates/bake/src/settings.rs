@@ -9,6 +9,14 @@ pub enum PointKind {
     Vertex,
     /// The primary hit of every pixel of the scene's camera.
     Pixel,
+    /// Every texel of a `width × height` lightmap per object with lightmap UVs
+    /// ([`crate::texels`]); objects without UVs per vertex.
+    Texel {
+        /// Lightmap width.
+        width: u32,
+        /// Lightmap height.
+        height: u32,
+    },
 }
 
 /// Parameters of [`crate::bake`].
@@ -142,6 +150,17 @@ impl BakeSettings {
         if let Some((i, n)) = self.shard {
             if n == 0 || i >= n {
                 return bad(format!("shard {i}/{n}: the index must be below the count"));
+            }
+        }
+        if let PointKind::Texel { width, height } = self.points {
+            let max = crate::texels::MAX_LIGHTMAP_SIZE;
+            if width == 0 || height == 0 || width > max || height > max {
+                return bad(format!(
+                    "lightmap of {width}×{height} texels: give a size between 1 and {max}"
+                ));
+            }
+            if self.shard.is_some() {
+                return bad("per-texel bakes run on one machine (no --shard/--pass)".into());
             }
         }
         Ok(())

@@ -235,7 +235,11 @@ fn closest_point(a: DVec2, b: DVec2, c: DVec2, p: DVec2) -> DVec2 {
     };
     [seg(a, b), seg(b, c), seg(c, a)]
         .into_iter()
-        .min_by(|x, y| (*x - p).length_squared().total_cmp(&(*y - p).length_squared()))
+        .min_by(|x, y| {
+            (*x - p)
+                .length_squared()
+                .total_cmp(&(*y - p).length_squared())
+        })
         .unwrap_or(a)
 }
 
@@ -317,14 +321,22 @@ mod tests {
 
     /// A unit square in the XZ plane (normal +Y) with UVs `(x, z)`, two triangles.
     fn square(uv_scale: f32) -> Mesh {
-        let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.0, 0.0, 1.0]];
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+        ];
         Mesh {
             name: "square".into(),
             positions: p.iter().map(|v| Vec3::from_array(*v)).collect(),
             normals: vec![Vec3::Y; 4],
             indices: vec![[0, 2, 1], [0, 3, 2]],
             material: 0,
-            texcoords: vec![p.iter().map(|v| [v[0] * uv_scale, v[2] * uv_scale]).collect()],
+            texcoords: vec![p
+                .iter()
+                .map(|v| [v[0] * uv_scale, v[2] * uv_scale])
+                .collect()],
             colors: Vec::new(),
         }
     }
@@ -338,7 +350,11 @@ mod tests {
                 let t = lm.texels[y * 8 + x].unwrap();
                 // The surface point under the texel centre: (u, v) = (x, z).
                 let want = Vec3::new((x as f32 + 0.5) / 8.0, 0.0, (y as f32 + 0.5) / 4.0);
-                assert!((t.position - want).length() < 1e-6, "{x},{y}: {}", t.position);
+                assert!(
+                    (t.position - want).length() < 1e-6,
+                    "{x},{y}: {}",
+                    t.position
+                );
                 assert!(t.centre_inside);
                 assert_eq!(t.normal, Vec3::Y);
             }

@@ -92,7 +92,9 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
     let mut binf = Buf::default();
     let (width, height) = match m.sample_kind {
         SampleKind::Vertex => (0, 0),
-        SampleKind::Pixel { width, height } => (width, height),
+        SampleKind::Pixel { width, height } | SampleKind::Texel { width, height } => {
+            (width, height)
+        }
     };
     binf.u32(m.sample_kind.code());
     binf.u32(m.bounces);

@@ -69,15 +69,26 @@ pub enum SampleKind {
         /// Image height in texels (≥ 1).
         height: u32,
     },
+    /// Per-texel (lightmap) bakes: an object with coverage (`CVRG`, `K = 1`) has one point
+    /// per texel of its own `width × height` lightmap, row-major from the top row (point index
+    /// `y * width + x`, texel centre at UV `((x + ½)/width, (y + ½)/height)`); an object
+    /// without coverage (no lightmap UVs) has one point per vertex.
+    Texel {
+        /// Lightmap width in texels (≥ 1).
+        width: u32,
+        /// Lightmap height in texels (≥ 1).
+        height: u32,
+    },
 }
 
 impl SampleKind {
-    /// The u32 code used in the binary tables (1 = vertex, 2 = pixel).
+    /// The u32 code used in the binary tables (1 = vertex, 2 = pixel, 3 = texel).
     #[must_use]
     pub const fn code(self) -> u32 {
         match self {
             SampleKind::Vertex => 1,
             SampleKind::Pixel { .. } => 2,
+            SampleKind::Texel { .. } => 3,
         }
     }
 }
@@ -769,7 +780,12 @@ fn check_mesh(o: &ObjectBake, kind: SampleKind, what: &str) -> Result<(), BakeFi
     if u32::try_from(mesh.triangles.len()).is_err() {
         return Err(bad(format!("{what}: more than 2^32 - 1 triangles")));
     }
-    if kind == SampleKind::Vertex && v as u64 != o.point_count {
+    let per_vertex = match kind {
+        SampleKind::Vertex => true,
+        SampleKind::Pixel { .. } => false,
+        SampleKind::Texel { .. } => o.coverage.is_none(),
+    };
+    if per_vertex && v as u64 != o.point_count {
         return Err(bad(format!(
             "{what}: mesh of {v} vertices for {} points of a per-vertex bake",
             o.point_count
@@ -860,6 +876,10 @@ impl Bake {
     /// Per pixel, the hits of all objects' coverage add up to at most `K`, and every object's
     /// `K` is the bake's `settings.pixel_samples` (SPEC.md §3.11).
     fn check_coverage_sums(&self) -> Result<(), BakeFileError> {
+        if let SampleKind::Texel { .. } = self.meta.sample_kind {
+            // Each object's lightmap is its own image: coverage is 0 or 1 per texel.
+            return Ok(());
+        }
         let k = self
             .meta
             .settings
@@ -921,9 +941,11 @@ impl Bake {
                 }
             }
         }
-        if let SampleKind::Pixel { width, height } = m.sample_kind {
+        if let SampleKind::Pixel { width, height } | SampleKind::Texel { width, height } =
+            m.sample_kind
+        {
             if width == 0 || height == 0 {
-                return Err(bad("pixel bake with an empty image"));
+                return Err(bad("pixel or texel bake with an empty image"));
             }
         }
         self.check_camera()?;
@@ -950,7 +972,14 @@ impl Bake {
             if o.channels != 1 && o.channels != 3 {
                 return Err(bad(format!("{what}: {} channels (1 or 3)", o.channels)));
             }
-            if let SampleKind::Pixel { width, height } = m.sample_kind {
+            let image = match m.sample_kind {
+                SampleKind::Pixel { width, height } => Some((width, height)),
+                SampleKind::Texel { width, height } if o.coverage.is_some() => {
+                    Some((width, height))
+                }
+                _ => None,
+            };
+            if let Some((width, height)) = image {
                 if o.point_count != u64::from(width) * u64::from(height) {
                     return Err(bad(format!(
                         "{what}: {} points in a {width}×{height} pixel bake",
@@ -971,9 +1000,19 @@ impl Bake {
             check_mesh(o, m.sample_kind, &what)?;
             check_pass(o, m, &what, with_data)?;
             if let Some(c) = &o.coverage {
-                let SampleKind::Pixel { .. } = m.sample_kind else {
-                    return Err(bad(format!("{what}: coverage in a per-vertex bake")));
-                };
+                match m.sample_kind {
+                    SampleKind::Pixel { .. } => {}
+                    SampleKind::Texel { .. } if c.pixel_samples == 1 => {}
+                    SampleKind::Texel { .. } => {
+                        return Err(bad(format!(
+                            "{what}: texel coverage with K = {} (texels have one sample)",
+                            c.pixel_samples
+                        )))
+                    }
+                    SampleKind::Vertex => {
+                        return Err(bad(format!("{what}: coverage in a per-vertex bake")))
+                    }
+                }
                 if c.pixel_samples == 0 || c.hits.len() as u64 != o.points_in_file {
                     return Err(bad(format!(
                         "{what}: coverage of {} points with K = {} ({} points held)",

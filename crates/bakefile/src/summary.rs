@@ -280,6 +280,7 @@ impl std::fmt::Display for Summary {
         let kind = match self.sample_kind {
             SampleKind::Vertex => "per-vertex".to_owned(),
             SampleKind::Pixel { width, height } => format!("per-pixel {width}×{height}"),
+            SampleKind::Texel { width, height } => format!("per-texel {width}×{height}"),
         };
         writeln!(
             f,

@@ -439,6 +439,10 @@ fn sample_kind(code: u32, width: u32, height: u32) -> Result<SampleKind, BakeFil
             width: w,
             height: h,
         }),
+        (3, w, h) if w > 0 && h > 0 => Ok(SampleKind::Texel {
+            width: w,
+            height: h,
+        }),
         _ => Err(invalid(
             "BINF sample kind",
             format!("code {code} with image {width}×{height}"),

@@ -34,6 +34,13 @@ pub struct BakeArgs {
     /// pixel centre only.
     #[arg(long, requires = "per_pixel", default_value_t = prt_bake::DEFAULT_PIXEL_SAMPLES)]
     pub pixel_samples: u32,
+    /// Bake per texel of a SIZE×SIZE lightmap for every object with lightmap UVs (glTF
+    /// TEXCOORD_1, else TEXCOORD_0; OBJ vt), one point per texel at the surface under its
+    /// centre (texels a triangle only touches at its nearest point); objects without UVs are
+    /// baked per vertex. Relit through bilinear lookup of the texels. UVs outside [0, 1] or
+    /// overlapping charts are errors.
+    #[arg(long, value_name = "SIZE", conflicts_with_all = ["per_pixel", "shard", "pass", "subdivide", "target_psnr"])]
+    pub per_texel: Option<u32>,
     /// Seed (default: the scene's `[render] seed`).
     #[arg(long)]
     pub seed: Option<u64>,
@@ -286,10 +293,13 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
         rays: args.rays,
         bounces,
         seed: args.seed.unwrap_or(scene.render.seed),
-        points: if args.per_pixel {
-            PointKind::Pixel
-        } else {
-            PointKind::Vertex
+        points: match (args.per_pixel, args.per_texel) {
+            (true, _) => PointKind::Pixel,
+            (false, Some(size)) => PointKind::Texel {
+                width: size,
+                height: size,
+            },
+            (false, None) => PointKind::Vertex,
         },
         pixel_samples: args.pixel_samples,
         unshadowed: args.unshadowed,

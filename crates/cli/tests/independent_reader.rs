@@ -75,6 +75,13 @@ fn check_dump(py: &str, file: &Path, out: &Path) {
     let m = &bake.meta;
     match m.sample_kind {
         SampleKind::Vertex => assert_eq!(d["sample_kind"], "vertex"),
+        SampleKind::Texel { width, height } => {
+            assert_eq!(d["sample_kind"], "texel");
+            assert_eq!(
+                (d["width"].as_u64(), d["height"].as_u64()),
+                (Some(width.into()), Some(height.into()))
+            );
+        }
         SampleKind::Pixel { width, height } => {
             assert_eq!(d["sample_kind"], "pixel");
             assert_eq!(

@@ -82,13 +82,21 @@ pub fn attribute_name(channel: usize, group: usize) -> String {
 /// [`crate::check_bake`]) as a binary glTF 2.0 file at `path`, atomically.
 ///
 /// # Errors
-/// A per-pixel bake or an intermediate file, an object without mesh or diffuse transfer, and
-/// write errors.
+/// A per-pixel or per-texel bake or an intermediate file, an object without mesh or diffuse
+/// transfer, and write errors.
 pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSummary, ReportError> {
-    if !matches!(bake.meta.sample_kind, SampleKind::Vertex) {
-        return Err(invalid(
-            "glTF export carries per-vertex transfer: this is a per-pixel bake (bake without --per-pixel)",
-        ));
+    match bake.meta.sample_kind {
+        SampleKind::Vertex => {}
+        SampleKind::Pixel { .. } => {
+            return Err(invalid(
+                "glTF export carries per-vertex transfer: this is a per-pixel bake (bake without --per-pixel)",
+            ))
+        }
+        SampleKind::Texel { .. } => {
+            return Err(invalid(
+                "glTF export carries per-vertex transfer: this is a per-texel (lightmap) bake, whose export as lightmap textures is not written yet (bake without --per-texel)",
+            ))
+        }
     }
     let env = bake
         .environment

@@ -174,14 +174,34 @@ pub fn form_image(
                             let tri = mesh.indices[hit.tri as usize];
                             let r = &relit.radiance[hit.mesh as usize];
                             let wts = [1.0 - hit.u - hit.v, hit.u, hit.v];
-                            let mut c = [0.0f32; 3];
-                            for (vi, wt) in tri.iter().zip(wts) {
-                                let rv = r[*vi as usize];
-                                for ch in 0..3 {
-                                    c[ch] += wt * rv[ch];
+                            if let Some(Some(lm)) = relit.lightmaps.get(hit.mesh as usize) {
+                                // Per texel: the hit's lightmap UV, bilinear over the
+                                // covered texels.
+                                let uvs = &mesh.texcoords[lm.uv_set];
+                                let mut uv = [0.0f32; 2];
+                                for (vi, wt) in tri.iter().zip(wts) {
+                                    let t = uvs[*vi as usize];
+                                    uv[0] += wt * t[0];
+                                    uv[1] += wt * t[1];
                                 }
+                                prt_bake::texels::bilinear(
+                                    lm.width,
+                                    lm.height,
+                                    |k| lm.texels[k].is_some(),
+                                    |k| r[k],
+                                    uv,
+                                )
+                                .unwrap_or([0.0; 3])
+                            } else {
+                                let mut c = [0.0f32; 3];
+                                for (vi, wt) in tri.iter().zip(wts) {
+                                    let rv = r[*vi as usize];
+                                    for ch in 0..3 {
+                                        c[ch] += wt * rv[ch];
+                                    }
+                                }
+                                c
                             }
-                            c
                         }
                         None => background_radiance(scene, dir, rotate_y_deg),
                     };
@@ -250,6 +270,7 @@ pub fn roi_image(scene: &Scene, accel: &Accel, relit: &Relit) -> Result<RgbImage
         roi: relit.roi.clone(),
         stats: relit.stats.clone(),
         footprints: None,
+        lightmaps: relit.lightmaps.clone(),
     };
     let mut img = form_image(scene, accel, &colours, 0.0)?;
     let mask = object_mask(scene, accel)?;

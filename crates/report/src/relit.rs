@@ -86,6 +86,9 @@ pub struct Relit {
     /// `pixel_samples`), which image formation uses for the background share of each pixel.
     /// `None` for per-vertex bakes.
     pub footprints: Option<prt_bake::points::PixelFootprints>,
+    /// Per-texel bakes: per object its lightmap (`None` for objects relit per vertex), which
+    /// image formation looks the texels' radiance up in; empty otherwise.
+    pub lightmaps: Vec<Option<prt_bake::texels::Lightmap>>,
 }
 
 /// Figures of one relighting run.
@@ -170,7 +173,72 @@ pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), ReportE
     if bake.environment.is_none() {
         return Err(bad("the bake carries no environment coefficients".into()));
     }
+    if let SampleKind::Texel { .. } = bake.meta.sample_kind {
+        for (obj, mesh) in bake.objects.iter().zip(&scene.meshes) {
+            let Some(entry) = lightmap_entry(bake, &obj.name) else {
+                if obj.coverage.is_some() {
+                    return Err(bad(format!(
+                        "object {}: texels without a settings.lightmaps entry",
+                        obj.name
+                    )));
+                }
+                continue;
+            };
+            let set = entry.uv_set;
+            let h = mesh.texcoords.get(set).map(|uv| prt_bake::uv_hash(uv));
+            if h != Some(entry.uv_hash) {
+                return Err(bad(format!(
+                    "object {}: its lightmap UVs (set {set}) differ from those it was baked with: re-bake",
+                    obj.name
+                )));
+            }
+        }
+    }
     Ok(())
+}
+
+/// An object's `settings.lightmaps` entry of a per-texel bake.
+struct LightmapEntry {
+    uv_set: usize,
+    uv_hash: u64,
+}
+
+fn lightmap_entry(bake: &Bake, name: &str) -> Option<LightmapEntry> {
+    let all = bake.meta.settings.get("lightmaps")?.as_array()?;
+    let e = all
+        .iter()
+        .find(|e| e.get("object").and_then(serde_json::Value::as_str) == Some(name))?;
+    Some(LightmapEntry {
+        uv_set: usize::try_from(e.get("uv_set")?.as_u64()?).ok()?,
+        uv_hash: e.get("uv_hash")?.as_str()?.parse().ok()?,
+    })
+}
+
+/// The lightmap of every object of a per-texel bake that was baked per texel (`None`
+/// otherwise): rasterised again from the scene's UVs (checked against the bake's hash by
+/// [`check_bake`]) with the bake's own code, so texel `k` is the bake's point `k`.
+///
+/// # Errors
+/// A lightmap the rasteriser refuses (it accepted it when baking).
+pub fn lightmaps(
+    scene: &Scene,
+    bake: &Bake,
+) -> Result<Vec<Option<prt_bake::texels::Lightmap>>, ReportError> {
+    let SampleKind::Texel { width, height } = bake.meta.sample_kind else {
+        return Ok(vec![None; bake.objects.len()]);
+    };
+    bake.objects
+        .iter()
+        .zip(&scene.meshes)
+        .map(|(obj, mesh)| {
+            if obj.coverage.is_none() {
+                return Ok(None);
+            }
+            prt_bake::texels::lightmap(mesh, width, height)
+                .map(Some)
+                .map_err(|e| ReportError::Invalid(format!("object {}: {e}", obj.name)))
+        })
+        .collect()
 }
 
 /// The hash of the mesh a subdivided object was refined from (`settings.subdivided_from`).
@@ -313,6 +381,7 @@ pub fn relight(
     } else {
         None
     };
+    let lightmaps = lightmaps(scene, bake)?;
     let mut stats = RelightStats {
         adaptive: opt.adaptive.is_some(),
         ..RelightStats::default()
@@ -340,7 +409,8 @@ pub fn relight(
             .points
             .as_ref()
             .map(|p| p.get(o).map_or(&[][..], Vec::as_slice));
-        if subset.is_some() && (opt.adaptive.is_some() || per_pixel) {
+        let lightmap = lightmaps[o].as_ref();
+        if subset.is_some() && (opt.adaptive.is_some() || per_pixel || lightmap.is_some()) {
             return Err(ReportError::Invalid(
                 "relighting a subset of points is for full-order per-vertex relighting only".into(),
             ));
@@ -366,7 +436,18 @@ pub fn relight(
         let diffuse_view =
             TransferView::new(order, channels, &diffuse_data)?.with_low_bands(&diffuse_low)?;
         // Surface points: vertices, or pixel hits for per-pixel bakes.
-        let (positions, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = if per_pixel {
+        let (positions, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = if let Some(lm) = lightmap {
+            // Texels: their surface points; empty texels a placeholder facing away from the
+            // camera (their transfer is zero).
+            let away = (
+                (Vec3::from_array(eye) + Vec3::Y).to_array(),
+                Vec3::Y.to_array(),
+            );
+            lm.texels
+                .iter()
+                .map(|t| t.map_or(away, |t| (t.position.to_array(), t.normal.to_array())))
+                .unzip()
+        } else if per_pixel {
             let fp = footprints
                 .as_ref()
                 .expect("per-pixel bakes have footprints");
@@ -384,9 +465,24 @@ pub fn relight(
         };
         // Materials that vary over the surface (textures, vertex colours): resolved per point.
         let point_materials: Option<Vec<Material>> = scene.material_varies(o).then(|| {
-            let all = match &footprints {
-                Some(fp) => crate::imaging::pixel_materials(scene, fp, o),
-                None => (0..mesh.positions.len() as u32)
+            let all = match (&footprints, lightmap) {
+                (_, Some(lm)) => lm
+                    .texels
+                    .iter()
+                    .map(|t| match t {
+                        Some(t) => scene.material_at(
+                            o,
+                            prt_scene::SurfacePoint::Triangle {
+                                tri: t.triangle,
+                                u: t.bary[1],
+                                v: t.bary[2],
+                            },
+                        ),
+                        None => *material,
+                    })
+                    .collect(),
+                (Some(fp), None) => crate::imaging::pixel_materials(scene, fp, o),
+                (None, None) => (0..mesh.positions.len() as u32)
                     .map(|v| scene.material_at(o, prt_scene::SurfacePoint::Vertex(v)))
                     .collect(),
             };
@@ -575,7 +671,16 @@ pub fn relight(
         let mut in_roi = vec![false; points];
         match (&opt.adaptive, per_pixel) {
             (Some(params), false) => {
-                let adjacency = Adjacency::from_triangles(points, &mesh.indices)?;
+                // Texels are neighbours on the lightmap's grid (two triangles per cell).
+                let grid;
+                let triangles = match lightmap {
+                    Some(lm) => {
+                        grid = texel_grid(lm.width, lm.height);
+                        &grid
+                    }
+                    None => &mesh.indices,
+                };
+                let adjacency = Adjacency::from_triangles(points, triangles)?;
                 let input = AdaptiveInput {
                     diffuse: Some((diffuse_view, dparams)),
                     specular: specular_input,
@@ -724,7 +829,22 @@ pub fn relight(
         roi,
         stats,
         footprints,
+        lightmaps,
     })
+}
+
+/// Two triangles per cell of a `w × h` texel grid (texel `y·w + x`): the neighbourhood the
+/// adaptive path's region-of-interest growth walks for per-texel objects.
+fn texel_grid(w: u32, h: u32) -> Vec<[u32; 3]> {
+    let mut t = Vec::with_capacity(2 * w as usize * h as usize);
+    for y in 0..h.saturating_sub(1) {
+        for x in 0..w.saturating_sub(1) {
+            let k = y * w + x;
+            t.push([k, k + 1, k + w + 1]);
+            t.push([k, k + w + 1, k + w]);
+        }
+    }
+    t
 }
 
 /// Sub-pixel samples per pixel of a per-pixel bake: its `pixel_samples` setting; bakes made
