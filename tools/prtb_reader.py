@@ -7,6 +7,13 @@ it. Its value is that it is a second, clean-room implementation of the specifica
 disagreement between it and the crate points at a bug in one of them or at an ambiguity of
 SPEC.md. Section numbers (§n) below refer to SPEC.md.
 
+It reads the three sample kinds of §3.1: per-vertex bakes (kind 1), per-pixel bakes (kind 2,
+with the `camera` and a `CVRG` coverage section per object) and per-texel (lightmap) bakes
+(kind 3: objects with a `CVRG` are lightmapped, one point per texel of their own W×H lightmap,
+`K = 1`, hits 0/1, no sum over objects; objects without one are per-vertex; `settings.lightmaps`
+describes each object's lightmap), in f32 or f16, sharded or not, 1.0 or 1.1 files, including
+`MESH` geometry (hash recomputed) and blocks compressed by clustered PCA (`CPCA`, §3.13).
+
 Requirements: Python 3.11 standard library + numpy (`tools/requirements-reader.txt`).
 
 Usage
@@ -17,22 +24,29 @@ Usage
         `prtb_reader: FILE: <what is wrong>` to stderr and exit 1.
 
     python3 tools/prtb_reader.py FILE.prtb --dump OUT.json
-        Also write a JSON summary of the file (see `dump()`). Blocks compressed by clustered
-        PCA (`CPCA`, §3.13) are reconstructed in f32 exactly as §3.13 says and summarised like
-        `XFER` blocks, plus a `cpca` entry (clusters, components, dimension, rel_error).
+        Also write a JSON summary of the file (see `dump()`); its `sample_kind` is "vertex",
+        "pixel" or "texel", with `width`/`height` the BINF image or lightmap size (0 × 0 for
+        per-vertex bakes). Blocks compressed by clustered PCA (`CPCA`, §3.13) are
+        reconstructed in f32 exactly as §3.13 says and summarised like `XFER` blocks, plus a
+        `cpca` entry (clusters, components, dimension, rel_error).
 
     python3 tools/prtb_reader.py FILE.prtb --relight OBJECT --albedo R,G,B [--order N] \
             --colours OUT.csv
         Also relight OBJECT's points under the file's environment (ENVL) with its diffuse
-        transfer (§3.4, §3.6) and write `point,r,g,b` rows (float64, repr() precision).
+        transfer (§3.4, §3.6) and write `point,r,g,b` rows (float64, repr() precision). The
+        points are vertices, pixels (`y × width + x`) or, for a lightmapped object of a
+        per-texel bake, texels of its lightmap (`y × width + x`; texels whose hits are 0 have
+        zero transfer and so relight to 0).
 
     python3 tools/prtb_reader.py --self-test FILE.prtb [--seed S]
         Corruption self-check on a VALID file: single-byte flips (every header/table byte, every
         payload edge, zero padding, random positions), truncations and extensions, and mutations
         whose CRCs are repaired (so the semantic checks are exercised; for CPCA blocks also
-        targeted ones that break a §3.13 rule and must be refused). Prints the figures and
-        exits 1 if a corruption that must be refused was accepted, or if any input crashed the
-        reader (any exception other than a clean validation error).
+        targeted ones that break a §3.13 rule and must be refused; for per-texel bakes also
+        targeted binary and META JSON mutations that break a §3.1/§3.9/§3.11 rule, the META
+        section being rewritten at its new length with the following sections moved). Prints
+        the figures and exits 1 if a corruption that must be refused was accepted, or if any
+        input crashed the reader (any exception other than a clean validation error).
 
 Exit status: 0 valid / done, 1 invalid file or bad arguments (one line on stderr).
 """
@@ -81,7 +95,7 @@ KIND_NAMES = {
     4: "interreflected-diffuse",
 }
 LOBE_NAMES = {1: "clamped-cosine", 2: "phong"}
-SAMPLE_KINDS = {1: "vertex", 2: "pixel"}
+SAMPLE_KINDS = {1: "vertex", 2: "pixel", 3: "texel"}
 
 TAGS_ONCE = (b"BINF", b"STRS", b"OBJT", b"BLKT", b"META")  # required, exactly once
 TAGS_OPTIONAL = (b"ENVL", b"BRDF", b"GLSY")  # at most once
@@ -350,14 +364,18 @@ def parse(data: bytes) -> Bake:
     (sample_kind, bounces, width, height, rays, shard_index, shard_count, _r,
      seed) = struct.unpack_from("<8IQ", binf.payload, 0)
     if sample_kind not in SAMPLE_KINDS:
-        fail("BINF: sample_kind %d is not 1 (per-vertex) or 2 (per-pixel)" % sample_kind)
+        fail("BINF: sample_kind %d is not 1 (per-vertex), 2 (per-pixel) or 3 (per-texel)"
+             % sample_kind)
     if sample_kind == 2 and (width < 1 or height < 1):
         fail("BINF: per-pixel bake with image size %dx%d" % (width, height))
+    if sample_kind == 3 and (width < 1 or height < 1):
+        fail("BINF: per-texel bake with lightmap size %dx%d" % (width, height))
     if sample_kind == 1 and (width != 0 or height != 0):
         fail("BINF: per-vertex bake with image size %dx%d (must be 0x0)" % (width, height))
     if not shard_index < shard_count:
         fail("BINF: shard_index %d not below shard_count %d" % (shard_index, shard_count))
     per_pixel = sample_kind == 2
+    per_texel = sample_kind == 3  # §3.1: lightmapped objects (with a CVRG) and per-vertex ones
     bake.binf = dict(sample_kind=sample_kind, bounces=bounces, width=width, height=height,
                      rays_per_point=rays, shard_index=shard_index, shard_count=shard_count,
                      seed=seed)
@@ -427,12 +445,16 @@ def parse(data: bytes) -> Bake:
             mesh_owner[mesh_index] = o
         if cov_index != NONE_INDEX:
             section_ref(cov_index, b"CVRG", what + " coverage_section")
-            if not per_pixel:
+            if sample_kind == 1:
                 fail("%s: coverage section in a per-vertex bake" % what)
             if cov_index in cov_owner:
                 fail("%s: CVRG section %d already referenced by object %d"
                      % (what, cov_index, cov_owner[cov_index]))
             cov_owner[cov_index] = o
+            # §3.1, §4.9: a lightmapped object of a per-texel bake has one point per texel
+            if per_texel and point_count != width * height:
+                fail("%s: lightmapped object (with a CVRG) has point_count %d != lightmap "
+                     "%dx%d of a per-texel bake" % (what, point_count, width, height))
         bake.objects.append(Obj(index=o, name=name, geometry_hash=ghash,
                                 point_count=point_count, point_first=point_first,
                                 points_in_file=points_in_file, order=order, channels=channels,
@@ -612,9 +634,14 @@ def parse(data: bytes) -> Bake:
         if s.length != expect:
             fail("%s: length %d != 16 + 24V + 12T = %d (V=%d, T=%d)"
                  % (what, s.length, expect, V, T))
-        if not per_pixel and V != obj.point_count:
+        # §3.10, §4.9: V = point_count for per-vertex bakes and for the objects without a
+        # CVRG of a per-texel bake (which are baked per vertex)
+        if sample_kind == 1 and V != obj.point_count:
             fail("%s: vertex_count %d != point_count %d of a per-vertex bake"
                  % (what, V, obj.point_count))
+        if per_texel and obj.coverage_section == NONE_INDEX and V != obj.point_count:
+            fail("%s: vertex_count %d != point_count %d of an object baked per vertex "
+                 "(no CVRG) in a per-texel bake" % (what, V, obj.point_count))
         p = s.payload
         triangles = np.frombuffer(p[16 + 24 * V:expect], dtype="<u4")
         if T and int(triangles.max()) >= V:
@@ -625,7 +652,7 @@ def parse(data: bytes) -> Bake:
                         positions_raw=p[16:16 + 12 * V], normals_raw=p[16 + 12 * V:16 + 24 * V],
                         triangles_raw=p[16 + 24 * V:expect])
 
-    # CVRG (§3.11) structure, hits <= K, per-pixel sums <= K
+    # CVRG (§3.11) structure, hits <= K, per-pixel sums <= K (per-texel: K = 1, no sums)
     covered = []
     common_k = None
     for obj in bake.objects:
@@ -640,6 +667,8 @@ def parse(data: bytes) -> Bake:
             fail("%s: object_index %d != %d" % (what, object_index, obj.index))
         if K < 1:
             fail("%s: pixel_samples is 0" % what)
+        if per_texel and K != 1:
+            fail("%s: pixel_samples %d in a per-texel bake (must be 1)" % (what, K))
         if cpoints != obj.points_in_file:
             fail("%s: point_count %d != object's points_in_file %d"
                  % (what, cpoints, obj.points_in_file))
@@ -654,7 +683,7 @@ def parse(data: bytes) -> Bake:
             fail("%s: hits[%d] = %d > pixel_samples %d" % (what, bad, int(hits[bad]), K))
         obj.coverage = dict(section=s.index, K=K, hits=hits)
         covered.append(obj)
-    if covered:
+    if covered and per_pixel:  # §3.11: each lightmap is its own image, so not per-texel
         check_pixel_sums(covered, common_k)
 
     # ---- §4.10 finite values, recomputed geometry hashes -----------------------------------------
@@ -698,8 +727,9 @@ def parse(data: bytes) -> Bake:
             fail("%s: recomputed geometry hash 0x%016x != OBJT geometry_hash 0x%016x"
                  % (what, h, obj.geometry_hash))
     for obj in covered:
-        # §3.11: an object's transfer is zero in every pixel where its hits is 0 — for every
-        # XFER block; a CPCA block only approximates it (§3.13), so its reconstruction is exempt.
+        # §3.11: an object's transfer is zero in every pixel (per-texel bakes: texel of its
+        # lightmap, §3.1) where its hits is 0 — for every XFER block; a CPCA block only
+        # approximates it (§3.13), so its reconstruction is exempt.
         hits = obj.coverage["hits"]
         empty = hits == 0
         if not empty.any():
@@ -712,10 +742,10 @@ def parse(data: bytes) -> Bake:
             nonzero = (values[empty] != 0).any(axis=1)
             if nonzero.any():
                 bad = int(np.flatnonzero(empty)[int(np.argmax(nonzero))])
-                fail("object %d (%s): %s transfer is non-zero at point %d (pixel %d) "
+                fail("object %d (%s): %s transfer is non-zero at point %d (%s %d) "
                      "whose coverage hits are 0" % (
                          obj.index, short(obj.name), KIND_NAMES[block["kind"]], bad,
-                         obj.point_first + bad))
+                         "texel" if per_texel else "pixel", obj.point_first + bad))
 
     # ---- §4.11 metadata JSON ------------------------------------------------------------------------
     bake.meta = check_meta(bake, one[b"META"].payload)
@@ -892,6 +922,7 @@ def check_meta(bake: Bake, payload) -> dict:
         fail("META: the JSON is not an object")
     binf = bake.binf
     per_pixel = binf["sample_kind"] == 2
+    per_texel = binf["sample_kind"] == 3
 
     # format, format_version
     M.equal(M.get(meta, "format", "string", root), "prt-bake", "format", "§3.9")
@@ -913,7 +944,7 @@ def check_meta(bake: Bake, payload) -> dict:
     sk = M.get(meta, "sample_kind", "object", root)
     kind = M.get(sk, "kind", "string", "sample_kind")
     M.equal(kind, SAMPLE_KINDS[binf["sample_kind"]], "sample_kind.kind", "BINF")
-    if per_pixel:
+    if per_pixel or per_texel:  # {"kind": "pixel"/"texel", "width": W, "height": H}
         M.equal(M.get(sk, "width", "u32", "sample_kind"), binf["width"], "sample_kind.width",
                 "BINF")
         M.equal(M.get(sk, "height", "u32", "sample_kind"), binf["height"],
@@ -948,7 +979,10 @@ def check_meta(bake: Bake, payload) -> dict:
     camera = meta.get("camera")
     if camera is not None or (per_pixel and bake.minor >= 1):
         if not per_pixel:
-            fail("META: camera must be null in a per-vertex bake, got %s" % short(camera))
+            # §3.9 names null for per-vertex bakes and an object for per-pixel ones; a
+            # per-texel bake has no camera image (its points are texels), so null as well.
+            fail("META: camera must be null in a per-%s bake, got %s"
+                 % (SAMPLE_KINDS[binf["sample_kind"]], short(camera)))
         if camera is None:
             fail("META: a per-pixel %d.%d file must have a camera" % (bake.major, bake.minor))
         M.typed(camera, "object", "camera")
@@ -973,6 +1007,8 @@ def check_meta(bake: Bake, payload) -> dict:
         M.typed(settings["albedo_in_transfer"], "bool", "settings.albedo_in_transfer")
     if "target_psnr" in settings:
         M.typed(settings["target_psnr"], "number", "settings.target_psnr")
+    if per_texel:
+        check_lightmaps(M, bake, settings)
     # decisions
     decisions = M.get(meta, "decisions", "array", root)
     for k, d in enumerate(decisions):
@@ -1119,6 +1155,38 @@ def check_meta(bake: Bake, payload) -> dict:
                     obj.index, short(obj.name), obj.point_first, obj.points_in_file,
                     obj.point_count))
     return meta
+
+
+def check_lightmaps(M: Meta, bake: Bake, settings: dict) -> None:
+    """§3.9 `settings.lightmaps` of a per-texel bake: one entry per object, in object order;
+    `null` exactly for an object baked per vertex (no CVRG, §3.1), else
+    `{"object": name, "width": W, "height": H, "uv_set": k, "uv_hash": "…"}` with the BINF
+    lightmap size and the FNV-1a 64 of the UVs as a decimal string (the UVs are not in the
+    file, so the hash itself cannot be recomputed here)."""
+    binf = bake.binf
+    lightmaps = M.get(settings, "lightmaps", "array", "settings")
+    if len(lightmaps) != len(bake.objects):
+        fail("META: settings.lightmaps has %d entries for %d objects"
+             % (len(lightmaps), len(bake.objects)))
+    for obj, entry in zip(bake.objects, lightmaps):
+        w = "settings.lightmaps[%d]" % obj.index
+        if entry is None:
+            if obj.coverage is not None:
+                fail("META: %s is null, but object %d (%s) is lightmapped (CVRG section %d)"
+                     % (w, obj.index, short(obj.name), obj.coverage_section))
+            continue
+        M.typed(entry, "object", w)
+        if obj.coverage is None:
+            fail("META: %s is not null, but object %d (%s) has no CVRG (baked per vertex)"
+                 % (w, obj.index, short(obj.name)))
+        M.equal(M.get(entry, "object", "string", w), obj.name, w + ".object", "OBJT")
+        M.equal(M.get(entry, "width", "u32", w), binf["width"], w + ".width", "BINF")
+        M.equal(M.get(entry, "height", "u32", w), binf["height"], w + ".height", "BINF")
+        M.get(entry, "uv_set", "u32", w)  # TEXCOORD_k; §3.9 gives no range: u32 assumed
+        uv_hash = M.get(entry, "uv_hash", "string", w)
+        # a u64 as a decimal string; §3.9 does not repeat seed's "no sign or leading zeros"
+        if not re.fullmatch(r"[0-9]{1,20}", uv_hash) or int(uv_hash) > U64_MAX:
+            fail("META: %s.uv_hash %s is not a decimal u64 string" % (w, short(uv_hash)))
 
 
 # --------------------------------------------------------------------------------------------
