@@ -3,7 +3,8 @@
 //! SIGGRAPH 2002), baked with the same ray tracer as the reference images.
 //!
 //! For every vertex of every object (or, in pixel mode, the primary hit of every pixel of the
-//! scene camera) the baker estimates, to an order chosen per object:
+//! scene camera; in texel mode, the surface point of every texel of each object's lightmap,
+//! [`texels`]) the baker estimates, to an order chosen per object:
 //! - **shadowed diffuse transfer** `T_i = ∫ V(ω) max(0, n·ω) y_i(ω) dω` with cosine-distributed
 //!   rays from the R2 low-discrepancy sequence, Cranley–Patterson shifted per point;
 //! - **visibility** `V_i = ∫ V(ω) y_i(ω) dω` for materials with a glossy lobe (relit as
