@@ -1356,6 +1356,192 @@ def fix_crcs(buf: bytearray, section_index=None) -> None:
     struct.pack_into("<I", buf, 60, crc)
 
 
+def replace_meta(data: bytes, text: str) -> bytes:
+    """The file with its META payload replaced by `text` (UTF-8): the sections after META move
+    by the change of its aligned length (a multiple of payload_alignment, so every offset stays
+    aligned and the zero padding stays zero), then file_size, the META entry's length and CRC
+    and the header CRC are rewritten. The file must be valid and have its table before META."""
+    payload = text.encode("utf-8")
+    table_offset = struct.unpack_from("<Q", data, 32)[0]
+    count, _entry, alignment = struct.unpack_from("<3I", data, 40)
+    entries = [struct.unpack_from("<4sIQQII", data, table_offset + ENTRY_SIZE * i)
+               for i in range(count)]
+    meta_index = next(i for i, e in enumerate(entries) if e[0] == b"META")
+    meta_offset, meta_length = entries[meta_index][2], entries[meta_index][3]
+
+    def aligned(x):
+        return -(-x // alignment) * alignment
+
+    old_end = aligned(meta_offset + meta_length)
+    new_end = aligned(meta_offset + len(payload))
+    if old_end >= len(data):  # META is the last payload: the file ends where it ends
+        old_end, new_end = len(data), meta_offset + len(payload)
+    delta = new_end - old_end
+    buf = bytearray(data[:meta_offset]) + payload
+    buf += bytes(new_end - len(buf)) + data[old_end:]
+    struct.pack_into("<Q", buf, 24, len(buf))
+    for i, (_tag, _flags, offset, length, _crc, _res) in enumerate(entries):
+        e = table_offset + ENTRY_SIZE * i
+        if i == meta_index:
+            struct.pack_into("<Q", buf, e + 16, len(payload))
+            struct.pack_into("<I", buf, e + 24, zlib.crc32(payload))
+        elif offset >= old_end and (length or offset > meta_offset):
+            struct.pack_into("<Q", buf, e + 8, offset + delta)
+    fix_crcs(buf)
+    return bytes(buf)
+
+
+DELETE = object()  # texel_cases: remove the key instead of setting it
+
+
+def texel_cases(data: bytes, bake: Bake, rng: random.Random):
+    """Targeted mutations of a VALID per-texel bake (§3.1, §3.9, §3.11, §4.9), CRCs repaired:
+    a list of (label, file bytes, must_refuse). must_refuse False marks a control variant that
+    the spec allows and that must therefore still be accepted."""
+    cases = []
+    sec = {s.tag: s for s in bake.sections if s.tag in TAGS_ONCE}
+    binf, objt = sec[b"BINF"], sec[b"OBJT"]
+    objt_rs = struct.unpack_from("<I", data, objt.offset + 4)[0]
+
+    def patched(pos, new, section):
+        buf = bytearray(data)
+        buf[pos:pos + len(new)] = new
+        fix_crcs(buf, section.index)
+        return bytes(buf)
+
+    W, H = bake.binf["width"], bake.binf["height"]
+    cases += [
+        ("BINF sample_kind 1 (per-vertex)", patched(binf.offset, struct.pack("<I", 1), binf),
+         True),
+        ("BINF sample_kind 2 (per-pixel)", patched(binf.offset, struct.pack("<I", 2), binf),
+         True),
+        ("BINF sample_kind 4", patched(binf.offset, struct.pack("<I", 4), binf), True),
+        ("BINF width 0", patched(binf.offset + 8, struct.pack("<I", 0), binf), True),
+        ("BINF height 0", patched(binf.offset + 12, struct.pack("<I", 0), binf), True),
+        ("BINF width + 1", patched(binf.offset + 8, struct.pack("<I", W + 1), binf), True),
+        ("BINF height + 1", patched(binf.offset + 12, struct.pack("<I", H + 1), binf), True),
+    ]
+    for obj in bake.objects:
+        rec = objt.offset + 16 + obj.index * objt_rs
+        what = "object %d" % obj.index
+        if objt_rs < OBJT_RECORD_11:
+            continue
+        if obj.coverage is None:
+            if obj.mesh is not None:  # baked per vertex: V = point_count
+                cases.append(("%s (no CVRG) point_count + 1" % what,
+                              patched(rec + 16, struct.pack("<Q", obj.point_count + 1), objt),
+                              True))
+            continue
+        cov = bake.sections[obj.coverage["section"]]
+        hits = obj.coverage["hits"]
+        cases += [
+            ("%s (CVRG) point_count + 1" % what,
+             patched(rec + 16, struct.pack("<Q", obj.point_count + 1), objt), True),
+            ("%s coverage_section none" % what,
+             patched(rec + 60, struct.pack("<I", NONE_INDEX), objt), True),
+            ("%s CVRG K = 2" % what, patched(cov.offset + 4, struct.pack("<I", 2), cov), True),
+            ("%s CVRG K = 0" % what, patched(cov.offset + 4, struct.pack("<I", 0), cov), True),
+        ]
+        if hits.size:
+            for _ in range(3):
+                p = rng.randrange(hits.size)
+                cases.append(("%s hits[%d] = 2 > K" % (what, p),
+                              patched(cov.offset + 16 + 4 * p, struct.pack("<I", 2), cov), True))
+        # hits 0 where an XFER block is non-zero: the transfer must be zero there (§3.11)
+        nonzero = np.zeros(hits.size, dtype=bool)
+        for block in obj.blocks:
+            if block["cpca"] is None:
+                nonzero |= (block["values"].reshape(hits.size, -1) != 0).any(axis=1)
+        live = np.flatnonzero(nonzero & (hits == 1))
+        for p in sorted(rng.sample(list(live), min(3, live.size))):
+            cases.append(("%s hits[%d] = 0 under non-zero transfer" % (what, p),
+                          patched(cov.offset + 16 + 4 * int(p), struct.pack("<I", 0), cov),
+                          True))
+        # hits 1 over zero transfer breaks no rule (an uncovered texel must have zero transfer,
+        # not the other way round): a control
+        empty = np.flatnonzero(hits == 0)
+        if empty.size:
+            p = int(empty[rng.randrange(empty.size)])
+            cases.append(("%s hits[%d] = 1 over zero transfer (control)" % (what, p),
+                          patched(cov.offset + 16 + 4 * p, struct.pack("<I", 1), cov), False))
+
+    # META JSON, rewritten at its new length
+    meta_section = next(s for s in bake.sections if s.tag == b"META")
+    table_offset = struct.unpack_from("<Q", data, 32)[0]
+    if table_offset + ENTRY_SIZE * len(bake.sections) > meta_section.offset:
+        return cases
+    original = bytes(meta_section.payload).decode("utf-8")
+
+    def meta_case(label, change, must_refuse=True):
+        meta = json.loads(original)
+        change(meta)
+        cases.append(("META " + label, replace_meta(data, json.dumps(meta, indent=2)),
+                      must_refuse))
+
+    def setter(path, value):
+        def change(meta):
+            node = meta
+            for key in path[:-1]:
+                node = node[key]
+            if value is DELETE:
+                del node[path[-1]]
+            else:
+                node[path[-1]] = value
+        return change
+
+    meta_case("re-serialised unchanged (control)", lambda meta: None, False)
+    meta_case("settings.pixel_samples 1 (control)", setter(("settings", "pixel_samples"), 1),
+              False)
+    meta_case("settings.pixel_samples 2", setter(("settings", "pixel_samples"), 2))
+    meta_case("sample_kind.kind pixel", setter(("sample_kind", "kind"), "pixel"))
+    meta_case("sample_kind vertex", setter(("sample_kind",), {"kind": "vertex"}))
+    meta_case("sample_kind.width + 1", setter(("sample_kind", "width"), W + 1))
+    meta_case("sample_kind.height missing", setter(("sample_kind", "height"), DELETE))
+    meta_case("camera not null", setter(("camera",), {
+        "model": "pinhole", "eye": [0, 0, 1], "target": [0, 0, 0], "up": [0, 1, 0],
+        "fov_y_degrees": 40.0, "width": W, "height": H}))
+    meta_case("settings.lightmaps missing", setter(("settings", "lightmaps"), DELETE))
+    meta_case("settings.lightmaps an object", setter(("settings", "lightmaps"), {}))
+    meta_case("settings.lightmaps one short",
+              lambda meta: meta["settings"]["lightmaps"].pop())
+    meta_case("settings.lightmaps one extra",
+              lambda meta: meta["settings"]["lightmaps"].append(None))
+    lit = [o for o in bake.objects if o.coverage is not None]
+    unlit = [o for o in bake.objects if o.coverage is None]
+    lightmaps = json.loads(original).get("settings", {}).get("lightmaps")
+    if isinstance(lightmaps, list) and lightmaps != lightmaps[::-1]:
+        meta_case("settings.lightmaps reversed",
+                  lambda meta: meta["settings"]["lightmaps"].reverse())
+    for obj in lit:
+        k = obj.index
+        path = ("settings", "lightmaps", k)
+        meta_case("lightmaps[%d] null" % k, setter(path, None))
+        meta_case("lightmaps[%d] a string" % k, setter(path, "uv0"))
+        for key in ("object", "width", "height", "uv_set", "uv_hash"):
+            meta_case("lightmaps[%d].%s missing" % (k, key), setter(path + (key,), DELETE))
+        for key, bad in (("object", obj.name + "x"), ("object", None), ("width", W + 1),
+                         ("width", str(W)), ("height", H - 1), ("height", float(H)),
+                         ("uv_set", -1), ("uv_set", 1.5), ("uv_set", "0"), ("uv_set", None),
+                         ("uv_set", 2**32), ("uv_hash", 12345), ("uv_hash", "abc"),
+                         ("uv_hash", ""), ("uv_hash", "-1"), ("uv_hash", "0x1f"),
+                         ("uv_hash", "18446744073709551616"), ("uv_hash", " 1")):
+            meta_case("lightmaps[%d].%s = %s" % (k, key, short(bad)),
+                      setter(path + (key,), bad))
+        for key, ok in (("uv_hash", "0"), ("uv_hash", "18446744073709551615"),
+                        ("uv_set", 7), ("comment", "an unknown field")):
+            meta_case("lightmaps[%d].%s = %s (control)" % (k, key, short(ok)),
+                      setter(path + (key,), ok), False)
+        meta_case("objects[%d].coverage null" % k, setter(("objects", k, "coverage"), None))
+        meta_case("objects[%d].coverage.pixel_samples 2" % k,
+                  setter(("objects", k, "coverage", "pixel_samples"), 2))
+    for obj in unlit:
+        k = obj.index
+        entry = {"object": obj.name, "width": W, "height": H, "uv_set": 0, "uv_hash": "1"}
+        meta_case("lightmaps[%d] not null for an object without CVRG" % k,
+                  setter(("settings", "lightmaps", k), entry))
+    return cases
+
+
 def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
     with open(path, "rb") as f:
         data = f.read()
@@ -1381,9 +1567,10 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
     flips = sorted({p for p in edges if 0 <= p < n} | set(padding)
                    | {rng.randrange(n) for _ in range(1500)})
     results = {"flip": [0, 0], "padding": [0, 0], "truncate": [0, 0], "repaired": [0, 0, 0],
-               "mesh": [0, 0], "cpca": [0, 0]}
+               "mesh": [0, 0], "cpca": [0, 0], "texel": [0, 0], "control": [0, 0]}
     crashes = []
     slipped = []
+    refused_valid = []  # control variants the spec allows that were refused
     padding_set = set(padding)
 
     def record(category, outcome, what, must_refuse=True):
@@ -1509,6 +1696,25 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
             record("cpca", try_parse(bytes(buf)),
                    "repaired CPCA mutation (%s, BLKT record %d) at %d"
                    % (label, block["index"], pos))
+    # 3c. per-texel bakes (§3.1, §3.9, §3.11): targeted binary and META mutations that must be
+    #     refused, and control variants the spec allows that must still be accepted
+    if bake.binf["sample_kind"] == 3:
+        for label, buf, must_refuse in texel_cases(data, bake, rng):
+            outcome = try_parse(buf)
+            if must_refuse:
+                record("texel", outcome, "per-texel mutation (%s)" % label)
+            else:
+                r = results["control"]
+                r[1] += 1
+                if isinstance(outcome, tuple):
+                    crashes.append("per-texel control (%s): %s" % (label, outcome[1]))
+                elif outcome == "ok":
+                    r[0] += 1
+                else:
+                    try:
+                        parse(buf)
+                    except PrtbError as e:
+                        refused_valid.append("per-texel control (%s) refused: %s" % (label, e))
     # 4. the command line itself on a few corrupted files: exit 1, one line, no traceback
     cli_bad = 0
     with tempfile.TemporaryDirectory() as tmp:
@@ -1529,8 +1735,8 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
                 cli_bad += 1
                 crashes.append("CLI on %s: exit %d, stderr %r"
                                % (bad, proc.returncode, proc.stderr[:200]))
-    f, p, t, r, m, c = (results[k] for k in ("flip", "padding", "truncate", "repaired", "mesh",
-                                             "cpca"))
+    f, p, t, r, m, c, x, ok = (results[k] for k in ("flip", "padding", "truncate", "repaired",
+                                                     "mesh", "cpca", "texel", "control"))
     print("self-test of %s (%d bytes, seed %d)" % (path, n, seed))
     print("  single-byte flips refused:      %d of %d (of which zero padding: %d of %d)"
           % (f[0], f[1], p[0], p[1]))
@@ -1540,15 +1746,20 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
     print("  CRC-repaired MESH mutations:    %d of %d refused (geometry hash)" % (m[0], m[1]))
     if c[1]:
         print("  CRC-repaired CPCA mutations:    %d of %d refused (§3.13 rules)" % (c[0], c[1]))
+    if x[1] or ok[1]:
+        print("  per-texel mutations:            %d of %d refused (§3.1/§3.9/§3.11 rules); "
+              "controls accepted: %d of %d" % (x[0], x[1], ok[0], ok[1]))
     print("  command line on corrupted files: %d of %d gave exit 1 and one clean line"
           % (cli_samples - cli_bad, cli_samples))
-    caught = f[0] + t[0] + m[0] + c[0]
-    total = f[1] + t[1] + m[1] + c[1]
+    caught = f[0] + t[0] + m[0] + c[0] + x[0]
+    total = f[1] + t[1] + m[1] + c[1] + x[1]
     print("  caught %d of %d corruptions that must be refused; %d slipped through, %d crashes"
           % (caught, total, len(slipped), len(crashes)))
-    for line in (slipped + crashes)[:20]:
+    if refused_valid:
+        print("  %d valid control variants were refused" % len(refused_valid))
+    for line in (slipped + crashes + refused_valid)[:20]:
         print("    " + line)
-    return 1 if slipped or crashes else 0
+    return 1 if slipped or crashes or refused_valid else 0
 
 
 # --------------------------------------------------------------------------------------------

@@ -34,6 +34,7 @@ mod error;
 pub mod passes;
 pub mod plan;
 pub mod points;
+pub mod reflectance;
 pub mod sequence;
 mod settings;
 pub mod subdivide;
@@ -112,7 +113,12 @@ fn shard_range(count: u64, shard: Option<(u32, u32)>) -> (u64, u64) {
 }
 
 fn progress(settings: &BakeSettings, len: u64, what: &str) -> ProgressBar {
-    if settings.progress && std::io::stderr().is_terminal() {
+    progress_bar(settings.progress, len, what)
+}
+
+/// A progress bar on a terminal when `show`, hidden otherwise.
+pub(crate) fn progress_bar(show: bool, len: u64, what: &str) -> ProgressBar {
+    if show && std::io::stderr().is_terminal() {
         let bar = ProgressBar::new(len);
         if let Ok(style) = ProgressStyle::with_template(
             "{msg:>12} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
@@ -438,6 +444,7 @@ pub fn bake_pass(
                     )
                 };
                 let bake = Bake {
+                    reflectance: None,
                     meta,
                     objects,
                     environment: Some(environment),
@@ -888,6 +895,7 @@ pub fn bake_pass(
         ..bake_meta(settings, sample_kind, settings_json, &decisions, ray_stats)
     };
     let mut bake = Bake {
+        reflectance: None,
         meta,
         objects,
         environment: Some(environment),

@@ -3,14 +3,14 @@
 use crate::error::BakeFileError;
 use crate::layout::{
     align_up, Tag, BLKT_RECORD, BRDF_RECORD, GLSY_RECORD, HEADER_SIZE, MAGIC, NO_SECTION,
-    OBJT_RECORD, PAYLOAD_ALIGNMENT, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE,
-    VERSION_MAJOR, VERSION_MINOR,
+    OBJT_RECORD, PAYLOAD_ALIGNMENT, RFLD_HEADER, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED,
+    TABLE_HEADER_SIZE, VERSION_MAJOR, VERSION_MINOR,
 };
 use crate::meta::{
     hash_string, BlockJson, BrdfJson, CoverageJson, EnvJson, GlossyJson, MeshJson, MetaJson,
     ObjectJson, ShConvention, COLOUR_SPACE, FORMAT_NAME,
 };
-use crate::model::{Bake, BrdfLobe, EnvPrecision, SampleKind, ScalarType};
+use crate::model::{Bake, BrdfLobe, EnvPrecision, ReflectanceField, SampleKind, ScalarType};
 
 fn u32_of(x: usize, what: &str) -> Result<u32, BakeFileError> {
     u32::try_from(x).map_err(|_| BakeFileError::InvalidBake(format!("{what} exceeds u32")))
@@ -375,6 +375,9 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
             plan.push(bytes(Tag::PASS, bytes_of_pass(oi as u32, o, p)));
         }
     }
+    if let Some(r) = &bake.reflectance {
+        plan.push(bytes(Tag::RFLD, bytes_of_reflectance(r, scalar)?));
+    }
     let section_count = u32_of(plan.len(), "section count")?;
 
     // Offsets.
@@ -521,6 +524,48 @@ pub(crate) fn header_crc(header: &[u8], table: &[u8]) -> u32 {
     h.update(&header[..60]);
     h.update(table);
     h.finalize()
+}
+
+/// The `RFLD` payload (SPEC §3.14): header, pixel indices, values as `scalar`.
+fn bytes_of_reflectance(
+    r: &ReflectanceField,
+    scalar: ScalarType,
+) -> Result<Vec<u8>, BakeFileError> {
+    let mut b = Buf::default();
+    b.u32(r.directions[0]);
+    b.u32(r.directions[1]);
+    b.u32(3);
+    b.u32(0);
+    b.u64(r.pixels.len() as u64);
+    b.u64(0);
+    debug_assert_eq!(b.0.len(), RFLD_HEADER);
+    for &p in &r.pixels {
+        b.u32(p);
+    }
+    let mut out = b.0;
+    let start = out.len();
+    out.resize(start + r.values.len() * scalar.size(), 0);
+    match scalar {
+        ScalarType::F32 => {
+            for (d, v) in out[start..].chunks_exact_mut(4).zip(&r.values) {
+                d.copy_from_slice(&v.to_le_bytes());
+            }
+        }
+        ScalarType::F16 => {
+            for (i, (d, &v)) in out[start..].chunks_exact_mut(2).zip(&r.values).enumerate() {
+                let h = half::f16::from_f32(v);
+                if h.is_infinite() {
+                    return Err(BakeFileError::OutOfF16Range {
+                        section: "RFLD".into(),
+                        index: i as u64,
+                        value: v,
+                    });
+                }
+                d.copy_from_slice(&h.to_le_bytes());
+            }
+        }
+    }
+    Ok(out)
 }
 
 fn write_scalars(

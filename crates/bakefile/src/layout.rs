@@ -26,6 +26,8 @@ pub(crate) const NO_SECTION: u32 = u32::MAX;
 pub(crate) const MESH_HEADER: usize = 16;
 /// Size of the header of a CVRG section.
 pub(crate) const CVRG_HEADER: usize = 16;
+/// Size of the header of an RFLD section.
+pub(crate) const RFLD_HEADER: usize = 32;
 /// Size of the header of a CPCA section.
 pub(crate) const CPCA_HEADER: usize = 32;
 /// `BLKT.scalar_type` of a block stored as a CPCA section.
@@ -79,6 +81,8 @@ impl Tag {
     pub const PASS: Tag = Tag(*b"PASS");
     /// One transfer block compressed by clustered PCA (1.1), in place of its XFER.
     pub const CPCA: Tag = Tag(*b"CPCA");
+    /// A sampled reflectance field (1.1, `prt reflectance`).
+    pub const RFLD: Tag = Tag(*b"RFLD");
 
     /// The tag as the little-endian u32 stored in the section table.
     #[must_use]
@@ -103,6 +107,7 @@ impl Tag {
             Tag::CVRG,
             Tag::PASS,
             Tag::CPCA,
+            Tag::RFLD,
         ]
         .contains(&self)
     }

@@ -69,7 +69,8 @@ pub use meta::ShConvention;
 pub use model::{
     Bake, BakeMeta, BrdfLobe, BrdfProjection, CameraInfo, Coverage, Cpca, Decision,
     EnvCoefficients, EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, PassHit, PassInfo,
-    PassState, RayStats, SampleKind, ScalarType, ShardInfo, ToolInfo, TransferBlock, TransferKind,
+    PassState, RayStats, ReflectanceField, SampleKind, ScalarType, ShardInfo, ToolInfo,
+    TransferBlock, TransferKind,
 };
 pub use summary::{
     camera_line, summary, BlockSummary, CoverageSummary, FileSummary, MeshSummary, ObjectSummary,

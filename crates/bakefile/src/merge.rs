@@ -21,6 +21,11 @@ fn fail(msg: impl Into<String>) -> BakeFileError {
 /// [`BakeFileError::Merge`] naming the first disagreement; validation errors of a shard.
 pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
     let first = shards.first().ok_or_else(|| fail("no shards"))?;
+    if shards.iter().any(|s| s.reflectance.is_some()) {
+        return Err(fail(
+            "a reflectance field (prt reflectance) is made whole, not in shards",
+        ));
+    }
     if shards.iter().any(|s| {
         s.objects
             .iter()
@@ -196,6 +201,7 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
         meta.ray_stats = total;
     }
     let merged = Bake {
+        reflectance: None,
         meta,
         objects,
         environment: first.environment.clone(),
@@ -214,6 +220,11 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
 /// [`BakeFileError::InvalidBake`] if `bake` is invalid, already a shard, or `shard_count` is 0.
 pub fn split(bake: &Bake, shard_count: u32) -> Result<Vec<Bake>, BakeFileError> {
     bake.validate()?;
+    if bake.reflectance.is_some() {
+        return Err(BakeFileError::InvalidBake(
+            "a reflectance field (prt reflectance) cannot be split".into(),
+        ));
+    }
     if bake
         .objects
         .iter()
@@ -283,6 +294,7 @@ pub fn split(bake: &Bake, shard_count: u32) -> Result<Vec<Bake>, BakeFileError> 
                 })
                 .collect();
             Bake {
+                reflectance: None,
                 meta,
                 objects,
                 environment: bake.environment.clone(),

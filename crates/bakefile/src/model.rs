@@ -639,6 +639,73 @@ pub struct Bake {
     pub brdfs: Vec<BrdfProjection>,
     /// Tabulated glossy BRDF projections per material.
     pub glossy: Vec<GlossyBrdfTable>,
+    /// A sampled reflectance field (section `RFLD`, `prt reflectance`), or `None`.
+    pub reflectance: Option<ReflectanceField>,
+}
+
+/// A sampled reflectance field (Masselus, Peers, Dutré & Willems 2004; section `RFLD`): per
+/// pixel of a per-pixel file's image, its reflectance function `R(ω)` — the radiance toward
+/// the camera through the pixel per unit radiance arriving from direction `ω`, per steradian,
+/// so that the pixel under a distant light `L` is `∫ R(ω) L(ω) dω` — sampled at the centres of
+/// a `W × H` latitude-longitude grid of directions (CONVENTIONS.md's mapping: direction `j =
+/// row·W + column` at `φ = 2π(column + ½)/W`, `θ = π(row + ½)/H`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReflectanceField {
+    /// Direction grid `[W, H]` (azimuth, polar), `W ≥ 2`, `H ≥ 1`.
+    pub directions: [u32; 2],
+    /// The pixels held, strictly increasing (`y · width + x`); pixels whose footprint
+    /// samples all see the environment have a zero function and are left out.
+    pub pixels: Vec<u32>,
+    /// `[pixel held][channel (3)][direction]`, non-negative and finite, in 1/sr.
+    pub values: Vec<f32>,
+}
+
+impl ReflectanceField {
+    /// Directions per function (`W · H`).
+    #[must_use]
+    pub fn direction_count(&self) -> usize {
+        self.directions[0] as usize * self.directions[1] as usize
+    }
+
+    /// The three channels' functions of held pixel `i`: `3 · W · H` values.
+    #[must_use]
+    pub fn function(&self, i: usize) -> &[f32] {
+        let n = 3 * self.direction_count();
+        &self.values[i * n..(i + 1) * n]
+    }
+
+    /// Structure (not values): a per-pixel file, directions, increasing pixels in the image,
+    /// the value count.
+    fn check(&self, kind: SampleKind) -> Result<(), BakeFileError> {
+        let SampleKind::Pixel { width, height } = kind else {
+            return Err(bad("a reflectance field belongs to a per-pixel file"));
+        };
+        let [w, h] = self.directions;
+        if w < 2 || h < 1 || u64::from(w) * u64::from(h) > 1 << 24 {
+            return Err(bad(format!(
+                "reflectance directions {w}×{h} (at least 2×1, at most 2^24)"
+            )));
+        }
+        let pixels = u64::from(width) * u64::from(height);
+        if !self.pixels.windows(2).all(|p| p[0] < p[1])
+            || self.pixels.last().is_some_and(|&p| u64::from(p) >= pixels)
+        {
+            return Err(bad(format!(
+                "reflectance pixels must increase and lie in the {width}×{height} image"
+            )));
+        }
+        let want = (self.pixels.len() as u64)
+            .checked_mul(3 * self.direction_count() as u64)
+            .ok_or_else(|| bad("reflectance field too large"))?;
+        if self.values.len() as u64 != want {
+            return Err(BakeFileError::InconsistentCounts {
+                what: "RFLD values".into(),
+                expected: want,
+                found: self.values.len() as u64,
+            });
+        }
+        Ok(())
+    }
 }
 
 fn bad(msg: impl Into<String>) -> BakeFileError {
@@ -909,6 +976,72 @@ impl Bake {
         Ok(())
     }
 
+    /// Per-texel bakes (SPEC §3.9): `settings.lightmaps` has one entry per object, `null`
+    /// exactly for objects without coverage, else the object's name, the file's lightmap size,
+    /// a `uv_set` (u32) and a `uv_hash` (u64 as a decimal string without sign or leading
+    /// zeros); `settings.pixel_samples`, if present, is 1.
+    fn check_lightmaps(&self) -> Result<(), BakeFileError> {
+        let SampleKind::Texel { width, height } = self.meta.sample_kind else {
+            return Ok(());
+        };
+        let settings = &self.meta.settings;
+        if let Some(k) = settings.get("pixel_samples") {
+            if k.as_u64() != Some(1) {
+                return Err(bad(format!(
+                    "settings.pixel_samples {k} in a per-texel bake (texels have one sample)"
+                )));
+            }
+        }
+        let Some(all) = settings
+            .get("lightmaps")
+            .and_then(serde_json::Value::as_array)
+        else {
+            return Err(bad("a per-texel bake without settings.lightmaps"));
+        };
+        if all.len() != self.objects.len() {
+            return Err(bad(format!(
+                "settings.lightmaps has {} entries for {} objects",
+                all.len(),
+                self.objects.len()
+            )));
+        }
+        for (i, (e, o)) in all.iter().zip(&self.objects).enumerate() {
+            let what = format!("settings.lightmaps[{i}]");
+            match (e.is_null(), o.coverage.is_some()) {
+                (true, false) => continue,
+                (true, true) => {
+                    return Err(bad(format!(
+                        "{what} is null, but object {:?} has texels",
+                        o.name
+                    )))
+                }
+                (false, false) => {
+                    return Err(bad(format!(
+                        "{what} is not null, but object {:?} is per vertex",
+                        o.name
+                    )))
+                }
+                (false, true) => {}
+            }
+            let u64_of = |k: &str| e.get(k).and_then(serde_json::Value::as_u64);
+            let hash = e.get("uv_hash").and_then(serde_json::Value::as_str);
+            let hash_ok =
+                hash.is_some_and(|h| h.parse::<u64>().is_ok() && (h == "0" || !h.starts_with('0')));
+            if e.get("object").and_then(serde_json::Value::as_str) != Some(o.name.as_str())
+                || u64_of("width") != Some(u64::from(width))
+                || u64_of("height") != Some(u64::from(height))
+                || u64_of("uv_set").is_none_or(|k| k > u64::from(u32::MAX))
+                || !hash_ok
+            {
+                return Err(bad(format!(
+                    "{what} must be {{\"object\": {:?}, \"width\": {width}, \"height\": {height}, \"uv_set\": u32, \"uv_hash\": decimal u64 string}}: {e}",
+                    o.name
+                )));
+            }
+        }
+        Ok(())
+    }
+
     fn check(&self, with_data: bool) -> Result<(), BakeFileError> {
         let m = &self.meta;
         if m.shard.count == 0 || m.shard.index >= m.shard.count {
@@ -949,6 +1082,18 @@ impl Bake {
             }
         }
         self.check_camera()?;
+        if let Some(r) = &self.reflectance {
+            r.check(m.sample_kind)?;
+            if with_data {
+                check_finite32("RFLD", &r.values)?;
+                if let Some(i) = r.values.iter().position(|v| *v < 0.0) {
+                    return Err(bad(format!(
+                        "reflectance value {i} is negative ({})",
+                        r.values[i]
+                    )));
+                }
+            }
+        }
         if let Some(p) = &m.pass {
             if p.index >= p.last || p.albedo.len() != self.objects.len() {
                 return Err(bad(format!(
@@ -1089,6 +1234,7 @@ impl Bake {
             }
         }
         self.check_coverage_sums()?;
+        self.check_lightmaps()?;
         if let Some(env) = &self.environment {
             if env.order == 0 || env.order > u32::from(u16::MAX) {
                 return Err(bad(format!("environment order {}", env.order)));

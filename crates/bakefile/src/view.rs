@@ -10,16 +10,16 @@ use crate::error::{inconsistent, invalid, BakeFileError};
 use crate::layout::{
     Tag, BINF_SIZE, BLKT_RECORD, BRDF_RECORD, CPCA_HEADER, CVRG_HEADER, ENVL_HEADER, GLSY_RECORD,
     HEADER_SIZE, MAGIC, MESH_HEADER, MUST_UNDERSTAND_FLAGS, NO_SECTION, OBJT_RECORD_V10,
-    PASS_HEADER, SCALAR_CPCA, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE,
-    VERSION_MAJOR,
+    PASS_HEADER, RFLD_HEADER, SCALAR_CPCA, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED,
+    TABLE_HEADER_SIZE, VERSION_MAJOR,
 };
 use crate::meta::{
     agree, check_mandatory, hash_string, MetaJson, ShConvention, COLOUR_SPACE, FORMAT_NAME,
 };
 use crate::model::{
     check_finite64, Bake, BakeMeta, BrdfLobe, BrdfProjection, Coverage, Cpca, EnvCoefficients,
-    EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, PassHit, PassState, SampleKind,
-    ScalarType, ShardInfo, TransferBlock, TransferKind,
+    EnvPrecision, GlossyBrdfTable, MeshGeometry, ObjectBake, PassHit, PassState, ReflectanceField,
+    SampleKind, ScalarType, ShardInfo, TransferBlock, TransferKind,
 };
 
 /// One entry of the section table, as read (and checked) from the file.
@@ -140,6 +140,7 @@ pub struct BakeView<'a> {
     environment: Option<EnvCoefficients>,
     brdfs: Vec<BrdfProjection>,
     glossy: Vec<GlossyBrdfTable>,
+    reflectance: Option<ReflectanceField>,
 }
 
 /// Decodes and validates a whole bake file held in memory.
@@ -410,6 +411,64 @@ fn read_pass(p: &[u8], o: &ObjectInfo, name: &str) -> Result<PassState, BakeFile
     })
 }
 
+/// Reads an RFLD payload (SPEC.md §3.14): lengths checked before anything is allocated,
+/// values finite and non-negative.
+fn read_reflectance(p: &[u8], scalar: ScalarType) -> Result<ReflectanceField, BakeFileError> {
+    if p.len() < RFLD_HEADER {
+        return Err(inconsistent(
+            "RFLD length (at least its header)",
+            RFLD_HEADER as u64,
+            p.len() as u64,
+        ));
+    }
+    let (w, h, channels, n) = (rd_u32(p, 0), rd_u32(p, 4), rd_u32(p, 8), rd_u64(p, 16));
+    if channels != 3 || w < 2 || h < 1 || u64::from(w) * u64::from(h) > 1 << 24 {
+        return Err(invalid(
+            "RFLD",
+            format!("{w}×{h} directions of {channels} channels (3 channels, at least 2×1, at most 2^24 directions)"),
+        ));
+    }
+    let values = n.checked_mul(3 * u64::from(w) * u64::from(h));
+    let expected = values
+        .and_then(|v| v.checked_mul(scalar.size() as u64))
+        .and_then(|v| v.checked_add(RFLD_HEADER as u64))
+        .and_then(|v| v.checked_add(n.checked_mul(4)?));
+    if expected != Some(p.len() as u64) {
+        return Err(inconsistent(
+            "RFLD length (32 + 4 × pixels + scalars × 3 × W × H × pixels)",
+            expected.unwrap_or(u64::MAX),
+            p.len() as u64,
+        ));
+    }
+    let n = n as usize;
+    let pixels: Vec<u32> = p[RFLD_HEADER..RFLD_HEADER + 4 * n]
+        .chunks_exact(4)
+        .map(|c| rd_u32(c, 0))
+        .collect();
+    let data = &p[RFLD_HEADER + 4 * n..];
+    let values: Vec<f32> = match scalar {
+        ScalarType::F32 => data
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+            .collect(),
+        ScalarType::F16 => data
+            .chunks_exact(2)
+            .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32())
+            .collect(),
+    };
+    if let Some(i) = values.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+        return Err(invalid(
+            "RFLD",
+            format!("value {i} is {} (finite and non-negative)", values[i]),
+        ));
+    }
+    Ok(ReflectanceField {
+        directions: [w, h],
+        pixels,
+        values,
+    })
+}
+
 /// Reads a CVRG payload (SPEC.md §3.11) whose object index was checked.
 fn read_coverage(p: &[u8], object: usize) -> Result<Coverage, BakeFileError> {
     let n = rd_u64(p, 8);
@@ -629,7 +688,7 @@ impl<'a> BakeView<'a> {
         }
 
         // Find the sections by tag.
-        let mut single: [(Tag, Option<usize>, bool); 8] = [
+        let mut single: [(Tag, Option<usize>, bool); 9] = [
             (Tag::BINF, None, true),
             (Tag::STRS, None, true),
             (Tag::OBJT, None, true),
@@ -638,6 +697,7 @@ impl<'a> BakeView<'a> {
             (Tag::ENVL, None, false),
             (Tag::BRDF, None, false),
             (Tag::GLSY, None, false),
+            (Tag::RFLD, None, false),
         ];
         for (i, s) in sections.iter().enumerate() {
             if let Some(slot) = single.iter_mut().find(|(t, _, _)| *t == s.tag) {
@@ -929,6 +989,7 @@ impl<'a> BakeView<'a> {
         }
 
         // ENVL
+        let reflectance = get(8).map(|p| read_reflectance(p, scalar)).transpose()?;
         let environment = match get(5) {
             None => None,
             Some(p) => {
@@ -1258,6 +1319,7 @@ impl<'a> BakeView<'a> {
             environment,
             brdfs,
             glossy,
+            reflectance,
         };
         // The semantic rules (unique names, shard ranges, ...), checked on a skeleton
         // without the coefficient data.
@@ -1267,6 +1329,7 @@ impl<'a> BakeView<'a> {
 
     pub(crate) fn skeleton(&self) -> Bake {
         Bake {
+            reflectance: self.reflectance.clone(),
             meta: self.meta.clone(),
             objects: self
                 .objects
@@ -1301,6 +1364,12 @@ impl<'a> BakeView<'a> {
             brdfs: self.brdfs.clone(),
             glossy: self.glossy.clone(),
         }
+    }
+
+    /// The reflectance field (section `RFLD`), if the file holds one.
+    #[must_use]
+    pub fn reflectance(&self) -> Option<&ReflectanceField> {
+        self.reflectance.as_ref()
     }
 
     /// Format version `(major, minor)` of the file.

@@ -271,6 +271,7 @@ fn spec_read(bytes: &[u8]) -> Bake {
         })
         .unwrap_or_default();
     Bake {
+        reflectance: None,
         meta,
         objects,
         environment,

@@ -370,6 +370,24 @@ fn independent_reader_agrees_with_prt_on_every_bake_kind() {
     for f in [&files[0], &files[1], &merged, &files[2], &files[3]] {
         check_relight(&py, &scene, f, "floor.obj", clay, dir.path());
     }
+    // Per texel (SPEC §3.1): the lightmapped floor of scenes/hard/figure_on_quad.toml, whose
+    // bunny (no UVs) stays per vertex, with one bounce.
+    let hard = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/hard/figure_on_quad.toml");
+    let texel = dir.path().join("texel.prtb");
+    run(prt()
+        .arg("bake")
+        .arg(&hard)
+        .args(["--rays", "32", "--order", "3", "--per-texel", "16", "--out"])
+        .arg(&texel));
+    check_dump(&py, &texel, &dump);
+    check_relight(
+        &py,
+        &hard,
+        &texel,
+        "quad.obj",
+        [0.45, 0.4, 0.35],
+        dir.path(),
+    );
 
     // A damaged file: one clean line naming the file, exit status 1.
     let mut bytes = std::fs::read(&files[0]).unwrap();

@@ -75,6 +75,7 @@ pub fn sample_bake() -> Bake {
         }
     };
     Bake {
+        reflectance: None,
         meta: BakeMeta {
             sample_kind: SampleKind::Vertex,
             rays_per_point: 1024,
@@ -299,6 +300,7 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
         })
         .collect();
     Bake {
+        reflectance: None,
         meta: BakeMeta {
             sample_kind: if pixel {
                 SampleKind::Pixel {
