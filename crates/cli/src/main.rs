@@ -19,6 +19,7 @@ macro_rules! outln {
 mod bake_cmd;
 mod common;
 mod compare_cmd;
+mod reflectance_cmd;
 mod relight_cmd;
 mod render_cmd;
 mod report_cmd;
@@ -52,8 +53,12 @@ enum Command {
     Compress(bake_cmd::CompressArgs),
     /// Write a per-vertex bake as binary glTF 2.0: meshes with their transfer as vertex attributes.
     Export(bake_cmd::ExportArgs),
-    /// Relight a bake under the (rotated) environment: full-order or locally adaptive SH.
+    /// Relight a bake under the (rotated) environment: full-order or locally adaptive SH, or a
+    /// reflectance field (from `prt reflectance`) reconstructed on a fine grid.
     Relight(relight_cmd::RelightArgs),
+    /// Sample a scene's reflectance field: per pixel, its response to a distant light from each
+    /// direction of a lat-long grid (Masselus et al. 2004), for all-frequency relighting.
+    Reflectance(reflectance_cmd::ReflectanceArgs),
     /// Speed-against-error report: reference, bake, full and adaptive relighting per order.
     Report(report_cmd::ReportArgs),
     /// Compare an image with a reference: PSNR (LDR, HDR), RMSE, relative L2, noise.
@@ -71,6 +76,7 @@ fn main() -> ExitCode {
         Command::Compress(args) => bake_cmd::run_compress(&args),
         Command::Export(args) => bake_cmd::run_export(&args),
         Command::Relight(args) => relight_cmd::run(&args),
+        Command::Reflectance(args) => reflectance_cmd::run(&args),
         Command::Report(args) => report_cmd::run(&args),
         Command::Compare(args) => compare_cmd::run(args),
     };

@@ -77,6 +77,15 @@ pub struct RelightArgs {
     /// per point (O(order⁵) per point, full order; the reference for `fitted`).
     #[arg(long, value_enum, default_value_t = GlossyArg::Fitted)]
     pub glossy: GlossyArg,
+    /// Reflectance fields (`prt reflectance`): how each pixel's sampled function is
+    /// reconstructed on the fine grid (`nearest`: zero-order hold; `linear`: bilinear,
+    /// periodic in azimuth).
+    #[arg(long, value_enum, default_value_t = ReconstructArg::Linear)]
+    pub reconstruct: ReconstructArg,
+    /// Reflectance fields: the fine lat-long grid `WxH` the functions are reconstructed on and
+    /// the environment is integrated over.
+    #[arg(long, value_name = "WxH", default_value = "256x128")]
+    pub fine: String,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -141,6 +150,9 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     }
     let scene = crate::common::load_scene(&args.scene)?;
     let bake = prt_bakefile::read_bake(&args.bake)?;
+    if bake.reflectance.is_some() {
+        return run_field(args, &scene, &bake);
+    }
     prt_report::check_bake(&scene, &bake, &args.bake)?;
     // Subdivided objects relight on the bake's refined meshes.
     let scene = prt_report::baked_scene(&scene, &bake)?;
@@ -292,6 +304,64 @@ pub fn run(args: &RelightArgs) -> Result<()> {
                 args.frames
             );
         }
+    }
+    Ok(())
+}
+
+/// How `--reconstruct` rebuilds a sampled reflectance function.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum ReconstructArg {
+    /// Zero-order hold.
+    Nearest,
+    /// Bilinear in (φ, θ), periodic in azimuth.
+    Linear,
+}
+
+/// `prt relight` of a reflectance field.
+fn run_field(
+    args: &RelightArgs,
+    scene: &prt_scene::Scene,
+    bake: &prt_bakefile::Bake,
+) -> Result<()> {
+    if args.adaptive || args.order.is_some() || args.vertex_colours.is_some() || args.frames > 1 {
+        bail!("{}: a reflectance field relights per pixel: --adaptive, --order, --vertex-colours and --frames are for SH bakes", args.bake.display());
+    }
+    let field = prt_report::reflectance::check_field(scene, bake, &args.bake)?;
+    let accel = prt_tracer::Accel::build(scene).context("building the BVH")?;
+    let opt = prt_report::reflectance::FieldOptions {
+        reconstruction: match args.reconstruct {
+            ReconstructArg::Nearest => prt_report::reflectance::Reconstruction::Nearest,
+            ReconstructArg::Linear => prt_report::reflectance::Reconstruction::Linear,
+        },
+        fine: crate::reflectance_cmd::parse_grid(&args.fine, "--fine")?,
+        rotate_y_deg: args.rotate_y,
+        timing_frames: 5,
+    };
+    let (image, stats) = prt_report::reflectance::relight_field(scene, &accel, bake, field, &opt)?;
+    let attrs = vec![
+        ("kind", "relit-reflectance-field".to_string()),
+        ("rotate_y", args.rotate_y.to_string()),
+    ];
+    if let Some(p) = &args.out {
+        prt_report::io::write_exr(p, &image, &attrs)?;
+    }
+    if let Some(p) = &args.png {
+        prt_report::io::write_png(p, &image, args.exposure)?;
+    }
+    if args.json {
+        outln!("{}", serde_json::to_string(&stats)?);
+    } else {
+        outln!(
+            "{} pixels × {}×{} directions, {:?} reconstruction on {}×{}: shading {:.3} ms/frame (median of 5), lighting {:.1} ms",
+            stats.pixels,
+            stats.directions[0],
+            stats.directions[1],
+            stats.reconstruction,
+            stats.fine[0],
+            stats.fine[1],
+            stats.shade_ms,
+            stats.lighting_ms
+        );
     }
     Ok(())
 }

@@ -22,6 +22,7 @@ pub mod imaging;
 pub mod io;
 pub mod plots;
 pub mod recommend;
+pub mod reflectance;
 pub mod relit;
 pub mod report;
 pub mod target;
