@@ -1,0 +1,92 @@
+//! Squared L2 norms of the synthesis basis functions, for ranking coefficients by their share
+//! of the L2 error.
+
+use crate::dwt1d::{multi_level_1d, Bank, Step};
+use crate::dwt2d::{axis_level, Transform2d};
+use crate::wavelet::Boundary;
+
+/// Squared norms of the 1D synthesis functions of one axis: `scaling[l − 1][k]` of the level-`l`
+/// scaling function `k`, `wavelet[l − 1][k]` of the level-`l` wavelet `k`.
+#[derive(Clone, Debug)]
+struct AxisNorms {
+    scaling: Vec<Vec<f64>>,
+    wavelet: Vec<Vec<f64>>,
+}
+
+impl AxisNorms {
+    fn compute(bank: &Bank, boundary: Boundary, n: usize, levels: usize) -> AxisNorms {
+        let mut scaling = Vec::with_capacity(levels);
+        let mut wavelet = Vec::with_capacity(levels);
+        for l in 1..=levels {
+            let m = n >> l;
+            // The synthesis function of layout position `pos` with `l` levels: the inverse of a
+            // unit coefficient.
+            let norm = |pos: usize| {
+                let mut v = vec![0.0; n];
+                v[pos] = 1.0;
+                multi_level_1d(bank, boundary, Step::Synthesis, &mut v, l);
+                v.iter().map(|x| x * x).sum::<f64>()
+            };
+            match boundary {
+                // Shifting a coefficient by one shifts its function by 2^l samples, cyclically.
+                Boundary::Periodic => {
+                    scaling.push(vec![norm(0); m]);
+                    wavelet.push(vec![norm(m); m]);
+                }
+                Boundary::Symmetric => {
+                    scaling.push((0..m).map(norm).collect());
+                    wavelet.push((0..m).map(|k| norm(m + k)).collect());
+                }
+            }
+        }
+        AxisNorms { scaling, wavelet }
+    }
+
+    /// Squared norm of the 1D factor at layout position `i` for a band of level `level`
+    /// (`is_detail`: the band is high pass along this axis).
+    fn factor(&self, i: usize, n: usize, level: usize, is_detail: bool) -> f64 {
+        if level == 0 {
+            return 1.0;
+        }
+        if is_detail {
+            self.wavelet[level - 1][i - (n >> level)]
+        } else {
+            self.scaling[level - 1][i]
+        }
+    }
+}
+
+/// `‖Φ_i‖²` for every coefficient of a transform, in the Mallat layout.
+#[derive(Clone, Debug)]
+pub(crate) struct BasisNorms {
+    per_coefficient: Vec<f64>,
+}
+
+impl BasisNorms {
+    pub(crate) fn compute(t: &Transform2d) -> BasisNorms {
+        let (w, h, levels) = (t.width(), t.height(), t.levels());
+        let bank = t.bank();
+        let x_norms = AxisNorms::compute(bank, t.boundaries().x, w, levels);
+        let y_norms = if h == w && t.boundaries().x == t.boundaries().y {
+            x_norms.clone()
+        } else {
+            AxisNorms::compute(bank, t.boundaries().y, h, levels)
+        };
+        let mut per_coefficient = Vec::with_capacity(w * h);
+        for y in 0..h {
+            let ly = axis_level(y, h, levels);
+            for x in 0..w {
+                let lx = axis_level(x, w, levels);
+                let level = lx.min(ly).min(levels);
+                let fx = x_norms.factor(x, w, level, lx == level);
+                let fy = y_norms.factor(y, h, level, ly == level);
+                per_coefficient.push(fx * fy);
+            }
+        }
+        BasisNorms { per_coefficient }
+    }
+
+    pub(crate) fn per_coefficient(&self) -> &[f64] {
+        &self.per_coefficient
+    }
+}
