@@ -86,6 +86,18 @@ pub struct RelightArgs {
     /// the environment is integrated over.
     #[arg(long, value_name = "WxH", default_value = "256x128")]
     pub fine: String,
+    /// Reflectance fields: compress each reconstructed function by non-linear wavelet
+    /// approximation on the fine grid (with --coefficients K or --rf-error E) and relight as
+    /// sparse dot products with the lighting's wavelet coefficients.
+    #[arg(long, value_enum)]
+    pub wavelet: Option<WaveletArg>,
+    /// With --wavelet: keep this many coefficients per pixel and channel.
+    #[arg(long, requires = "wavelet", conflicts_with = "rf_error")]
+    pub coefficients: Option<usize>,
+    /// With --wavelet: keep per function the fewest coefficients whose relative L2 error is at
+    /// most E (exact, on the fine grid).
+    #[arg(long, requires = "wavelet")]
+    pub rf_error: Option<f64>,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -152,6 +164,12 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     let bake = prt_bakefile::read_bake(&args.bake)?;
     if bake.reflectance.is_some() {
         return run_field(args, &scene, &bake);
+    }
+    if args.wavelet.is_some() || args.coefficients.is_some() || args.rf_error.is_some() {
+        bail!(
+            "{}: --wavelet, --coefficients and --rf-error compress reflectance fields (prt reflectance); this is an SH bake",
+            args.bake.display()
+        );
     }
     prt_report::check_bake(&scene, &bake, &args.bake)?;
     // Subdivided objects relight on the bake's refined meshes.
@@ -308,6 +326,17 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--wavelet`.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum WaveletArg {
+    /// Haar.
+    Haar,
+    /// LeGall 5/3.
+    Legall53,
+    /// CDF (Daubechies) 9/7.
+    Cdf97,
+}
+
 /// How `--reconstruct` rebuilds a sampled reflectance function.
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 pub enum ReconstructArg {
@@ -336,6 +365,21 @@ fn run_field(
         fine: crate::reflectance_cmd::parse_grid(&args.fine, "--fine")?,
         rotate_y_deg: args.rotate_y,
         timing_frames: 5,
+        compression: match (args.wavelet, args.coefficients, args.rf_error) {
+            (None, ..) => None,
+            (Some(w), k, e) => Some(prt_report::reflectance::Compression {
+                wavelet: match w {
+                    WaveletArg::Haar => prt_wavelet::Wavelet::Haar,
+                    WaveletArg::Legall53 => prt_wavelet::Wavelet::LeGall53,
+                    WaveletArg::Cdf97 => prt_wavelet::Wavelet::Cdf97,
+                },
+                budget: match (k, e) {
+                    (Some(k), None) => prt_report::reflectance::Budget::Coefficients(k),
+                    (None, Some(e)) => prt_report::reflectance::Budget::RelativeError(e),
+                    _ => bail!("--wavelet needs --coefficients K or --rf-error E"),
+                },
+            }),
+        },
     };
     let (image, stats) = prt_report::reflectance::relight_field(scene, &accel, bake, field, &opt)?;
     let attrs = vec![
@@ -351,6 +395,15 @@ fn run_field(
     if args.json {
         outln!("{}", serde_json::to_string(&stats)?);
     } else {
+        if let (Some(w), Some(k), Some(e)) =
+            (&stats.wavelet, stats.mean_coefficients, stats.rf_rel_l2)
+        {
+            outln!(
+                "{w}: {k:.1} coefficients per pixel and channel, relative L2 error {:.3} % against the uncompressed functions ({:.0} ms to compress)",
+                100.0 * e,
+                stats.compress_ms.unwrap_or(0.0)
+            );
+        }
         outln!(
             "{} pixels × {}×{} directions, {:?} reconstruction on {}×{}: shading {:.3} ms/frame (median of 5), lighting {:.1} ms",
             stats.pixels,

@@ -11,6 +11,17 @@
 //! reconstructing every function on the fine grid (tested), without holding any fine-grid
 //! function in memory.
 //!
+//! **Compression** (§5 of the paper): each reconstructed function is transformed into a
+//! wavelet basis on the fine grid (Haar, LeGall 5/3 or CDF 9/7; periodic in azimuth, mirrored at
+//! the poles, `prt-wavelet`) and only its most important coefficients are kept — a fixed number
+//! `K` per function, or the fewest whose exact relative L2 error is at most `E` — ranked by
+//! `c_i² ‖Φ_i‖²` (their contribution to the L2 norm through the synthesis functions `Φ_i`).
+//! Relighting is then a sparse dot product: with `R̂ = S c` (`S` the synthesis), `⟨R̂, ℓ⟩ =
+//! ⟨c, Sᵀℓ⟩`, so the frame's lighting `ℓ = L̄ Δω` is projected once (`Sᵀℓ`, the primal
+//! coefficients) and each pixel costs one multiply-add per kept coefficient. Functions are
+//! reconstructed, transformed and truncated one pixel at a time (in parallel): no fine-grid
+//! function is held beyond its pixel.
+//!
 //! Reconstructions: **nearest** (zero-order hold: a fine cell takes the sample of the coarse
 //! cell that contains its centre — on a regular lat-long grid the coarse cells are the Voronoi
 //! cells of the samples up to the poles' crowding) and **linear** (bilinear in `(φ, θ)`
@@ -37,6 +48,25 @@ pub enum Reconstruction {
     Linear,
 }
 
+/// How many wavelet coefficients a function keeps.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Budget {
+    /// A fixed number per function (per pixel and channel).
+    Coefficients(usize),
+    /// The fewest whose exact relative L2 error (over the fine grid) is at most this.
+    RelativeError(f64),
+}
+
+/// Non-linear wavelet approximation of the reconstructed functions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Compression {
+    /// The wavelet.
+    pub wavelet: prt_wavelet::Wavelet,
+    /// Coefficients kept.
+    pub budget: Budget,
+}
+
 /// Options of [`relight_field`].
 #[derive(Clone, Debug)]
 pub struct FieldOptions {
@@ -48,6 +78,8 @@ pub struct FieldOptions {
     pub rotate_y_deg: f64,
     /// Timed frames (the median is reported).
     pub timing_frames: usize,
+    /// Wavelet compression, or `None` to relight the reconstructed functions as they are.
+    pub compression: Option<Compression>,
 }
 
 /// What a field relighting measured.
@@ -66,6 +98,139 @@ pub struct FieldStats {
     pub fine: [u32; 2],
     /// Reconstruction.
     pub reconstruction: Reconstruction,
+    /// The wavelet (`haar`, `legall53`, `cdf97`) when compressed.
+    pub wavelet: Option<String>,
+    /// Mean wavelet coefficients kept per pixel and channel, when compressed.
+    pub mean_coefficients: Option<f64>,
+    /// Relative L2 error of the compressed functions against their uncompressed
+    /// reconstruction, over all pixels and channels (`sqrt(Σ‖f − f_K‖² / Σ‖f‖²)` on the fine
+    /// grid), when compressed.
+    pub rf_rel_l2: Option<f64>,
+    /// Time to reconstruct, transform and truncate every function (once, not per frame), ms.
+    pub compress_ms: Option<f64>,
+}
+
+/// Every held pixel's compressed functions: per pixel and channel, `(index, coefficient)`.
+struct Sparse {
+    transform: prt_wavelet::Transform2d,
+    /// `[pixel][channel]` runs into `entries`.
+    runs: Vec<[(u32, u32); 3]>,
+    entries: Vec<(u32, f32)>,
+    kept: u64,
+    error2: f64,
+    norm2: f64,
+    ms: f64,
+}
+
+/// Reconstructs, transforms and truncates every function of `field`.
+fn compress(
+    field: &ReflectanceField,
+    method: Reconstruction,
+    fine: [u32; 2],
+    c: Compression,
+) -> Result<Sparse, ReportError> {
+    let start = std::time::Instant::now();
+    let wav = |e: prt_wavelet::WaveletError| ReportError::Invalid(format!("wavelet: {e}"));
+    let transform =
+        prt_wavelet::Transform2d::lat_long(c.wavelet, fine[0] as usize, fine[1] as usize, None)
+            .map_err(wav)?;
+    let n = transform.len();
+    match c.budget {
+        Budget::Coefficients(k) if k == 0 || k > n => {
+            return Err(ReportError::Invalid(format!(
+                "--coefficients {k}: give between 1 and the fine grid's {n}"
+            )))
+        }
+        Budget::RelativeError(e) if !(e > 0.0 && e < 1.0) => {
+            return Err(ReportError::Invalid(format!(
+                "--rf-error {e}: give a relative error in (0, 1)"
+            )))
+        }
+        _ => {}
+    }
+    let norms = transform.basis_norms_squared();
+    let d = field.direction_count();
+    // Per pixel: three channels' kept coefficients, the squared error and norm.
+    type PixelOut = (Vec<Vec<(u32, f32)>>, f64, f64);
+    let per_pixel: Vec<PixelOut> = (0..field.pixels.len())
+        .into_par_iter()
+        .map(|i| -> Result<PixelOut, ReportError> {
+            let f = field.function(i);
+            let mut fine_f = vec![0.0f64; n];
+            let mut out = Vec::with_capacity(3);
+            let (mut e2, mut n2) = (0.0, 0.0);
+            for ch in 0..3 {
+                reconstruct(
+                    method,
+                    field.directions,
+                    &f[ch * d..(ch + 1) * d],
+                    fine,
+                    &mut fine_f,
+                );
+                let norm2: f64 = fine_f.iter().map(|v| v * v).sum();
+                n2 += norm2;
+                if norm2 == 0.0 {
+                    out.push(Vec::new());
+                    continue;
+                }
+                let kept: Vec<(usize, f64)> = match c.budget {
+                    Budget::Coefficients(k) => {
+                        let coef = transform.forward(&fine_f).map_err(wav)?;
+                        let mut idx: Vec<u32> = (0..n as u32).collect();
+                        let weight = |i: u32| coef[i as usize].powi(2) * norms[i as usize];
+                        if k < n {
+                            idx.select_nth_unstable_by(k - 1, |a, b| {
+                                weight(*b).total_cmp(&weight(*a))
+                            });
+                        }
+                        idx[..k]
+                            .iter()
+                            .map(|&i| (i as usize, coef[i as usize]))
+                            .collect()
+                    }
+                    Budget::RelativeError(e) => transform
+                        .rank(&fine_f)
+                        .map_err(wav)?
+                        .keep_for_exact_error(e)
+                        .map_err(wav)?,
+                };
+                // The exact error of what is kept: one sparse inverse transform.
+                let approx = transform.reconstruct_sparse(&kept).map_err(wav)?;
+                e2 += approx
+                    .iter()
+                    .zip(&fine_f)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>();
+                let mut kept: Vec<(u32, f32)> =
+                    kept.iter().map(|&(i, v)| (i as u32, v as f32)).collect();
+                kept.sort_unstable_by_key(|e| e.0);
+                out.push(kept);
+            }
+            Ok((out, e2, n2))
+        })
+        .collect::<Result<_, _>>()?;
+    let mut runs = Vec::with_capacity(per_pixel.len());
+    let mut entries = Vec::new();
+    let (mut error2, mut norm2) = (0.0, 0.0);
+    for (chans, e2, n2) in per_pixel {
+        error2 += e2;
+        norm2 += n2;
+        let mut r = [(0u32, 0u32); 3];
+        for (ch, kept) in chans.into_iter().enumerate() {
+            r[ch] = (entries.len() as u32, kept.len() as u32);
+            entries.extend(kept);
+        }
+        runs.push(r);
+    }
+    Ok(Sparse {
+        transform,
+        kept: entries.len() as u64,
+        runs,
+        entries,
+        error2,
+        norm2,
+        ms: start.elapsed().as_secs_f64() * 1e3,
+    })
 }
 
 /// Per fine cell, `L̄_k Δω_k` (RGB): the environment (rotated by `rotate_y_deg`) averaged over
@@ -263,6 +428,10 @@ pub fn relight_field(
         )));
     }
     let d = field.direction_count();
+    let sparse = opt
+        .compression
+        .map(|c| compress(field, opt.reconstruction, opt.fine, c))
+        .transpose()?;
     let mut times = Vec::new();
     let mut lighting_ms = 0.0;
     let mut values = vec![[0.0f32; 3]; field.pixels.len()];
@@ -271,6 +440,31 @@ pub fn relight_field(
         let lighting = fine_lighting(scene, opt.fine, opt.rotate_y_deg);
         lighting_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t = std::time::Instant::now();
+        if let Some(sp) = &sparse {
+            // The lighting's primal coefficients Sᵀℓ per channel, then sparse dot products.
+            let lc: Vec<Vec<f32>> = (0..3)
+                .map(|c| {
+                    let l: Vec<f64> = lighting.iter().map(|v| v[c]).collect();
+                    sp.transform
+                        .primal_coefficients(&l)
+                        .map(|p| p.iter().map(|v| *v as f32).collect())
+                        .map_err(|e| ReportError::Invalid(format!("wavelet: {e}")))
+                })
+                .collect::<Result<_, _>>()?;
+            values.par_iter_mut().enumerate().for_each(|(i, v)| {
+                for c in 0..3 {
+                    let (start, len) = sp.runs[i][c];
+                    let run = &sp.entries[start as usize..(start + len) as usize];
+                    let s: f64 = run
+                        .iter()
+                        .map(|&(k, a)| f64::from(a) * f64::from(lc[c][k as usize]))
+                        .sum();
+                    v[c] = s as f32;
+                }
+            });
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            continue;
+        }
         let pulled =
             pulled_back_lighting(opt.reconstruction, field.directions, opt.fine, &lighting);
         // f32 lighting per channel for the per-pixel dot products (f64 accumulation).
@@ -327,6 +521,25 @@ pub fn relight_field(
             directions: field.directions,
             fine: opt.fine,
             reconstruction: opt.reconstruction,
+            wavelet: opt.compression.map(|c| {
+                match c.wavelet {
+                    prt_wavelet::Wavelet::Haar => "haar",
+                    prt_wavelet::Wavelet::LeGall53 => "legall53",
+                    prt_wavelet::Wavelet::Cdf97 => "cdf97",
+                }
+                .to_owned()
+            }),
+            mean_coefficients: sparse
+                .as_ref()
+                .map(|s| s.kept as f64 / (3.0 * field.pixels.len().max(1) as f64)),
+            rf_rel_l2: sparse.as_ref().map(|s| {
+                if s.norm2 > 0.0 {
+                    (s.error2 / s.norm2).sqrt()
+                } else {
+                    0.0
+                }
+            }),
+            compress_ms: sparse.as_ref().map(|s| s.ms),
         },
     ))
 }

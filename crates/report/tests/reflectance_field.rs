@@ -122,6 +122,7 @@ fn an_unshadowed_lambert_floor_relights_to_its_irradiance() {
             fine: [w as u32, h as u32],
             rotate_y_deg: 0.0,
             timing_frames: 1,
+            compression: None,
         };
         let (img, _) = relight_field(&s, &accel, &bake, &field, &opt).unwrap();
         for p in &img.pixels {
@@ -146,6 +147,7 @@ fn an_unshadowed_lambert_floor_relights_to_its_irradiance() {
         fine: [4 * w as u32, 4 * h as u32],
         rotate_y_deg: 0.0,
         timing_frames: 1,
+        compression: None,
     };
     let (img, _) = relight_field(&s, &accel, &bake, &field, &opt).unwrap();
     let got = f64::from(img.pixels[0][0]);
@@ -186,6 +188,7 @@ fn a_field_of_another_scene_or_a_bad_grid_is_refused() {
         fine: [8, 8],
         rotate_y_deg: 0.0,
         timing_frames: 1,
+        compression: None,
     };
     let e = relight_field(&s, &accel, &bake, &field, &opt).unwrap_err();
     assert!(e.to_string().contains("at least the sampled grid"), "{e}");
@@ -195,5 +198,91 @@ fn a_field_of_another_scene_or_a_bad_grid_is_refused() {
             ..settings.clone()
         };
         assert!(sample_field(&s, &accel, &st).is_err());
+    }
+}
+
+#[test]
+fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error() {
+    use prt_report::reflectance::{fine_lighting, reconstruct, Budget, Compression};
+    let (w, h) = (16usize, 8usize);
+    let s = scene(w, h);
+    let accel = Accel::build(&s).unwrap();
+    let settings = ReflectanceSettings {
+        directions: [w as u32, h as u32],
+        bounces: 0,
+        rays: 1,
+        pixel_samples: 1,
+        seed: 3,
+        progress: false,
+    };
+    let (field, _) = sample_field(&s, &accel, &settings).unwrap();
+    let bake = field_bake(&s, field.clone(), &settings);
+    let fine = [32u32, 16u32];
+    let run = |compression| {
+        let opt = FieldOptions {
+            reconstruction: Reconstruction::Linear,
+            fine,
+            rotate_y_deg: 0.0,
+            timing_frames: 1,
+            compression,
+        };
+        relight_field(&s, &accel, &bake, &field, &opt).unwrap()
+    };
+    let (full, _) = run(None);
+    let n = (fine[0] * fine[1]) as usize;
+    // The lighting's and a function's L2 norms on the fine grid, for the bound below.
+    let lighting = fine_lighting(&s, fine, 0.0);
+    let mut f = vec![0.0; n];
+    reconstruct(
+        Reconstruction::Linear,
+        field.directions,
+        &field.function(0)[..w * h],
+        fine,
+        &mut f,
+    );
+    let f_norm = f.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let l_norm = lighting.iter().map(|l| l[0] * l[0]).sum::<f64>().sqrt();
+    for wavelet in prt_wavelet::Wavelet::ALL {
+        // Every coefficient: the relit image is the uncompressed one (f32 rounding of the
+        // coefficients and of the lighting's projection: a few 1e-7 relative).
+        let (all, stats) = run(Some(Compression {
+            wavelet,
+            budget: Budget::Coefficients(n),
+        }));
+        assert!(stats.rf_rel_l2.unwrap() < 1e-12, "{wavelet:?}");
+        for (a, b) in all.pixels.iter().zip(&full.pixels) {
+            assert!(
+                (a[0] - b[0]).abs() <= 1e-5 * b[0],
+                "{wavelet:?}: {} vs {}",
+                a[0],
+                b[0]
+            );
+        }
+        // 24 coefficients: each pixel's error is ⟨f − f_K, ℓ⟩ ≤ ‖f − f_K‖ ‖ℓ‖ (Cauchy–Schwarz),
+        // and every pixel holds the same function (an unshadowed floor seen from above), so
+        // ‖f − f_K‖ = rf_rel_l2 · ‖f‖.
+        let (some, stats) = run(Some(Compression {
+            wavelet,
+            budget: Budget::Coefficients(24),
+        }));
+        let e = stats.rf_rel_l2.unwrap();
+        assert!(e > 0.0 && e < 1.0, "{wavelet:?}: {e}");
+        assert_eq!(stats.mean_coefficients, Some(24.0));
+        let bound = e * f_norm * l_norm * 1.0001 + 1e-6;
+        for (a, b) in some.pixels.iter().zip(&full.pixels) {
+            assert!(
+                f64::from((a[0] - b[0]).abs()) <= bound,
+                "{wavelet:?}: {} vs {} (bound {bound})",
+                a[0],
+                b[0]
+            );
+        }
+        // An error target is met, with fewer coefficients than the grid.
+        let (_, stats) = run(Some(Compression {
+            wavelet,
+            budget: Budget::RelativeError(0.01),
+        }));
+        assert!(stats.rf_rel_l2.unwrap() <= 0.01, "{wavelet:?}");
+        assert!(stats.mean_coefficients.unwrap() < n as f64);
     }
 }
