@@ -79,7 +79,8 @@ pub struct RelightArgs {
     pub glossy: GlossyArg,
     /// Reflectance fields (`prt reflectance`): how each pixel's sampled function is
     /// reconstructed on the fine grid (`nearest`: zero-order hold; `linear`: bilinear,
-    /// periodic in azimuth).
+    /// periodic in azimuth; `legall53` / `cdf97`: wavelet interpolation, periodic in azimuth
+    /// and mirrored at the poles).
     #[arg(long, value_enum, default_value_t = ReconstructArg::Linear)]
     pub reconstruct: ReconstructArg,
     /// Reflectance fields: the fine lat-long grid `WxH` the functions are reconstructed on and
@@ -344,6 +345,10 @@ pub enum ReconstructArg {
     Nearest,
     /// Bilinear in (φ, θ), periodic in azimuth.
     Linear,
+    /// Wavelet interpolation, LeGall 5/3 (fine sizes: power-of-two multiples of the sampled).
+    Legall53,
+    /// Wavelet interpolation, CDF 9/7.
+    Cdf97,
 }
 
 /// `prt relight` of a reflectance field.
@@ -361,6 +366,8 @@ fn run_field(
         reconstruction: match args.reconstruct {
             ReconstructArg::Nearest => prt_report::reflectance::Reconstruction::Nearest,
             ReconstructArg::Linear => prt_report::reflectance::Reconstruction::Linear,
+            ReconstructArg::Legall53 => prt_report::reflectance::Reconstruction::LeGall53,
+            ReconstructArg::Cdf97 => prt_report::reflectance::Reconstruction::Cdf97,
         },
         fine: crate::reflectance_cmd::parse_grid(&args.fine, "--fine")?,
         rotate_y_deg: args.rotate_y,

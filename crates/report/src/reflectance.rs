@@ -46,6 +46,26 @@ pub enum Reconstruction {
     Nearest,
     /// Bilinear in `(φ, θ)`, periodic in azimuth.
     Linear,
+    /// Wavelet interpolation with LeGall 5/3 (the samples as the approximation band of the
+    /// fine grid, details zero; periodic in azimuth, mirrored at the poles). Needs fine sizes
+    /// that are power-of-two multiples of the sampled ones.
+    #[serde(rename = "legall53")]
+    LeGall53,
+    /// Wavelet interpolation with CDF 9/7 (smoother, cubic-spline-like; may ring at sharp
+    /// features).
+    #[serde(rename = "cdf97")]
+    Cdf97,
+}
+
+impl Reconstruction {
+    /// The wavelet of a wavelet interpolation.
+    fn wavelet(self) -> Option<prt_wavelet::Wavelet> {
+        match self {
+            Reconstruction::LeGall53 => Some(prt_wavelet::Wavelet::LeGall53),
+            Reconstruction::Cdf97 => Some(prt_wavelet::Wavelet::Cdf97),
+            Reconstruction::Nearest | Reconstruction::Linear => None,
+        }
+    }
 }
 
 /// How many wavelet coefficients a function keeps.
@@ -166,7 +186,7 @@ fn compress(
                     &f[ch * d..(ch + 1) * d],
                     fine,
                     &mut fine_f,
-                );
+                )?;
                 let norm2: f64 = fine_f.iter().map(|v| v * v).sum();
                 n2 += norm2;
                 if norm2 == 0.0 {
@@ -293,7 +313,7 @@ fn weights(
             out[0] = (j * cw + i, 1.0);
             (out, 1)
         }
-        Reconstruction::Linear => {
+        Reconstruction::Linear | Reconstruction::LeGall53 | Reconstruction::Cdf97 => {
             // Sample centres at half-integers.
             let xs = x - 0.5;
             let ys = (y - 0.5).clamp(0.0, (ch - 1) as f64);
@@ -315,13 +335,51 @@ fn weights(
 }
 
 /// Reconstructs one channel's coarse samples on the fine grid (`out`: `fine W × H` values).
+///
+/// # Errors
+/// Wavelet interpolation between sizes that are not power-of-two multiples.
 pub fn reconstruct(
     method: Reconstruction,
     coarse: [u32; 2],
     samples: &[f32],
     fine: [u32; 2],
     out: &mut [f64],
-) {
+) -> Result<(), ReportError> {
+    if let Some(w) = method.wavelet() {
+        let c: Vec<f64> = samples.iter().map(|v| f64::from(*v)).collect();
+        let f = prt_wavelet::interpolate(
+            w,
+            prt_wavelet::Boundaries::LAT_LONG,
+            &c,
+            coarse[0] as usize,
+            coarse[1] as usize,
+            fine[0] as usize,
+            fine[1] as usize,
+        )
+        .map_err(|e| ReportError::Invalid(format!("--reconstruct {method:?}: {e}")))?;
+        // The synthesis puts coarse sample k on fine sample F·k (F = 2^levels per axis: the
+        // low band sits on even samples at every level), whose cell centre lies (F − 1)/2 fine
+        // cells before the coarse cell's centre, where the sample was taken. Read the refined
+        // function back at the fine cells' own centres: index j − (F − 1)/2, linearly,
+        // periodic in azimuth, held at the poles.
+        let (fw, fh) = (fine[0] as usize, fine[1] as usize);
+        let sx = (fw / coarse[0] as usize - 1) as f64 / 2.0;
+        let sy = (fh / coarse[1] as usize - 1) as f64 / 2.0;
+        for (k, o) in out.iter_mut().enumerate() {
+            let (col, row) = (k % fw, k / fw);
+            let x = col as f64 - sx;
+            let y = (row as f64 - sy).clamp(0.0, (fh - 1) as f64);
+            let (x0, y0) = (x.floor(), y.floor());
+            let (tx, ty) = (x - x0, y - y0);
+            let i0 = (x0 as i64).rem_euclid(fw as i64) as usize;
+            let i1 = (i0 + 1) % fw;
+            let j0 = y0 as usize;
+            let j1 = (j0 + 1).min(fh - 1);
+            *o = (1.0 - ty) * ((1.0 - tx) * f[j0 * fw + i0] + tx * f[j0 * fw + i1])
+                + ty * ((1.0 - tx) * f[j1 * fw + i0] + tx * f[j1 * fw + i1]);
+        }
+        return Ok(());
+    }
     for (k, o) in out.iter_mut().enumerate() {
         let (w, n) = weights(method, coarse, fine, k);
         *o = w[..n]
@@ -329,16 +387,40 @@ pub fn reconstruct(
             .map(|&(j, wt)| wt * f64::from(samples[j]))
             .sum();
     }
+    Ok(())
 }
 
-/// `Mᵀ (L̄ Δω)`: the fine lighting pulled back to the coarse samples, RGB.
-#[must_use]
+/// `Mᵀ (L̄ Δω)`: the fine lighting pulled back to the coarse samples, RGB. For wavelet
+/// interpolation, `(Mᵀℓ)_j = ⟨M e_j, ℓ⟩` with `M e_j` the interpolation of a unit sample.
+///
+/// # Errors
+/// As [`reconstruct`].
 pub fn pulled_back_lighting(
     method: Reconstruction,
     coarse: [u32; 2],
     fine: [u32; 2],
     lighting: &[[f64; 3]],
-) -> Vec<[f64; 3]> {
+) -> Result<Vec<[f64; 3]>, ReportError> {
+    if method.wavelet().is_some() {
+        let d = coarse[0] as usize * coarse[1] as usize;
+        let n = lighting.len();
+        return (0..d)
+            .into_par_iter()
+            .map(|j| {
+                let mut unit = vec![0.0f32; d];
+                unit[j] = 1.0;
+                let mut m = vec![0.0f64; n];
+                reconstruct(method, coarse, &unit, fine, &mut m)?;
+                let mut s = [0.0f64; 3];
+                for (a, l) in m.iter().zip(lighting) {
+                    for c in 0..3 {
+                        s[c] += a * l[c];
+                    }
+                }
+                Ok(s)
+            })
+            .collect();
+    }
     let mut out = vec![[0.0f64; 3]; coarse[0] as usize * coarse[1] as usize];
     for (k, l) in lighting.iter().enumerate() {
         let (w, n) = weights(method, coarse, fine, k);
@@ -348,7 +430,7 @@ pub fn pulled_back_lighting(
             }
         }
     }
-    out
+    Ok(out)
 }
 
 /// Checks that the file holds a reflectance field made for `scene` (the meshes' geometry
@@ -466,7 +548,7 @@ pub fn relight_field(
             continue;
         }
         let pulled =
-            pulled_back_lighting(opt.reconstruction, field.directions, opt.fine, &lighting);
+            pulled_back_lighting(opt.reconstruction, field.directions, opt.fine, &lighting)?;
         // f32 lighting per channel for the per-pixel dot products (f64 accumulation).
         let lc: Vec<Vec<f32>> = (0..3)
             .map(|c| pulled.iter().map(|l| l[c] as f32).collect())
@@ -555,11 +637,16 @@ mod tests {
         let lighting: Vec<[f64; 3]> = (0..512)
             .map(|k| [(k % 7) as f64, (k % 5) as f64 * 0.5, 1.0])
             .collect();
-        for m in [Reconstruction::Nearest, Reconstruction::Linear] {
+        for m in [
+            Reconstruction::Nearest,
+            Reconstruction::Linear,
+            Reconstruction::LeGall53,
+            Reconstruction::Cdf97,
+        ] {
             let mut f = vec![0.0; 512];
-            reconstruct(m, coarse, &samples, fine, &mut f);
+            reconstruct(m, coarse, &samples, fine, &mut f).unwrap();
             let direct: f64 = f.iter().zip(&lighting).map(|(a, l)| a * l[0]).sum();
-            let pulled = pulled_back_lighting(m, coarse, fine, &lighting);
+            let pulled = pulled_back_lighting(m, coarse, fine, &lighting).unwrap();
             let via: f64 = samples
                 .iter()
                 .zip(&pulled)
@@ -573,18 +660,49 @@ mod tests {
     }
 
     #[test]
+    fn legall53_interpolation_is_linear_interpolation_away_from_the_poles() {
+        // The 5/3 scaling function is the linear B-spline: with the samples read back at the
+        // fine cells' centres, wavelet interpolation equals bilinear interpolation between
+        // sample centres except within a coarse cell of the poles (the transform mirrors
+        // about the first and last samples where the bilinear one holds them).
+        let (coarse, fine) = ([16u32, 8u32], [64u32, 32u32]);
+        let samples: Vec<f32> = (0..128)
+            .map(|i| (i as f32 * 0.37).sin() + 0.1 * (i % 16) as f32)
+            .collect();
+        let (mut a, mut b) = (vec![0.0; 2048], vec![0.0; 2048]);
+        reconstruct(Reconstruction::LeGall53, coarse, &samples, fine, &mut a).unwrap();
+        reconstruct(Reconstruction::Linear, coarse, &samples, fine, &mut b).unwrap();
+        for row in 4..28 {
+            for col in 0..64 {
+                let k = row * 64 + col;
+                assert!(
+                    (a[k] - b[k]).abs() < 1e-12,
+                    "row {row} col {col}: {} vs {}",
+                    a[k],
+                    b[k]
+                );
+            }
+        }
+    }
+
+    #[test]
     fn reconstructions_keep_constants_and_linear_interpolates_between_centres() {
         let (coarse, fine) = ([4u32, 2u32], [8u32, 4u32]);
-        for m in [Reconstruction::Nearest, Reconstruction::Linear] {
+        for m in [
+            Reconstruction::Nearest,
+            Reconstruction::Linear,
+            Reconstruction::LeGall53,
+            Reconstruction::Cdf97,
+        ] {
             let mut f = vec![0.0; 32];
-            reconstruct(m, coarse, &[2.5; 8], fine, &mut f);
+            reconstruct(m, coarse, &[2.5; 8], fine, &mut f).unwrap();
             assert!(f.iter().all(|v| (*v - 2.5).abs() < 1e-12), "{m:?}");
         }
         // Along azimuth, samples 0,1,2,3 in row 0: the fine cell centred a quarter of a
         // coarse cell past sample 0's centre gets ¾·s0 + ¼·s1; periodic past the last.
         let s = [0.0f32, 4.0, 8.0, 12.0, 0.0, 4.0, 8.0, 12.0];
         let mut f = vec![0.0; 32];
-        reconstruct(Reconstruction::Linear, coarse, &s, fine, &mut f);
+        reconstruct(Reconstruction::Linear, coarse, &s, fine, &mut f).unwrap();
         assert!((f[1] - 1.0).abs() < 1e-12, "{}", f[1]);
         // Fine cell 0 lies a quarter cell before sample 0: ¾·s0 + ¼·s3 (wrapping).
         assert!((f[0] - 3.0).abs() < 1e-12, "{}", f[0]);

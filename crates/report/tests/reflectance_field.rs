@@ -239,7 +239,8 @@ fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error(
         &field.function(0)[..w * h],
         fine,
         &mut f,
-    );
+    )
+    .unwrap();
     let f_norm = f.iter().map(|v| v * v).sum::<f64>().sqrt();
     let l_norm = lighting.iter().map(|l| l[0] * l[0]).sum::<f64>().sqrt();
     for wavelet in prt_wavelet::Wavelet::ALL {
