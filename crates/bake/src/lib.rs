@@ -772,33 +772,7 @@ pub fn bake_pass(
                 }
             }
             rays_traced += stats.rays * (1 + u64::from(plan.needs_visibility));
-            let kind = if bounces > 0 {
-                TransferKind::InterreflectedDiffuse {
-                    bounces: settings.bounces,
-                }
-            } else {
-                TransferKind::ShadowedDiffuse
-            };
-            let mut blocks = vec![TransferBlock {
-                cpca: None,
-                kind,
-                data: diffuse,
-            }];
-            if let Some(v) = vis {
-                blocks.push(TransferBlock {
-                    cpca: None,
-                    kind: TransferKind::Visibility,
-                    data: v,
-                });
-            }
-            if let Some(u) = unsh {
-                blocks.push(TransferBlock {
-                    cpca: None,
-                    kind: TransferKind::UnshadowedDiffuse,
-                    data: u,
-                });
-            }
-            blocks.sort_by_key(|b| b.kind);
+            let blocks = point_blocks(settings.bounces, diffuse, vis, unsh);
             reports.push(ObjectReport {
                 name: plan.name.clone(),
                 order: plan.order,
@@ -1147,6 +1121,32 @@ pub fn uv_hash(uvs: &[[f32; 2]]) -> u64 {
     h
 }
 
+/// The blocks of a per-pixel or per-texel object, in block order: its diffuse transfer
+/// (interreflected with bounces, else shadowed) and the optional visibility and unshadowed
+/// transfer.
+fn point_blocks(
+    bounces: u32,
+    diffuse: Vec<f32>,
+    visibility: Option<Vec<f32>>,
+    unshadowed: Option<Vec<f32>>,
+) -> Vec<TransferBlock> {
+    let kind = if bounces > 0 {
+        TransferKind::InterreflectedDiffuse { bounces }
+    } else {
+        TransferKind::ShadowedDiffuse
+    };
+    let block = |kind, data| TransferBlock {
+        cpca: None,
+        kind,
+        data,
+    };
+    let mut blocks = vec![block(kind, diffuse)];
+    blocks.extend(visibility.map(|v| block(TransferKind::Visibility, v)));
+    blocks.extend(unshadowed.map(|u| block(TransferKind::UnshadowedDiffuse, u)));
+    blocks.sort_by_key(|b| b.kind);
+    blocks
+}
+
 /// One lightmapped object of a per-texel bake: direct transfer at every covered texel's
 /// surface point, plus the bounces gathered from the vertex chain (as per-pixel bakes do).
 struct TexelBake<'a> {
@@ -1257,33 +1257,7 @@ impl TexelBake<'_> {
             hits += r.hits;
         }
         let rays = stats.rays * (1 + u64::from(plan.needs_visibility));
-        let kind = if bounces > 0 {
-            TransferKind::InterreflectedDiffuse {
-                bounces: settings.bounces,
-            }
-        } else {
-            TransferKind::ShadowedDiffuse
-        };
-        let mut blocks = vec![TransferBlock {
-            cpca: None,
-            kind,
-            data: diffuse,
-        }];
-        if let Some(v) = vis {
-            blocks.push(TransferBlock {
-                cpca: None,
-                kind: TransferKind::Visibility,
-                data: v,
-            });
-        }
-        if let Some(u) = unsh {
-            blocks.push(TransferBlock {
-                cpca: None,
-                kind: TransferKind::UnshadowedDiffuse,
-                data: u,
-            });
-        }
-        blocks.sort_by_key(|b| b.kind);
+        let blocks = point_blocks(settings.bounces, diffuse, vis, unsh);
         let covered = rows.iter().filter(|r| r.is_some()).count() as u64;
         let report = ObjectReport {
             name: plan.name.clone(),

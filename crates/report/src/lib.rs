@@ -12,7 +12,13 @@
 //! Blinn–Phong, Ward and Cook–Torrance, Kautz, Sloan & Snyder 2002 (per-view-elevation BRDF
 //! projections, [`glossy`]); image
 //! formation interpolates per-vertex radiance over the triangles hit by the scene camera's rays
-//! (Gouraud), which is the approximation per-pixel bakes avoid.
+//! (Gouraud), which is the approximation per-pixel bakes avoid, or reads per-texel bakes
+//! bilinearly at each hit's lightmap UV.
+//!
+//! Beyond SH, [`reflectance`] relights sampled reflectance fields (Masselus, Peers, Dutré &
+//! Willems, EGSR 2004): reconstruction of each pixel's sampled function on a fine lat-long grid
+//! (zero-order hold, bilinear, LeGall 5/3 and CDF 9/7 wavelet interpolation) and non-linear
+//! wavelet approximation (Haar, 5/3, 9/7; `prt-wavelet`) relit as sparse dot products.
 
 pub mod budget;
 mod error;
