@@ -54,5 +54,8 @@ fn write_inner(path: &Path, bake: &Bake, scalar: ScalarType) -> Result<(), BakeF
 /// I/O errors and everything [`crate::decode`] refuses; every error names `path`.
 pub fn read_bake(path: &Path) -> Result<Bake, BakeFileError> {
     let bytes = std::fs::read(path).map_err(|e| BakeFileError::from(e).in_file(path))?;
-    crate::decode(&bytes).map_err(|e| e.in_file(path))
+    let view = crate::BakeView::new(&bytes).map_err(|e| e.in_file(path))?;
+    let bake = view.into_bake().map_err(|e| e.in_file(path));
+    drop(bytes);
+    bake
 }

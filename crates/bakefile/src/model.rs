@@ -674,9 +674,9 @@ impl ReflectanceField {
         &self.values[i * n..(i + 1) * n]
     }
 
-    /// Structure (not values): a per-pixel file, directions, increasing pixels in the image,
-    /// the value count.
-    fn check(&self, kind: SampleKind) -> Result<(), BakeFileError> {
+    /// Structure: a per-pixel file, directions, increasing pixels in the image, and (with
+    /// `with_values`) the value count.
+    fn check(&self, kind: SampleKind, with_values: bool) -> Result<(), BakeFileError> {
         let SampleKind::Pixel { width, height } = kind else {
             return Err(bad("a reflectance field belongs to a per-pixel file"));
         };
@@ -697,7 +697,7 @@ impl ReflectanceField {
         let want = (self.pixels.len() as u64)
             .checked_mul(3 * self.direction_count() as u64)
             .ok_or_else(|| bad("reflectance field too large"))?;
-        if self.values.len() as u64 != want {
+        if with_values && self.values.len() as u64 != want {
             return Err(BakeFileError::InconsistentCounts {
                 what: "RFLD values".into(),
                 expected: want,
@@ -1083,7 +1083,8 @@ impl Bake {
         }
         self.check_camera()?;
         if let Some(r) = &self.reflectance {
-            r.check(m.sample_kind)?;
+            // (A view's skeleton carries the field's structure without its values.)
+            r.check(m.sample_kind, with_data)?;
             if with_data {
                 check_finite32("RFLD", &r.values)?;
                 if let Some(i) = r.values.iter().position(|v| *v < 0.0) {

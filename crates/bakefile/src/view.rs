@@ -152,7 +152,7 @@ pub struct BakeView<'a> {
 /// # Errors
 /// A typed [`BakeFileError`] for every way the bytes can be malformed.
 pub fn decode(bytes: &[u8]) -> Result<Bake, BakeFileError> {
-    BakeView::new(bytes)?.to_bake()
+    BakeView::new(bytes)?.into_bake()
 }
 
 fn rd_u32(b: &[u8], off: usize) -> u32 {
@@ -1329,7 +1329,13 @@ impl<'a> BakeView<'a> {
 
     pub(crate) fn skeleton(&self) -> Bake {
         Bake {
-            reflectance: self.reflectance.clone(),
+            // The structure only: the values stay in the view (`to_bake` copies them,
+            // `into_bake` moves them) instead of being cloned for validation.
+            reflectance: self.reflectance.as_ref().map(|r| ReflectanceField {
+                directions: r.directions,
+                pixels: r.pixels.clone(),
+                values: Vec::new(),
+            }),
             meta: self.meta.clone(),
             objects: self
                 .objects
@@ -1505,6 +1511,25 @@ impl<'a> BakeView<'a> {
     /// # Errors
     /// None in practice (the view is already validated); kept fallible for future checks.
     pub fn to_bake(&self) -> Result<Bake, BakeFileError> {
+        let mut bake = self.bake_without_field();
+        bake.reflectance.clone_from(&self.reflectance);
+        Ok(bake)
+    }
+
+    /// [`BakeView::to_bake`] that moves the reflectance field's values out of the view instead
+    /// of copying them (a sampled field can be most of the file).
+    ///
+    /// # Errors
+    /// As [`BakeView::to_bake`].
+    pub fn into_bake(mut self) -> Result<Bake, BakeFileError> {
+        let field = self.reflectance.take();
+        let mut bake = self.bake_without_field();
+        bake.reflectance = field;
+        Ok(bake)
+    }
+
+    /// The skeleton with every block's coefficients (the field's structure only).
+    fn bake_without_field(&self) -> Bake {
         let mut bake = self.skeleton();
         for (oi, o) in bake.objects.iter_mut().enumerate() {
             for (bi, b) in o.blocks.iter_mut().enumerate() {
@@ -1514,6 +1539,7 @@ impl<'a> BakeView<'a> {
                     .unwrap_or_default();
             }
         }
-        Ok(bake)
+        bake.reflectance = None;
+        bake
     }
 }
