@@ -357,8 +357,8 @@ fn run_field(
     scene: &prt_scene::Scene,
     bake: &prt_bakefile::Bake,
 ) -> Result<()> {
-    if args.adaptive || args.order.is_some() || args.vertex_colours.is_some() || args.frames > 1 {
-        bail!("{}: a reflectance field relights per pixel: --adaptive, --order, --vertex-colours and --frames are for SH bakes", args.bake.display());
+    if args.adaptive || args.order.is_some() || args.vertex_colours.is_some() {
+        bail!("{}: a reflectance field relights per pixel: --adaptive, --order and --vertex-colours are for SH bakes", args.bake.display());
     }
     let field = prt_report::reflectance::check_field(scene, bake, &args.bake)?;
     let accel = prt_tracer::Accel::build(scene).context("building the BVH")?;
@@ -388,7 +388,20 @@ fn run_field(
             }),
         },
     };
-    let (image, stats) = prt_report::reflectance::relight_field(scene, &accel, bake, field, &opt)?;
+    // A rotating map: --frames K frames --rotate-y-step apart, relit from functions
+    // reconstructed (and compressed) once; the first frame is the image written.
+    let angles: Vec<f64> = (0..args.frames)
+        .map(|k| args.rotate_y + args.rotate_y_step * k as f64)
+        .collect();
+    let (mut frames, stats) =
+        prt_report::reflectance::relight_field_frames(scene, &accel, bake, field, &opt, &angles)?;
+    let flicker = if frames.len() > 2 {
+        let mask = prt_report::object_mask(scene, &accel)?;
+        prt_report::reflectance::flicker(&frames, &mask)
+    } else {
+        None
+    };
+    let image = frames.swap_remove(0);
     let attrs = vec![
         ("kind", "relit-reflectance-field".to_string()),
         ("rotate_y", args.rotate_y.to_string()),
@@ -400,8 +413,19 @@ fn run_field(
         prt_report::io::write_png(p, &image, args.exposure)?;
     }
     if args.json {
-        outln!("{}", serde_json::to_string(&stats)?);
+        let mut v = serde_json::to_value(&stats)?;
+        v["flicker"] = serde_json::json!(flicker);
+        v["frames"] = args.frames.into();
+        outln!("{}", serde_json::to_string(&v)?);
     } else {
+        if let Some(f) = flicker {
+            outln!(
+                "{} frames {}° apart: flicker (relative RMS of the second difference in time, object pixels) {:.4}",
+                args.frames,
+                args.rotate_y_step,
+                f
+            );
+        }
         if let (Some(w), Some(k), Some(e)) =
             (&stats.wavelet, stats.mean_coefficients, stats.rf_rel_l2)
         {

@@ -433,6 +433,35 @@ pub fn pulled_back_lighting(
     Ok(out)
 }
 
+/// Temporal coherence of a sequence of frames under a steadily rotating map (the paper's
+/// argument for smooth reconstructions: a shadow or highlight should glide, not jump from one
+/// sampled direction to the next): the relative RMS of the second difference in time over the
+/// masked pixels, `sqrt(Σ_k ‖I_{k+1} − 2 I_k + I_{k−1}‖² / Σ_k ‖I_k‖²)` (k over the inner
+/// frames). Smooth motion at a constant speed gives a value near 0; steps give large ones.
+/// `None` with fewer than 3 frames.
+#[must_use]
+pub fn flicker(frames: &[RgbImage], mask: &[bool]) -> Option<f64> {
+    if frames.len() < 3 {
+        return None;
+    }
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for k in 1..frames.len() - 1 {
+        let (a, b, c) = (&frames[k - 1], &frames[k], &frames[k + 1]);
+        for (i, m) in mask.iter().enumerate() {
+            if !m {
+                continue;
+            }
+            for ch in 0..3 {
+                let d = f64::from(c.pixels[i][ch]) - 2.0 * f64::from(b.pixels[i][ch])
+                    + f64::from(a.pixels[i][ch]);
+                num += d * d;
+                den += f64::from(b.pixels[i][ch]).powi(2);
+            }
+        }
+    }
+    Some(if den > 0.0 { (num / den).sqrt() } else { 0.0 })
+}
+
 /// Checks that the file holds a reflectance field made for `scene` (the meshes' geometry
 /// hashes of `settings.reflectance.geometry`).
 ///
@@ -502,6 +531,28 @@ pub fn relight_field(
     field: &ReflectanceField,
     opt: &FieldOptions,
 ) -> Result<(RgbImage, FieldStats), ReportError> {
+    let (mut images, stats) =
+        relight_field_frames(scene, accel, bake, field, opt, &[opt.rotate_y_deg])?;
+    Ok((images.remove(0), stats))
+}
+
+/// [`relight_field`] for several rotations of the map about +Y (degrees; `opt.rotate_y_deg`
+/// is ignored): the functions are reconstructed (and compressed) once, each frame relit from
+/// them. The timing is of the first frame (`opt.timing_frames` repetitions).
+///
+/// # Errors
+/// As [`relight_field`]; no angles.
+pub fn relight_field_frames(
+    scene: &Scene,
+    accel: &Accel,
+    bake: &Bake,
+    field: &ReflectanceField,
+    opt: &FieldOptions,
+    angles: &[f64],
+) -> Result<(Vec<RgbImage>, FieldStats), ReportError> {
+    if angles.is_empty() {
+        return Err(ReportError::Invalid("no frames to relight".into()));
+    }
     let [fw, fh] = opt.fine;
     let [cw, ch] = field.directions;
     if fw < cw || fh < ch || u64::from(fw) * u64::from(fh) > 1 << 24 {
@@ -516,59 +567,6 @@ pub fn relight_field(
         .transpose()?;
     let mut times = Vec::new();
     let mut lighting_ms = 0.0;
-    let mut values = vec![[0.0f32; 3]; field.pixels.len()];
-    for _ in 0..opt.timing_frames.max(1) {
-        let t0 = std::time::Instant::now();
-        let lighting = fine_lighting(scene, opt.fine, opt.rotate_y_deg);
-        lighting_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let t = std::time::Instant::now();
-        if let Some(sp) = &sparse {
-            // The lighting's primal coefficients Sᵀℓ per channel, then sparse dot products.
-            let lc: Vec<Vec<f32>> = (0..3)
-                .map(|c| {
-                    let l: Vec<f64> = lighting.iter().map(|v| v[c]).collect();
-                    sp.transform
-                        .primal_coefficients(&l)
-                        .map(|p| p.iter().map(|v| *v as f32).collect())
-                        .map_err(|e| ReportError::Invalid(format!("wavelet: {e}")))
-                })
-                .collect::<Result<_, _>>()?;
-            values.par_iter_mut().enumerate().for_each(|(i, v)| {
-                for c in 0..3 {
-                    let (start, len) = sp.runs[i][c];
-                    let run = &sp.entries[start as usize..(start + len) as usize];
-                    let s: f64 = run
-                        .iter()
-                        .map(|&(k, a)| f64::from(a) * f64::from(lc[c][k as usize]))
-                        .sum();
-                    v[c] = s as f32;
-                }
-            });
-            times.push(t.elapsed().as_secs_f64() * 1e3);
-            continue;
-        }
-        let pulled =
-            pulled_back_lighting(opt.reconstruction, field.directions, opt.fine, &lighting)?;
-        // f32 lighting per channel for the per-pixel dot products (f64 accumulation).
-        let lc: Vec<Vec<f32>> = (0..3)
-            .map(|c| pulled.iter().map(|l| l[c] as f32).collect())
-            .collect();
-        values.par_iter_mut().enumerate().for_each(|(i, v)| {
-            let f = field.function(i);
-            for c in 0..3 {
-                let r = &f[c * d..(c + 1) * d];
-                let s: f64 = r
-                    .iter()
-                    .zip(&lc[c])
-                    .map(|(a, b)| f64::from(*a) * f64::from(*b))
-                    .sum();
-                v[c] = s as f32;
-            }
-        });
-        times.push(t.elapsed().as_secs_f64() * 1e3);
-    }
-    times.sort_by(f64::total_cmp);
-    // The image: held pixels' values plus every pixel's background share.
     let k = bake
         .meta
         .settings
@@ -577,25 +575,87 @@ pub fn relight_field(
         .unwrap_or(1)
         .clamp(1, u64::from(prt_bake::MAX_PIXEL_SAMPLES)) as u32;
     let fp = prt_bake::points::pixel_footprints(scene, accel, bake.meta.seed, k)?;
-    let (w, h) = (scene.camera.width, scene.camera.height);
-    let mut pixels = vec![[0.0f32; 3]; (w * h) as usize];
-    for (&p, v) in field.pixels.iter().zip(&values) {
-        pixels[p as usize] = *v;
-    }
-    pixels.par_iter_mut().enumerate().for_each(|(px, c)| {
-        let samples = fp.pixel(px);
-        let weight = 1.0 / samples.len() as f32;
-        for s in samples.iter().filter(|s| s.hit.is_none()) {
-            let b = background_radiance(scene, s.dir, opt.rotate_y_deg);
-            (0..3).for_each(|ch| c[ch] += weight * b[ch]);
+    let mut images = Vec::with_capacity(angles.len());
+    for (ai, &angle) in angles.iter().enumerate() {
+        let mut values = vec![[0.0f32; 3]; field.pixels.len()];
+        let repeats = if ai == 0 { opt.timing_frames.max(1) } else { 1 };
+        for _ in 0..repeats {
+            let t0 = std::time::Instant::now();
+            let lighting = fine_lighting(scene, opt.fine, angle);
+            lighting_ms = t0.elapsed().as_secs_f64() * 1e3;
+            let t = std::time::Instant::now();
+            if let Some(sp) = &sparse {
+                // The lighting's primal coefficients Sᵀℓ per channel, then sparse dot products.
+                let lc: Vec<Vec<f32>> = (0..3)
+                    .map(|c| {
+                        let l: Vec<f64> = lighting.iter().map(|v| v[c]).collect();
+                        sp.transform
+                            .primal_coefficients(&l)
+                            .map(|p| p.iter().map(|v| *v as f32).collect())
+                            .map_err(|e| ReportError::Invalid(format!("wavelet: {e}")))
+                    })
+                    .collect::<Result<_, _>>()?;
+                values.par_iter_mut().enumerate().for_each(|(i, v)| {
+                    for c in 0..3 {
+                        let (start, len) = sp.runs[i][c];
+                        let run = &sp.entries[start as usize..(start + len) as usize];
+                        let s: f64 = run
+                            .iter()
+                            .map(|&(k, a)| f64::from(a) * f64::from(lc[c][k as usize]))
+                            .sum();
+                        v[c] = s as f32;
+                    }
+                });
+                if ai == 0 {
+                    times.push(t.elapsed().as_secs_f64() * 1e3);
+                }
+                continue;
+            }
+            let pulled =
+                pulled_back_lighting(opt.reconstruction, field.directions, opt.fine, &lighting)?;
+            // f32 lighting per channel for the per-pixel dot products (f64 accumulation).
+            let lc: Vec<Vec<f32>> = (0..3)
+                .map(|c| pulled.iter().map(|l| l[c] as f32).collect())
+                .collect();
+            values.par_iter_mut().enumerate().for_each(|(i, v)| {
+                let f = field.function(i);
+                for c in 0..3 {
+                    let r = &f[c * d..(c + 1) * d];
+                    let s: f64 = r
+                        .iter()
+                        .zip(&lc[c])
+                        .map(|(a, b)| f64::from(*a) * f64::from(*b))
+                        .sum();
+                    v[c] = s as f32;
+                }
+            });
+            if ai == 0 {
+                times.push(t.elapsed().as_secs_f64() * 1e3);
+            }
         }
-    });
-    Ok((
-        RgbImage {
+        // The image: held pixels' values plus every pixel's background share.
+        let (w, h) = (scene.camera.width, scene.camera.height);
+        let mut pixels = vec![[0.0f32; 3]; (w * h) as usize];
+        for (&p, v) in field.pixels.iter().zip(&values) {
+            pixels[p as usize] = *v;
+        }
+        pixels.par_iter_mut().enumerate().for_each(|(px, c)| {
+            let samples = fp.pixel(px);
+            let weight = 1.0 / samples.len() as f32;
+            for s in samples.iter().filter(|s| s.hit.is_none()) {
+                let b = background_radiance(scene, s.dir, angle);
+                (0..3).for_each(|ch| c[ch] += weight * b[ch]);
+            }
+        });
+        images.push(RgbImage {
             width: w,
             height: h,
             pixels,
-        },
+        });
+    }
+    times.sort_by(f64::total_cmp);
+    Ok((
+        images,
         FieldStats {
             shade_ms: times[times.len() / 2],
             lighting_ms,
@@ -657,6 +717,28 @@ mod tests {
                 "{m:?}: {direct} vs {via}"
             );
         }
+    }
+
+    #[test]
+    fn flicker_is_zero_for_steady_change_and_large_for_a_jump() {
+        let img = |v: f32| RgbImage {
+            width: 2,
+            height: 1,
+            pixels: vec![[v; 3], [2.0 * v; 3]],
+        };
+        let mask = [true, true];
+        // Brightening at a constant rate: no second difference.
+        let steady: Vec<RgbImage> = (0..6).map(|k| img(1.0 + 0.1 * k as f32)).collect();
+        assert!(flicker(&steady, &mask).unwrap() < 1e-7);
+        // One step of 0.5 in the middle: (0.5² · 2 frames) over the frames' energy.
+        let jump: Vec<RgbImage> = [1.0, 1.0, 1.0, 1.5, 1.5, 1.5].map(img).into();
+        let f = flicker(&jump, &mask).unwrap();
+        // Σ (Δ²)² over the inner frames k = 1..4: 0, 0.5, −0.5, 0 (times 1 and 2 per pixel,
+        // 3 channels); Σ I² over the same frames: (1 + 1 + 1.5 + 1.5)² terms.
+        let num = 2.0 * 0.25 * (1.0 + 4.0) * 3.0;
+        let den = (1.0 + 1.0 + 2.25 + 2.25) * (1.0 + 4.0) * 3.0;
+        assert!((f - (num / den as f64).sqrt()).abs() < 1e-6, "{f}");
+        assert!(flicker(&steady[..2], &mask).is_none());
     }
 
     #[test]
