@@ -735,9 +735,9 @@ mod tests {
         let f = flicker(&jump, &mask).unwrap();
         // Σ (Δ²)² over the inner frames k = 1..4: 0, 0.5, −0.5, 0 (times 1 and 2 per pixel,
         // 3 channels); Σ I² over the same frames: (1 + 1 + 1.5 + 1.5)² terms.
-        let num = 2.0 * 0.25 * (1.0 + 4.0) * 3.0;
+        let num: f64 = 2.0 * 0.25 * (1.0 + 4.0) * 3.0;
         let den = (1.0 + 1.0 + 2.25 + 2.25) * (1.0 + 4.0) * 3.0;
-        assert!((f - (num / den as f64).sqrt()).abs() < 1e-6, "{f}");
+        assert!((f - (num / den).sqrt()).abs() < 1e-6, "{f}");
         assert!(flicker(&steady[..2], &mask).is_none());
     }
 

@@ -66,6 +66,18 @@ fn scene(env_w: usize, env_h: usize) -> Scene {
     s
 }
 
+/// Direct light only, one path per sample (unused without bounces).
+fn direct(directions: [u32; 2], pixel_samples: u32, seed: u64) -> ReflectanceSettings {
+    ReflectanceSettings {
+        directions,
+        bounces: 0,
+        rays: 1,
+        pixel_samples,
+        seed,
+        progress: false,
+    }
+}
+
 /// `(a/π) ∫ L cos⁺ dω` per channel, exactly for the piecewise-constant map.
 fn exact(s: &Scene) -> [f64; 3] {
     let img = &s.environment.image;
@@ -97,14 +109,7 @@ fn an_unshadowed_lambert_floor_relights_to_its_irradiance() {
     let (w, h) = (64usize, 32usize);
     let s = scene(w, h);
     let accel = Accel::build(&s).unwrap();
-    let settings = ReflectanceSettings {
-        directions: [w as u32, h as u32],
-        bounces: 0,
-        rays: 1,
-        pixel_samples: 2,
-        seed: 7,
-        progress: false,
-    };
+    let settings = direct([w as u32, h as u32], 2, 7);
     let (field, stats) = sample_field(&s, &accel, &settings).unwrap();
     assert_eq!(stats.pixels, 48, "every pixel sees the floor");
     let bake = field_bake(&s, field, &settings);
@@ -175,14 +180,7 @@ fn an_unshadowed_lambert_floor_relights_to_its_irradiance() {
 fn a_field_of_another_scene_or_a_bad_grid_is_refused() {
     let s = scene(16, 8);
     let accel = Accel::build(&s).unwrap();
-    let settings = ReflectanceSettings {
-        directions: [16, 8],
-        bounces: 0,
-        rays: 1,
-        pixel_samples: 1,
-        seed: 1,
-        progress: false,
-    };
+    let settings = direct([16, 8], 1, 1);
     let (field, _) = sample_field(&s, &accel, &settings).unwrap();
     let bake = field_bake(&s, field, &settings);
     let mut other = s.clone();
@@ -215,14 +213,7 @@ fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error(
     let (w, h) = (16usize, 8usize);
     let s = scene(w, h);
     let accel = Accel::build(&s).unwrap();
-    let settings = ReflectanceSettings {
-        directions: [w as u32, h as u32],
-        bounces: 0,
-        rays: 1,
-        pixel_samples: 1,
-        seed: 3,
-        progress: false,
-    };
+    let settings = direct([w as u32, h as u32], 1, 3);
     let (field, _) = sample_field(&s, &accel, &settings).unwrap();
     let bake = field_bake(&s, field.clone(), &settings);
     let fine = [32u32, 16u32];
