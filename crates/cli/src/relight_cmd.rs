@@ -80,7 +80,8 @@ pub struct RelightArgs {
     /// Reflectance fields (`prt reflectance`): how each pixel's sampled function is
     /// reconstructed on the fine grid (`nearest`: zero-order hold; `linear`: bilinear,
     /// periodic in azimuth; `legall53` / `cdf97`: wavelet interpolation, periodic in azimuth
-    /// and mirrored at the poles).
+    /// and mirrored at the poles; `idw`, `biquadric`, `sh25`, `bspline`: the paper's other
+    /// methods).
     #[arg(long, value_enum, default_value_t = ReconstructArg::Linear)]
     pub reconstruct: ReconstructArg,
     /// Reflectance fields: the fine lat-long grid `WxH` the functions are reconstructed on and
@@ -349,6 +350,14 @@ pub enum ReconstructArg {
     Legall53,
     /// Wavelet interpolation, CDF 9/7.
     Cdf97,
+    /// Inverse-distance weighting of the 32 nearest samples (Shepard).
+    Idw,
+    /// A biquadric polynomial per hemisphere, least squares.
+    Biquadric,
+    /// Spherical harmonics, 25 coefficients, least squares.
+    Sh25,
+    /// Multilevel B-splines (Lee, Wolberg & Shin 1997).
+    Bspline,
 }
 
 /// `prt relight` of a reflectance field.
@@ -368,6 +377,10 @@ fn run_field(
             ReconstructArg::Linear => prt_report::reflectance::Reconstruction::Linear,
             ReconstructArg::Legall53 => prt_report::reflectance::Reconstruction::LeGall53,
             ReconstructArg::Cdf97 => prt_report::reflectance::Reconstruction::Cdf97,
+            ReconstructArg::Idw => prt_report::reflectance::Reconstruction::Idw,
+            ReconstructArg::Biquadric => prt_report::reflectance::Reconstruction::Biquadric,
+            ReconstructArg::Sh25 => prt_report::reflectance::Reconstruction::Sh25,
+            ReconstructArg::Bspline => prt_report::reflectance::Reconstruction::BSpline,
         },
         fine: crate::reflectance_cmd::parse_grid(&args.fine, "--fine")?,
         rotate_y_deg: args.rotate_y,

@@ -31,6 +31,7 @@ pub mod recommend;
 pub mod reflectance;
 pub mod relit;
 pub mod report;
+pub mod rf_reconstruct;
 pub mod target;
 pub mod viewer;
 

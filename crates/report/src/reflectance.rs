@@ -55,6 +55,100 @@ pub enum Reconstruction {
     /// features).
     #[serde(rename = "cdf97")]
     Cdf97,
+    /// Inverse-distance weighting of the 32 angularly nearest samples (Shepard's method,
+    /// [`crate::rf_reconstruct::Idw`]).
+    Idw,
+    /// A biquadric polynomial per hemisphere, least squares ([`crate::rf_reconstruct::Biquadric`]).
+    Biquadric,
+    /// Spherical harmonics with 25 coefficients, least squares
+    /// ([`crate::rf_reconstruct::ShFit`]).
+    #[serde(rename = "sh25")]
+    Sh25,
+    /// Multilevel B-splines (Lee, Wolberg & Shin 1997; [`crate::rf_reconstruct::MultilevelBSpline`]).
+    #[serde(rename = "bspline")]
+    BSpline,
+}
+
+/// A reconstruction set up for one pair of grids: the built-in ones are evaluated directly,
+/// the others ([`crate::rf_reconstruct`]) precompute their linear map once.
+pub struct Prepared {
+    method: Reconstruction,
+    coarse: [u32; 2],
+    fine: [u32; 2],
+    op: Option<Box<dyn crate::rf_reconstruct::LinearReconstruction>>,
+}
+
+impl Prepared {
+    /// Sets `method` up for `coarse → fine`.
+    ///
+    /// # Errors
+    /// Grids the method cannot work with.
+    pub fn new(
+        method: Reconstruction,
+        coarse: [u32; 2],
+        fine: [u32; 2],
+    ) -> Result<Self, ReportError> {
+        use crate::rf_reconstruct as rf;
+        let op: Option<Box<dyn rf::LinearReconstruction>> = match method {
+            Reconstruction::Nearest
+            | Reconstruction::Linear
+            | Reconstruction::LeGall53
+            | Reconstruction::Cdf97 => None,
+            Reconstruction::Idw => Some(Box::new(rf::Idw::paper(coarse, fine)?)),
+            Reconstruction::Biquadric => Some(Box::new(rf::Biquadric::new(coarse, fine)?)),
+            Reconstruction::Sh25 => Some(Box::new(rf::ShFit::new(
+                coarse,
+                fine,
+                rf::ShFit::DEFAULT_ORDER,
+            )?)),
+            Reconstruction::BSpline => Some(Box::new(rf::MultilevelBSpline::new(
+                coarse,
+                fine,
+                rf::MultilevelBSpline::default_levels(coarse),
+            )?)),
+        };
+        Ok(Self {
+            method,
+            coarse,
+            fine,
+            op,
+        })
+    }
+
+    /// One channel's samples on the fine grid.
+    ///
+    /// # Errors
+    /// As [`reconstruct`].
+    pub fn apply(&self, samples: &[f32], out: &mut [f64]) -> Result<(), ReportError> {
+        match &self.op {
+            Some(op) => {
+                op.apply(samples, out);
+                Ok(())
+            }
+            None => reconstruct(self.method, self.coarse, samples, self.fine, out),
+        }
+    }
+
+    /// `Mᵀ ℓ` per channel.
+    ///
+    /// # Errors
+    /// As [`pulled_back_lighting`].
+    pub fn pull_back(&self, lighting: &[[f64; 3]]) -> Result<Vec<[f64; 3]>, ReportError> {
+        let Some(op) = &self.op else {
+            return pulled_back_lighting(self.method, self.coarse, self.fine, lighting);
+        };
+        let d = self.coarse[0] as usize * self.coarse[1] as usize;
+        let mut out = vec![[0.0f64; 3]; d];
+        let mut coarse = vec![0.0f64; d];
+        for c in 0..3 {
+            let l: Vec<f64> = lighting.iter().map(|v| v[c]).collect();
+            op.apply_transpose(&l, &mut coarse);
+            for (o, v) in out.iter_mut().zip(&coarse) {
+                o[c] = *v;
+            }
+        }
+        Ok(out)
+    }
 }
 
 impl Reconstruction {
@@ -63,7 +157,7 @@ impl Reconstruction {
         match self {
             Reconstruction::LeGall53 => Some(prt_wavelet::Wavelet::LeGall53),
             Reconstruction::Cdf97 => Some(prt_wavelet::Wavelet::Cdf97),
-            Reconstruction::Nearest | Reconstruction::Linear => None,
+            _ => None,
         }
     }
 }
@@ -145,7 +239,7 @@ struct Sparse {
 /// Reconstructs, transforms and truncates every function of `field`.
 fn compress(
     field: &ReflectanceField,
-    method: Reconstruction,
+    prepared: &Prepared,
     fine: [u32; 2],
     c: Compression,
 ) -> Result<Sparse, ReportError> {
@@ -180,13 +274,7 @@ fn compress(
             let mut out = Vec::with_capacity(3);
             let (mut e2, mut n2) = (0.0, 0.0);
             for ch in 0..3 {
-                reconstruct(
-                    method,
-                    field.directions,
-                    &f[ch * d..(ch + 1) * d],
-                    fine,
-                    &mut fine_f,
-                )?;
+                prepared.apply(&f[ch * d..(ch + 1) * d], &mut fine_f)?;
                 let norm2: f64 = fine_f.iter().map(|v| v * v).sum();
                 n2 += norm2;
                 if norm2 == 0.0 {
@@ -313,7 +401,7 @@ fn weights(
             out[0] = (j * cw + i, 1.0);
             (out, 1)
         }
-        Reconstruction::Linear | Reconstruction::LeGall53 | Reconstruction::Cdf97 => {
+        _ => {
             // Sample centres at half-integers.
             let xs = x - 0.5;
             let ys = (y - 0.5).clamp(0.0, (ch - 1) as f64);
@@ -345,6 +433,17 @@ pub fn reconstruct(
     fine: [u32; 2],
     out: &mut [f64],
 ) -> Result<(), ReportError> {
+    if matches!(
+        method,
+        Reconstruction::Idw
+            | Reconstruction::Biquadric
+            | Reconstruction::Sh25
+            | Reconstruction::BSpline
+    ) {
+        return Err(ReportError::Invalid(format!(
+            "{method:?} reconstruction precomputes its map: use Prepared"
+        )));
+    }
     if let Some(w) = method.wavelet() {
         let c: Vec<f64> = samples.iter().map(|v| f64::from(*v)).collect();
         let f = prt_wavelet::interpolate(
@@ -561,9 +660,10 @@ pub fn relight_field_frames(
         )));
     }
     let d = field.direction_count();
+    let prepared = Prepared::new(opt.reconstruction, field.directions, opt.fine)?;
     let sparse = opt
         .compression
-        .map(|c| compress(field, opt.reconstruction, opt.fine, c))
+        .map(|c| compress(field, &prepared, opt.fine, c))
         .transpose()?;
     let mut times = Vec::new();
     let mut lighting_ms = 0.0;
@@ -611,8 +711,7 @@ pub fn relight_field_frames(
                 }
                 continue;
             }
-            let pulled =
-                pulled_back_lighting(opt.reconstruction, field.directions, opt.fine, &lighting)?;
+            let pulled = prepared.pull_back(&lighting)?;
             // f32 lighting per channel for the per-pixel dot products (f64 accumulation).
             let lc: Vec<Vec<f32>> = (0..3)
                 .map(|c| pulled.iter().map(|l| l[c] as f32).collect())
@@ -692,8 +791,9 @@ mod tests {
 
     #[test]
     fn pulling_the_lighting_back_equals_reconstructing_on_the_fine_grid() {
-        let (coarse, fine) = ([8u32, 4u32], [32u32, 16u32]);
-        let samples: Vec<f32> = (0..32).map(|i| ((i * 37) % 11) as f32 * 0.3).collect();
+        // (16 × 8 samples: enough for order-5 SH, IDW's 32 neighbours and the biquadric.)
+        let (coarse, fine) = ([16u32, 8u32], [32u32, 16u32]);
+        let samples: Vec<f32> = (0..128).map(|i| ((i * 37) % 11) as f32 * 0.3).collect();
         let lighting: Vec<[f64; 3]> = (0..512)
             .map(|k| [(k % 7) as f64, (k % 5) as f64 * 0.5, 1.0])
             .collect();
@@ -702,11 +802,16 @@ mod tests {
             Reconstruction::Linear,
             Reconstruction::LeGall53,
             Reconstruction::Cdf97,
+            Reconstruction::Idw,
+            Reconstruction::Biquadric,
+            Reconstruction::Sh25,
+            Reconstruction::BSpline,
         ] {
+            let p = Prepared::new(m, coarse, fine).unwrap();
             let mut f = vec![0.0; 512];
-            reconstruct(m, coarse, &samples, fine, &mut f).unwrap();
+            p.apply(&samples, &mut f).unwrap();
             let direct: f64 = f.iter().zip(&lighting).map(|(a, l)| a * l[0]).sum();
-            let pulled = pulled_back_lighting(m, coarse, fine, &lighting).unwrap();
+            let pulled = p.pull_back(&lighting).unwrap();
             let via: f64 = samples
                 .iter()
                 .zip(&pulled)
