@@ -220,6 +220,9 @@ pub struct FieldStats {
     /// reconstruction, over all pixels and channels (`sqrt(Σ‖f − f_K‖² / Σ‖f‖²)` on the fine
     /// grid), when compressed.
     pub rf_rel_l2: Option<f64>,
+    /// The same in the discrete Sobolev H¹ norm (the function and its angular gradient;
+    /// Masselus et al. 2004, Fig. 9), when compressed.
+    pub rf_rel_h1: Option<f64>,
     /// Time to reconstruct, transform and truncate every function (once, not per frame), ms.
     pub compress_ms: Option<f64>,
 }
@@ -233,6 +236,10 @@ struct Sparse {
     kept: u64,
     error2: f64,
     norm2: f64,
+    /// Squared Sobolev H¹ norms of the errors and of the functions (`prt_wavelet`'s discrete
+    /// norm).
+    h1_error2: f64,
+    h1_norm2: f64,
     ms: f64,
 }
 
@@ -265,18 +272,20 @@ fn compress(
     let norms = transform.basis_norms_squared();
     let d = field.direction_count();
     // Per pixel: three channels' kept coefficients, the squared error and norm.
-    type PixelOut = (Vec<Vec<(u32, f32)>>, f64, f64);
+    type PixelOut = (Vec<Vec<(u32, f32)>>, [f64; 4]);
     let per_pixel: Vec<PixelOut> = (0..field.pixels.len())
         .into_par_iter()
         .map(|i| -> Result<PixelOut, ReportError> {
             let f = field.function(i);
             let mut fine_f = vec![0.0f64; n];
             let mut out = Vec::with_capacity(3);
-            let (mut e2, mut n2) = (0.0, 0.0);
+            let (mut e2, mut n2, mut h1e, mut h1n) = (0.0, 0.0, 0.0, 0.0);
+            let (fw, fh) = (fine[0] as usize, fine[1] as usize);
             for ch in 0..3 {
                 prepared.apply(&f[ch * d..(ch + 1) * d], &mut fine_f)?;
                 let norm2: f64 = fine_f.iter().map(|v| v * v).sum();
                 n2 += norm2;
+                h1n += prt_wavelet::sobolev_h1_norm2(&fine_f, fw, fh);
                 if norm2 == 0.0 {
                     out.push(Vec::new());
                     continue;
@@ -304,25 +313,25 @@ fn compress(
                 };
                 // The exact error of what is kept: one sparse inverse transform.
                 let approx = transform.reconstruct_sparse(&kept).map_err(wav)?;
-                e2 += approx
-                    .iter()
-                    .zip(&fine_f)
-                    .map(|(a, b)| (a - b) * (a - b))
-                    .sum::<f64>();
+                let err: Vec<f64> = approx.iter().zip(&fine_f).map(|(a, b)| a - b).collect();
+                e2 += err.iter().map(|e| e * e).sum::<f64>();
+                h1e += prt_wavelet::sobolev_h1_norm2(&err, fw, fh);
                 let mut kept: Vec<(u32, f32)> =
                     kept.iter().map(|&(i, v)| (i as u32, v as f32)).collect();
                 kept.sort_unstable_by_key(|e| e.0);
                 out.push(kept);
             }
-            Ok((out, e2, n2))
+            Ok((out, [e2, n2, h1e, h1n]))
         })
         .collect::<Result<_, _>>()?;
     let mut runs = Vec::with_capacity(per_pixel.len());
     let mut entries = Vec::new();
-    let (mut error2, mut norm2) = (0.0, 0.0);
-    for (chans, e2, n2) in per_pixel {
+    let (mut error2, mut norm2, mut h1_error2, mut h1_norm2) = (0.0, 0.0, 0.0, 0.0);
+    for (chans, [e2, n2, h1e, h1n]) in per_pixel {
         error2 += e2;
         norm2 += n2;
+        h1_error2 += h1e;
+        h1_norm2 += h1n;
         let mut r = [(0u32, 0u32); 3];
         for (ch, kept) in chans.into_iter().enumerate() {
             r[ch] = (entries.len() as u32, kept.len() as u32);
@@ -337,6 +346,8 @@ fn compress(
         entries,
         error2,
         norm2,
+        h1_error2,
+        h1_norm2,
         ms: start.elapsed().as_secs_f64() * 1e3,
     })
 }
@@ -776,6 +787,13 @@ pub fn relight_field_frames(
             rf_rel_l2: sparse.as_ref().map(|s| {
                 if s.norm2 > 0.0 {
                     (s.error2 / s.norm2).sqrt()
+                } else {
+                    0.0
+                }
+            }),
+            rf_rel_h1: sparse.as_ref().map(|s| {
+                if s.h1_norm2 > 0.0 {
+                    (s.h1_error2 / s.h1_norm2).sqrt()
                 } else {
                     0.0
                 }

@@ -250,6 +250,7 @@ fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error(
             budget: Budget::Coefficients(n),
         }));
         assert!(stats.rf_rel_l2.unwrap() < 1e-12, "{wavelet:?}");
+        assert!(stats.rf_rel_h1.unwrap() < 1e-12, "{wavelet:?}");
         for (a, b) in all.pixels.iter().zip(&full.pixels) {
             assert!(
                 (a[0] - b[0]).abs() <= 1e-5 * b[0],
@@ -267,6 +268,9 @@ fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error(
         }));
         let e = stats.rf_rel_l2.unwrap();
         assert!(e > 0.0 && e < 1.0, "{wavelet:?}: {e}");
+        // The H¹ error exists and is finite (its value is a measurement, not a bound).
+        let h1 = stats.rf_rel_h1.unwrap();
+        assert!(h1 > 0.0 && h1.is_finite(), "{wavelet:?}: H¹ {h1}");
         assert_eq!(stats.mean_coefficients, Some(24.0));
         let bound = e * f_norm * l_norm * 1.0001 + 1e-6;
         for (a, b) in some.pixels.iter().zip(&full.pixels) {

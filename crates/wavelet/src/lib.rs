@@ -77,5 +77,7 @@ pub use crate::dwt1d::{forward_1d, inverse_1d, max_levels_1d};
 pub use crate::dwt2d::{Band, BandKind, Transform2d};
 pub use crate::error::{Result, WaveletError};
 pub use crate::interpolate::interpolate;
-pub use crate::metrics::{relative_l2_error, sobolev_h1_relative_error, texel_solid_angles};
+pub use crate::metrics::{
+    relative_l2_error, sobolev_h1_norm2, sobolev_h1_relative_error, texel_solid_angles,
+};
 pub use crate::wavelet::{Boundaries, Boundary, Filter, Wavelet};

@@ -97,6 +97,14 @@ pub fn relative_l2_error(
 /// forward difference periodic in x, `Δ_y` the forward difference between rows (`H − 1` per
 /// column, none across the poles). The common area factor `h_x h_y` is left out (it cancels in
 /// the relative error).
+/// The squared discrete Sobolev H¹ norm of a `width × height` lat-long function, as
+/// [`sobolev_h1_relative_error`] defines it (`g.len()` must be `width · height`; for sums of
+/// norms over many functions).
+#[must_use]
+pub fn sobolev_h1_norm2(g: &[f64], width: usize, height: usize) -> f64 {
+    h1_norm2(g, width, height)
+}
+
 fn h1_norm2(g: &[f64], width: usize, height: usize) -> f64 {
     let (hx, hy) = (2.0 * PI / width as f64, PI / height as f64);
     let mut sum = 0.0;
