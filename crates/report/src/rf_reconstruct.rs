@@ -244,49 +244,34 @@ impl Factored {
 
 /// The weighted least-squares pseudo-inverse of a design matrix `a` (`rows × cols`,
 /// row-major): the `cols × rows` matrix `P` with `P b = argmin_c Σ_j w_j ((a c)_j − b_j)²`,
-/// i.e. `P = R⁻¹ Qᵀ W^{1/2}` for `W^{1/2} a = Q R`. Classical Gram–Schmidt with one full
-/// re-orthogonalisation ("twice is enough"). `Err(i)`: column `i` lies (to 1e-10 relative) in
-/// the span of the columns before it — the fit is not determined.
+/// i.e. `P = R⁻¹ Qᵀ W^{1/2}` for `W^{1/2} a = Q R` (nalgebra's Householder QR). `Err(i)`: the
+/// fit is not determined — column `i` lies (to 1e-10 relative to the largest diagonal of `R`)
+/// in the span of the columns before it.
 fn weighted_pseudo_inverse(
     a: &[f64],
     rows: usize,
     cols: usize,
     weights: &[f64],
 ) -> Result<Vec<f64>, usize> {
+    use nalgebra::DMatrix;
     let sw: Vec<f64> = weights.iter().map(|w| w.sqrt()).collect();
-    // Q by columns, R upper triangular (row-major cols × cols).
-    let mut q: Vec<Vec<f64>> = Vec::with_capacity(cols);
-    let mut r = vec![0.0f64; cols * cols];
-    for i in 0..cols {
-        let mut v: Vec<f64> = (0..rows).map(|j| a[j * cols + i] * sw[j]).collect();
-        let norm0 = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-        for _ in 0..2 {
-            for (k, qk) in q.iter().enumerate() {
-                let p: f64 = qk.iter().zip(&v).map(|(a, b)| a * b).sum();
-                r[k * cols + i] += p;
-                for (x, y) in v.iter_mut().zip(qk) {
-                    *x -= p * y;
-                }
-            }
-        }
-        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if norm.is_nan() || norm <= 1e-10 * norm0 {
-            return Err(i);
-        }
-        r[i * cols + i] = norm;
-        v.iter_mut().for_each(|x| *x /= norm);
-        q.push(v);
+    let aw = DMatrix::from_fn(rows, cols, |j, i| a[j * cols + i] * sw[j]);
+    let qr = aw.qr();
+    let r = qr.r();
+    let largest = (0..cols).map(|i| r[(i, i)].abs()).fold(0.0f64, f64::max);
+    // (NaN diagonals count as lost rank.)
+    let determined = |i: usize| r[(i, i)].abs() > 1e-10 * largest;
+    if let Some(i) = (0..cols).find(|&i| !determined(i)) {
+        return Err(i);
     }
-    // Column j of P solves R z = (row j of Q), times sqrt(w_j).
+    // R X = Qᵀ (cols × rows), then the columns scaled by √w.
+    let x = r
+        .solve_upper_triangular(&qr.q().transpose())
+        .ok_or(cols.saturating_sub(1))?;
     let mut p = vec![0.0f64; cols * rows];
-    let mut z = vec![0.0f64; cols];
-    for j in 0..rows {
-        for i in (0..cols).rev() {
-            let s: f64 = (i + 1..cols).map(|k| r[i * cols + k] * z[k]).sum();
-            z[i] = (q[i][j] - s) / r[i * cols + i];
-        }
-        for i in 0..cols {
-            p[i * rows + j] = z[i] * sw[j];
+    for i in 0..cols {
+        for j in 0..rows {
+            p[i * rows + j] = x[(i, j)] * sw[j];
         }
     }
     Ok(p)
