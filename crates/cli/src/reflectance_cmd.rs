@@ -23,8 +23,9 @@ pub struct ReflectanceArgs {
     /// Paths per footprint sample for the bounces.
     #[arg(long, default_value_t = 16)]
     pub rays: u32,
-    /// Footprint samples per pixel (the box footprint of `prt render`).
-    #[arg(long, default_value_t = 4)]
+    /// Footprint samples per pixel (the box footprint of `prt render`; per-pixel bakes'
+    /// default: fewer leave the coverage of silhouettes against a bright background coarse).
+    #[arg(long, default_value_t = prt_bake::DEFAULT_PIXEL_SAMPLES)]
     pub pixel_samples: u32,
     /// Seed (default: the scene's `[render] seed`).
     #[arg(long)]
