@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{json, prt, run, write_scene};
+use common::{prt, psnr_ldr, run, write_scene};
 
 fn decisions(bake: &std::path::Path) -> String {
     let b = prt_bakefile::read_bake(bake).unwrap();
@@ -114,15 +114,7 @@ fn subdivision_refines_where_the_transfer_changes_and_nowhere_else() {
         .arg(&scene)
         .args(["--spp", "1024", "--bounces", "0", "--out"])
         .arg(dir.path().join("ref.exr")));
-    let psnr = |exr: &str| {
-        json(&run(prt()
-            .arg("compare")
-            .arg(dir.path().join(exr))
-            .arg(dir.path().join("ref.exr"))
-            .arg("--json")))["psnr_ldr"]
-            .as_f64()
-            .unwrap()
-    };
+    let psnr = |exr: &str| psnr_ldr(&dir.path().join(exr), &dir.path().join("ref.exr"));
     let (p0, p1) = (psnr("plain.exr"), psnr("sub.exr"));
     eprintln!("against the path tracer: plain {p0:.2} dB, subdivided {p1:.2} dB");
     assert!(

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{json, prt, run};
+use common::{json, prt, psnr_ldr, refused, run};
 use std::path::Path;
 
 fn scene(dir: &Path, uv_scale: f32) -> std::path::PathBuf {
@@ -101,15 +101,7 @@ fn per_texel_bakes_hold_the_contact_shadow_a_coarse_floor_misses() {
         .arg(&s)
         .args(["--spp", "512", "--out"])
         .arg(dir.path().join("ref.exr")));
-    let psnr = |exr: &str| {
-        json(&run(prt()
-            .arg("compare")
-            .arg(dir.path().join(exr))
-            .arg(dir.path().join("ref.exr"))
-            .arg("--json")))["psnr_ldr"]
-            .as_f64()
-            .unwrap()
-    };
+    let psnr = |exr: &str| psnr_ldr(&dir.path().join(exr), &dir.path().join("ref.exr"));
     let (pv, pt) = (psnr("v.exr"), psnr("t.exr"));
     eprintln!("against the path tracer: per vertex {pv:.2} dB, per texel {pt:.2} dB");
     // The floor's 4 vertices cannot hold the bunny's contact shadow and occlusion; 48² texels
@@ -120,11 +112,7 @@ fn per_texel_bakes_hold_the_contact_shadow_a_coarse_floor_misses() {
     );
 
     // Refusals, each naming the problem.
-    let fails = |cmd: &mut std::process::Command, needle: &str| {
-        let o = cmd.output().unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert!(!o.status.success() && err.contains(needle), "{err}");
-    };
+    let fails = refused;
     fails(
         prt()
             .arg("bake")

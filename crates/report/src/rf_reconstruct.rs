@@ -551,17 +551,25 @@ impl Biquadric {
     }
 }
 
-impl LinearReconstruction for Biquadric {
-    fn apply(&self, samples: &[f32], fine: &mut [f64]) {
-        self.grids.check(samples.len(), fine.len());
-        self.map.apply(samples, fine);
-    }
+/// The [`LinearReconstruction`] of a least-squares fit: its `Factored` map behind the grids'
+/// length checks.
+macro_rules! factored_reconstruction {
+    ($t:ty) => {
+        impl LinearReconstruction for $t {
+            fn apply(&self, samples: &[f32], fine: &mut [f64]) {
+                self.grids.check(samples.len(), fine.len());
+                self.map.apply(samples, fine);
+            }
 
-    fn apply_transpose(&self, fine: &[f64], coarse: &mut [f64]) {
-        self.grids.check(coarse.len(), fine.len());
-        self.map.apply_transpose(fine, coarse);
-    }
+            fn apply_transpose(&self, fine: &[f64], coarse: &mut [f64]) {
+                self.grids.check(coarse.len(), fine.len());
+                self.map.apply_transpose(fine, coarse);
+            }
+        }
+    };
 }
+
+factored_reconstruction!(Biquadric);
 
 // ---------------------------------------------------------------------------------------------
 // Spherical harmonics
@@ -677,17 +685,7 @@ impl ShFit {
     }
 }
 
-impl LinearReconstruction for ShFit {
-    fn apply(&self, samples: &[f32], fine: &mut [f64]) {
-        self.grids.check(samples.len(), fine.len());
-        self.map.apply(samples, fine);
-    }
-
-    fn apply_transpose(&self, fine: &[f64], coarse: &mut [f64]) {
-        self.grids.check(coarse.len(), fine.len());
-        self.map.apply_transpose(fine, coarse);
-    }
-}
+factored_reconstruction!(ShFit);
 
 // ---------------------------------------------------------------------------------------------
 // Multilevel B-splines

@@ -25,6 +25,27 @@ pub fn json(out: &Output) -> Value {
         .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
+/// `prt compare IMAGE REFERENCE --json`'s `psnr_ldr` (8-bit sRGB view).
+pub fn psnr_ldr(image: &Path, reference: &Path) -> f64 {
+    json(&run(prt()
+        .arg("compare")
+        .arg(image)
+        .arg(reference)
+        .arg("--json")))["psnr_ldr"]
+        .as_f64()
+        .expect("psnr_ldr is a number")
+}
+
+/// Runs `cmd`, which must fail with a message on stderr containing `needle`.
+pub fn refused(cmd: &mut Command, needle: &str) {
+    let o = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains(needle),
+        "{cmd:?}: expected a refusal mentioning {needle:?}:\n{err}"
+    );
+}
+
 /// An "L": a 3×3-quad floor facing +Y and a 3×3-quad wall facing +Z (32 vertices), the wall
 /// glossy so that the specular path runs too.
 pub fn write_obj(path: &Path, n: usize) {
