@@ -177,7 +177,7 @@ pub fn sample_field(
         ReflectanceField {
             directions: [w, h],
             pixels,
-            values,
+            values: prt_bakefile::FieldValues::from_f32(&values),
         },
         stats,
     ))

@@ -1,6 +1,7 @@
 //! The writer: `Bake` → bytes of format 1.1, canonical layout (SPEC.md §3 and §7).
 
 use crate::error::BakeFileError;
+use crate::field::{extend_f32_le, f32_to_f16_le, CHUNK};
 use crate::layout::{
     align_up, Tag, BLKT_RECORD, BRDF_RECORD, GLSY_RECORD, HEADER_SIZE, MAGIC, NO_SECTION,
     OBJT_RECORD, PAYLOAD_ALIGNMENT, RFLD_HEADER, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED,
@@ -543,26 +544,19 @@ fn bytes_of_reflectance(
         b.u32(p);
     }
     let mut out = b.0;
-    let start = out.len();
-    out.resize(start + r.values.len() * scalar.size(), 0);
-    match scalar {
-        ScalarType::F32 => {
-            for (d, v) in out[start..].chunks_exact_mut(4).zip(&r.values) {
-                d.copy_from_slice(&v.to_le_bytes());
-            }
-        }
-        ScalarType::F16 => {
-            for (i, (d, &v)) in out[start..].chunks_exact_mut(2).zip(&r.values).enumerate() {
-                let h = half::f16::from_f32(v);
-                if h.is_infinite() {
-                    return Err(BakeFileError::OutOfF16Range {
-                        section: "RFLD".into(),
-                        index: i as u64,
-                        value: v,
-                    });
-                }
-                d.copy_from_slice(&h.to_le_bytes());
-            }
+    let v = &r.values;
+    if v.scalar() == scalar {
+        out.extend_from_slice(v.as_le_bytes());
+        return Ok(out);
+    }
+    let mut buf = vec![0.0f32; CHUNK.min(v.len())];
+    for start in (0..v.len()).step_by(CHUNK) {
+        let n = CHUNK.min(v.len() - start);
+        v.read_into(start, &mut buf[..n]);
+        match scalar {
+            // f16 → f32: exact.
+            ScalarType::F32 => extend_f32_le(&mut out, &buf[..n]),
+            ScalarType::F16 => f32_to_f16_le(&mut out, &buf[..n], start, || "RFLD".into())?,
         }
     }
     Ok(out)

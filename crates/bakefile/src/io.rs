@@ -48,14 +48,14 @@ fn write_inner(path: &Path, bake: &Bake, scalar: ScalarType) -> Result<(), BakeF
     Ok(())
 }
 
-/// Reads and decodes the bake file at `path` (see [`crate::decode`]).
+/// Reads and decodes the bake file at `path` (see [`crate::decode`]); a reflectance field's
+/// values are the file's own buffer, in the file's precision (see [`crate::decode_owned`]).
 ///
 /// # Errors
 /// I/O errors and everything [`crate::decode`] refuses; every error names `path`.
 pub fn read_bake(path: &Path) -> Result<Bake, BakeFileError> {
     let bytes = std::fs::read(path).map_err(|e| BakeFileError::from(e).in_file(path))?;
-    let view = crate::BakeView::new(&bytes).map_err(|e| e.in_file(path))?;
-    let bake = view.into_bake().map_err(|e| e.in_file(path));
-    drop(bytes);
-    bake
+    // The file's buffer becomes a reflectance field's values ([`crate::decode_owned`]): reading
+    // a field costs the file's size, not the file plus a decoded copy.
+    crate::decode_owned(bytes).map_err(|e| e.in_file(path))
 }

@@ -10,7 +10,9 @@
 //! can read bakes without this code; `tools/prtb_reader.py` is a reader written from it alone.
 //!
 //! - [`encode`] / [`write_bake`] (atomic) write a [`Bake`] with f32 or f16 coefficients.
-//! - [`decode`] / [`read_bake`] validate everything and return an owned [`Bake`].
+//! - [`decode`] / [`read_bake`] validate everything and return an owned [`Bake`];
+//!   [`read_bake`] ([`decode_owned`]) hands the file's buffer over to a reflectance field, whose
+//!   values stay in the file's precision ([`FieldValues`]).
 //! - [`BakeView`] validates once and then lends coefficient arrays in place (zero-copy).
 //! - [`merge`] joins shards of a sharded bake into the bytes an unsharded bake would have;
 //!   [`split`] is its inverse.
@@ -47,6 +49,7 @@
 
 mod encode;
 mod error;
+mod field;
 mod hash;
 mod io;
 mod layout;
@@ -58,6 +61,7 @@ mod view;
 
 pub use encode::encode;
 pub use error::BakeFileError;
+pub use field::FieldValues;
 pub use hash::geometry_hash;
 pub use io::{read_bake, write_bake};
 pub use layout::{
@@ -76,4 +80,4 @@ pub use summary::{
     camera_line, summary, BlockSummary, CoverageSummary, FileSummary, MeshSummary, ObjectSummary,
     SectionSummary, Summary,
 };
-pub use view::{decode, BakeView, BlockInfo, Coefficients, ObjectInfo, SectionEntry};
+pub use view::{decode, decode_owned, BakeView, BlockInfo, Coefficients, ObjectInfo, SectionEntry};

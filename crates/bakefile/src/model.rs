@@ -5,6 +5,7 @@ use std::collections::BTreeSet;
 use serde::{Deserialize, Serialize};
 
 use crate::error::BakeFileError;
+use crate::field::{FieldValues, Rule};
 
 /// How coefficients of transfer blocks are stored in the file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -656,8 +657,10 @@ pub struct ReflectanceField {
     /// The pixels held, strictly increasing (`y · width + x`); pixels whose footprint
     /// samples all see the environment have a zero function and are left out.
     pub pixels: Vec<u32>,
-    /// `[pixel held][channel (3)][direction]`, non-negative and finite, in 1/sr.
-    pub values: Vec<f32>,
+    /// `[pixel held][channel (3)][direction]`, non-negative and finite, in 1/sr, held in the
+    /// precision of the file (f32 or f16; [`crate::read_bake`] hands the file's own buffer
+    /// over, [`crate::write_bake`] writes them out as they are when the precisions agree).
+    pub values: FieldValues,
 }
 
 impl ReflectanceField {
@@ -667,11 +670,26 @@ impl ReflectanceField {
         self.directions[0] as usize * self.directions[1] as usize
     }
 
-    /// The three channels' functions of held pixel `i`: `3 · W · H` values.
+    /// The three channels' functions of held pixel `i`, `3 · W · H` values as f32: lent in
+    /// place when the field is stored as f32 (and aligned), otherwise decoded into `scratch`
+    /// (one buffer per thread, reused from pixel to pixel, makes this allocation-free).
+    ///
+    /// # Panics
+    /// When `i` is not a held pixel's index (`i ≥ pixels.len()`).
     #[must_use]
-    pub fn function(&self, i: usize) -> &[f32] {
+    pub fn function<'a>(&'a self, i: usize, scratch: &'a mut Vec<f32>) -> &'a [f32] {
         let n = 3 * self.direction_count();
-        &self.values[i * n..(i + 1) * n]
+        self.values.slice(i * n..(i + 1) * n, scratch)
+    }
+
+    /// [`ReflectanceField::function`] decoded into `out` (`3 · W · H` values).
+    ///
+    /// # Panics
+    /// When `i` is not a held pixel's index or `out` is not `3 · W · H` long.
+    pub fn function_into(&self, i: usize, out: &mut [f32]) {
+        let n = 3 * self.direction_count();
+        assert_eq!(out.len(), n, "a function is 3 · W · H values");
+        self.values.read_into(i * n, out);
     }
 
     /// Structure: a per-pixel file, directions, increasing pixels in the image, and (with
@@ -1086,11 +1104,17 @@ impl Bake {
             // (A view's skeleton carries the field's structure without its values.)
             r.check(m.sample_kind, with_data)?;
             if with_data {
-                check_finite32("RFLD", &r.values)?;
-                if let Some(i) = r.values.iter().position(|v| *v < 0.0) {
+                // On the stored bits: no f32 copy of an f16 field.
+                if let Some(i) = r.values.first_breaking(Rule::Finite) {
+                    return Err(BakeFileError::NonFinite {
+                        section: "RFLD".to_owned(),
+                        index: i as u64,
+                    });
+                }
+                if let Some(i) = r.values.first_breaking(Rule::NonNegative) {
                     return Err(bad(format!(
                         "reflectance value {i} is negative ({})",
-                        r.values[i]
+                        r.values.get(i).unwrap_or(f32::NAN)
                     )));
                 }
             }

@@ -7,6 +7,7 @@ use half::f16;
 
 use crate::encode::header_crc;
 use crate::error::{inconsistent, invalid, BakeFileError};
+use crate::field::{first_breaking, FieldValues, Rule};
 use crate::layout::{
     Tag, BINF_SIZE, BLKT_RECORD, BRDF_RECORD, CPCA_HEADER, CVRG_HEADER, ENVL_HEADER, GLSY_RECORD,
     HEADER_SIZE, MAGIC, MESH_HEADER, MUST_UNDERSTAND_FLAGS, NO_SECTION, OBJT_RECORD_V10,
@@ -140,7 +141,17 @@ pub struct BakeView<'a> {
     environment: Option<EnvCoefficients>,
     brdfs: Vec<BrdfProjection>,
     glossy: Vec<GlossyBrdfTable>,
-    reflectance: Option<ReflectanceField>,
+    reflectance: Option<FieldLocation>,
+}
+
+/// A validated `RFLD` section: its structure, and where its values lie in the file (they are
+/// checked in place and never decoded by the view).
+#[derive(Debug, Clone)]
+struct FieldLocation {
+    directions: [u32; 2],
+    pixels: Vec<u32>,
+    /// Byte range of the values in the file.
+    values: std::ops::Range<usize>,
 }
 
 /// Decodes and validates a whole bake file held in memory.
@@ -153,6 +164,35 @@ pub struct BakeView<'a> {
 /// A typed [`BakeFileError`] for every way the bytes can be malformed.
 pub fn decode(bytes: &[u8]) -> Result<Bake, BakeFileError> {
     BakeView::new(bytes)?.into_bake()
+}
+
+/// [`decode`] of a buffer given away: a reflectance field's values (SPEC.md §3.14) become
+/// the buffer itself — the bytes before them are shifted out (a `memmove`, no allocation) and
+/// those after them cut off — so decoding a file that is mostly a field needs no memory beyond
+/// the file's. This is what [`crate::read_bake`] does.
+///
+/// # Errors
+/// As [`decode`].
+pub fn decode_owned(mut bytes: Vec<u8>) -> Result<Bake, BakeFileError> {
+    let (mut bake, located) = {
+        let view = BakeView::new(&bytes)?;
+        let range = view.reflectance.as_ref().map(|r| r.values.clone());
+        (
+            view.bake_with_empty_field(),
+            range.map(|r| (r, view.scalar)),
+        )
+    };
+    if let (Some(field), Some((range, scalar))) = (bake.reflectance.as_mut(), located) {
+        bytes.truncate(range.end);
+        bytes.drain(..range.start);
+        // The spare capacity is the header, table, small sections and pixel indices (a few
+        // hundred kB for a full image); give it back only when it is a sizeable part.
+        if bytes.capacity() - bytes.len() > bytes.len() / 8 {
+            bytes.shrink_to_fit();
+        }
+        field.values = FieldValues::from_le_bytes(scalar, bytes);
+    }
+    Ok(bake)
 }
 
 fn rd_u32(b: &[u8], off: usize) -> u32 {
@@ -411,9 +451,14 @@ fn read_pass(p: &[u8], o: &ObjectInfo, name: &str) -> Result<PassState, BakeFile
     })
 }
 
-/// Reads an RFLD payload (SPEC.md §3.14): lengths checked before anything is allocated,
-/// values finite and non-negative.
-fn read_reflectance(p: &[u8], scalar: ScalarType) -> Result<ReflectanceField, BakeFileError> {
+/// Reads an RFLD payload (SPEC.md §3.14) that starts at byte `offset` of the file: lengths
+/// checked before anything is allocated, values finite and non-negative (checked in place, on
+/// their bits: nothing is decoded).
+fn read_reflectance(
+    p: &[u8],
+    scalar: ScalarType,
+    offset: usize,
+) -> Result<FieldLocation, BakeFileError> {
     if p.len() < RFLD_HEADER {
         return Err(inconsistent(
             "RFLD length (at least its header)",
@@ -446,26 +491,22 @@ fn read_reflectance(p: &[u8], scalar: ScalarType) -> Result<ReflectanceField, Ba
         .map(|c| rd_u32(c, 0))
         .collect();
     let data = &p[RFLD_HEADER + 4 * n..];
-    let values: Vec<f32> = match scalar {
-        ScalarType::F32 => data
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
-            .collect(),
-        ScalarType::F16 => data
-            .chunks_exact(2)
-            .map(|c| half::f16::from_le_bytes([c[0], c[1]]).to_f32())
-            .collect(),
-    };
-    if let Some(i) = values.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+    if let Some(i) = first_breaking(scalar, data, Rule::Valid) {
+        let s = scalar.size();
+        let v = FieldValues::from_le_bytes(scalar, data[i * s..(i + 1) * s].to_vec());
         return Err(invalid(
             "RFLD",
-            format!("value {i} is {} (finite and non-negative)", values[i]),
+            format!(
+                "value {i} is {} (finite and non-negative)",
+                v.get(0).unwrap_or(f32::NAN)
+            ),
         ));
     }
-    Ok(ReflectanceField {
+    let start = offset + RFLD_HEADER + 4 * n;
+    Ok(FieldLocation {
         directions: [w, h],
         pixels,
-        values,
+        values: start..start + data.len(),
     })
 }
 
@@ -989,7 +1030,10 @@ impl<'a> BakeView<'a> {
         }
 
         // ENVL
-        let reflectance = get(8).map(|p| read_reflectance(p, scalar)).transpose()?;
+        let reflectance = single[8]
+            .1
+            .map(|i| read_reflectance(payload(i), scalar, sections[i].offset as usize))
+            .transpose()?;
         let environment = match get(5) {
             None => None,
             Some(p) => {
@@ -1334,7 +1378,7 @@ impl<'a> BakeView<'a> {
             reflectance: self.reflectance.as_ref().map(|r| ReflectanceField {
                 directions: r.directions,
                 pixels: r.pixels.clone(),
-                values: Vec::new(),
+                values: FieldValues::new(self.scalar),
             }),
             meta: self.meta.clone(),
             objects: self
@@ -1372,10 +1416,24 @@ impl<'a> BakeView<'a> {
         }
     }
 
-    /// The reflectance field (section `RFLD`), if the file holds one.
+    /// The reflectance field (section `RFLD`), if the file holds one: a copy of its values in
+    /// the file's precision (see [`BakeView::reflectance_bytes`] for them in place).
     #[must_use]
-    pub fn reflectance(&self) -> Option<&ReflectanceField> {
-        self.reflectance.as_ref()
+    pub fn reflectance(&self) -> Option<ReflectanceField> {
+        self.reflectance.as_ref().map(|r| ReflectanceField {
+            directions: r.directions,
+            pixels: r.pixels.clone(),
+            values: FieldValues::from_le_bytes(self.scalar, self.bytes[r.values.clone()].to_vec()),
+        })
+    }
+
+    /// The reflectance field's values as the file stores them (`[pixel held][channel]
+    /// [direction]`, little-endian [`BakeView::scalar_type`]), in place; `None` without a field.
+    #[must_use]
+    pub fn reflectance_bytes(&self) -> Option<&'a [u8]> {
+        self.reflectance
+            .as_ref()
+            .map(|r| &self.bytes[r.values.clone()])
     }
 
     /// Format version `(major, minor)` of the file.
@@ -1506,30 +1564,31 @@ impl<'a> BakeView<'a> {
         })
     }
 
-    /// Copies everything into an owned [`Bake`] (coefficients widened to f32, exactly).
+    /// Copies everything into an owned [`Bake`] (coefficients widened to f32, exactly; a
+    /// reflectance field's values copied in the file's precision). [`decode_owned`] takes a
+    /// buffer instead and copies no field.
     ///
     /// # Errors
     /// None in practice (the view is already validated); kept fallible for future checks.
     pub fn to_bake(&self) -> Result<Bake, BakeFileError> {
-        let mut bake = self.bake_without_field();
-        bake.reflectance.clone_from(&self.reflectance);
+        let mut bake = self.bake_with_empty_field();
+        bake.reflectance = self.reflectance();
         Ok(bake)
     }
 
-    /// [`BakeView::to_bake`] that moves the reflectance field's values out of the view instead
-    /// of copying them (a sampled field can be most of the file).
+    /// [`BakeView::to_bake`], consuming the view. The view holds no decoded field values (it
+    /// checks them in place), so this copies the field's values once, in the file's precision,
+    /// out of the borrowed bytes; to avoid even that copy, give the buffer to
+    /// [`decode_owned`].
     ///
     /// # Errors
     /// As [`BakeView::to_bake`].
-    pub fn into_bake(mut self) -> Result<Bake, BakeFileError> {
-        let field = self.reflectance.take();
-        let mut bake = self.bake_without_field();
-        bake.reflectance = field;
-        Ok(bake)
+    pub fn into_bake(self) -> Result<Bake, BakeFileError> {
+        self.to_bake()
     }
 
-    /// The skeleton with every block's coefficients (the field's structure only).
-    fn bake_without_field(&self) -> Bake {
+    /// The skeleton with every block's coefficients and the field's structure, its values empty.
+    fn bake_with_empty_field(&self) -> Bake {
         let mut bake = self.skeleton();
         for (oi, o) in bake.objects.iter_mut().enumerate() {
             for (bi, b) in o.blocks.iter_mut().enumerate() {
@@ -1539,7 +1598,6 @@ impl<'a> BakeView<'a> {
                     .unwrap_or_default();
             }
         }
-        bake.reflectance = None;
         bake
     }
 }

@@ -275,8 +275,8 @@ fn compress(
     type PixelOut = (Vec<Vec<(u32, f32)>>, [f64; 4]);
     let per_pixel: Vec<PixelOut> = (0..field.pixels.len())
         .into_par_iter()
-        .map(|i| -> Result<PixelOut, ReportError> {
-            let f = field.function(i);
+        .map_init(Vec::new, |scratch, i| -> Result<PixelOut, ReportError> {
+            let f = field.function(i, scratch);
             let mut fine_f = vec![0.0f64; n];
             let mut out = Vec::with_capacity(3);
             let (mut e2, mut n2, mut h1e, mut h1n) = (0.0, 0.0, 0.0, 0.0);
@@ -727,8 +727,9 @@ pub fn relight_field_frames(
             let lc: Vec<Vec<f32>> = (0..3)
                 .map(|c| pulled.iter().map(|l| l[c] as f32).collect())
                 .collect();
-            values.par_iter_mut().enumerate().for_each(|(i, v)| {
-                let f = field.function(i);
+            let rows = values.par_iter_mut().enumerate();
+            rows.for_each_init(Vec::new, |scratch, (i, v)| {
+                let f = field.function(i, scratch);
                 for c in 0..3 {
                     let r = &f[c * d..(c + 1) * d];
                     let s: f64 = r

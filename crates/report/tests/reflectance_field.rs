@@ -235,7 +235,7 @@ fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error(
     reconstruct(
         Reconstruction::Linear,
         field.directions,
-        &field.function(0)[..w * h],
+        &field.function(0, &mut Vec::new())[..w * h],
         fine,
         &mut f,
     )
