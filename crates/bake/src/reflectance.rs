@@ -20,7 +20,7 @@
 use crate::error::BakeError;
 use crate::points::{pixel_footprints, SamplePoint};
 use glam::Vec3;
-use prt_bakefile::ReflectanceField;
+use prt_bakefile::{FieldValues, ReflectanceField, ScalarType};
 use prt_scene::{Material, Scene};
 use prt_shading::{eval, sample};
 use prt_tracer::Accel;
@@ -45,6 +45,9 @@ pub struct ReflectanceSettings {
     pub seed: u64,
     /// Show a progress bar on a terminal.
     pub progress: bool,
+    /// The precision the values are held in: the scalar type of the file they go to (the
+    /// field is never held as f32 when the file is f16).
+    pub scalar: ScalarType,
 }
 
 /// The unit direction at the centre of cell `j = row · W + column` of a `W × H` lat-long grid
@@ -85,15 +88,36 @@ pub struct FieldStats {
     pub seconds: f64,
 }
 
-/// Samples the reflectance field of `scene`'s camera image.
+/// f32 values sampled per batch of pixels before they are appended to the field (converted
+/// to its precision): 32 MB, whatever the image.
+const BATCH_VALUES: usize = 8 << 20;
+
+/// Samples the reflectance field of `scene`'s camera image, its values held as `s.scalar`.
+///
+/// Pixels are sampled in batches (about [`BATCH_VALUES`] values each, in pixel order, each
+/// batch in parallel); a batch's functions are appended to the field converted to its
+/// precision and dropped, so no f32 copy of an f16 field ever exists. Each pixel's function
+/// depends only on the pixel, so the field is bit-identical for any thread count.
 ///
 /// # Errors
 /// Impossible settings (a grid smaller than 2 × 1 or above [`MAX_DIRECTIONS`], no footprint
-/// samples), and the tracer's camera errors.
+/// samples), the tracer's camera errors, and [`prt_bakefile::BakeFileError::OutOfF16Range`]
+/// (as [`BakeError::File`]) when the field is held as f16 and a value rounds beyond ±65504.
 pub fn sample_field(
     scene: &Scene,
     accel: &Accel,
     s: &ReflectanceSettings,
+) -> Result<(ReflectanceField, FieldStats), BakeError> {
+    let d = (u64::from(s.directions[0]) * u64::from(s.directions[1])).max(1) as usize;
+    sample_in_batches(scene, accel, s, (BATCH_VALUES / (3 * d)).max(64))
+}
+
+/// [`sample_field`] with `batch` pixels per batch.
+fn sample_in_batches(
+    scene: &Scene,
+    accel: &Accel,
+    s: &ReflectanceSettings,
+    batch: usize,
 ) -> Result<(ReflectanceField, FieldStats), BakeError> {
     let start = std::time::Instant::now();
     let [w, h] = s.directions;
@@ -120,54 +144,59 @@ pub fn sample_field(
     let fp = pixel_footprints(scene, accel, s.seed, s.pixel_samples)?;
     let k = s.pixel_samples as usize;
     let bar = crate::progress_bar(s.progress, fp.pixel_count() as u64, "pixels");
-    // Per pixel: its function (3 × D) or None when no sample hits a surface.
-    let rows: Vec<(Option<Vec<f32>>, u64)> = (0..fp.pixel_count())
-        .into_par_iter()
-        .with_min_len(4)
-        .map(|px| {
-            let mut acc = vec![0.0f64; 3 * d];
-            let mut any = false;
-            let mut rays = 0u64;
-            for (ki, smp) in fp.pixel(px).iter().enumerate() {
-                let (Some((mesh, point)), Some(at)) = (smp.hit, smp.at) else {
-                    continue;
-                };
-                any = true;
-                let mat = scene.material_at(mesh, at);
-                let wo = -smp.dir;
-                rays += add_direct(accel, &point, &mat, wo, &directions, 1.0, &mut acc);
-                if s.bounces > 0 {
-                    let key = [s.seed, px as u64, ki as u64];
-                    rays += add_indirect(
-                        scene,
-                        accel,
-                        (&point, &mat, wo),
-                        &directions,
-                        s,
-                        key,
-                        &mut acc,
-                    );
-                }
-            }
-            bar.inc(1);
-            let scale = 1.0 / k as f64;
-            (
-                any.then(|| acc.iter().map(|v| (v * scale) as f32).collect()),
-                rays,
-            )
-        })
-        .collect();
-    bar.finish_and_clear();
     let mut pixels = Vec::new();
-    let mut values = Vec::new();
+    let mut values = FieldValues::new(s.scalar);
     let mut shadow_rays = 0u64;
-    for (px, (row, rays)) in rows.into_iter().enumerate() {
-        shadow_rays += rays;
-        if let Some(r) = row {
-            pixels.push(px as u32);
-            values.extend(r);
+    let mut first = 0;
+    while first < fp.pixel_count() {
+        let last = (first + batch.max(1)).min(fp.pixel_count());
+        // Per pixel: its function (3 × D) or None when no sample hits a surface.
+        let rows: Vec<(Option<Vec<f32>>, u64)> = (first..last)
+            .into_par_iter()
+            .with_min_len(4)
+            .map(|px| {
+                let mut acc = vec![0.0f64; 3 * d];
+                let mut any = false;
+                let mut rays = 0u64;
+                for (ki, smp) in fp.pixel(px).iter().enumerate() {
+                    let (Some((mesh, point)), Some(at)) = (smp.hit, smp.at) else {
+                        continue;
+                    };
+                    any = true;
+                    let mat = scene.material_at(mesh, at);
+                    let wo = -smp.dir;
+                    rays += add_direct(accel, &point, &mat, wo, &directions, 1.0, &mut acc);
+                    if s.bounces > 0 {
+                        let key = [s.seed, px as u64, ki as u64];
+                        rays += add_indirect(
+                            scene,
+                            accel,
+                            (&point, &mat, wo),
+                            &directions,
+                            s,
+                            key,
+                            &mut acc,
+                        );
+                    }
+                }
+                bar.inc(1);
+                let scale = 1.0 / k as f64;
+                (
+                    any.then(|| acc.iter().map(|v| (v * scale) as f32).collect()),
+                    rays,
+                )
+            })
+            .collect();
+        for (px, (row, rays)) in (first..).zip(rows) {
+            shadow_rays += rays;
+            if let Some(r) = row {
+                pixels.push(px as u32);
+                values.push_f32(&r)?;
+            }
         }
+        first = last;
     }
+    bar.finish_and_clear();
     let stats = FieldStats {
         pixels: pixels.len() as u64,
         shadow_rays,
@@ -177,7 +206,7 @@ pub fn sample_field(
         ReflectanceField {
             directions: [w, h],
             pixels,
-            values: prt_bakefile::FieldValues::from_f32(&values),
+            values,
         },
         stats,
     ))
@@ -350,5 +379,128 @@ pub fn field_bake(
         brdfs: Vec::new(),
         glossy: Vec::new(),
         reflectance: Some(field),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+    use prt_scene::{Camera, EnvImage, Environment, Mapping, Mesh};
+
+    /// A floor with a floating square above it (shadows, and a second surface for the
+    /// bounces), seen at an angle so that some pixels see only the sky.
+    fn scene() -> Scene {
+        let env = Environment {
+            image: EnvImage {
+                width: 2,
+                height: 1,
+                texels: vec![[1.0; 3]; 2],
+            },
+            mapping: Mapping::LatLong,
+            rotation_y_deg: 0.0,
+        };
+        let cam = Camera::look_at(DVec3::new(0.0, 1.5, 3.0), DVec3::ZERO, 50.0, 14, 9);
+        let mut s = Scene::new(cam, env);
+        let quad = |name: &str, y: f32, r: f32| Mesh {
+            name: name.into(),
+            positions: vec![
+                Vec3::new(-r, y, -r),
+                Vec3::new(r, y, -r),
+                Vec3::new(r, y, r),
+                Vec3::new(-r, y, r),
+            ],
+            normals: vec![Vec3::Y; 4],
+            indices: vec![[0, 2, 1], [0, 3, 2]],
+            ..Mesh::default()
+        };
+        let floor = s.add_material(
+            "floor",
+            Material::Lambert {
+                albedo: [0.7, 0.5, 0.3],
+            },
+        );
+        let top = s.add_material(
+            "top",
+            Material::Lambert {
+                albedo: [0.2, 0.9, 0.4],
+            },
+        );
+        s.add_mesh(quad("floor", 0.0, 1.5), floor);
+        s.add_mesh(quad("top", 0.6, 0.4), top);
+        s
+    }
+
+    fn settings(scalar: ScalarType) -> ReflectanceSettings {
+        ReflectanceSettings {
+            directions: [8, 4],
+            bounces: 1,
+            rays: 2,
+            pixel_samples: 2,
+            seed: 11,
+            progress: false,
+            scalar,
+        }
+    }
+
+    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+
+    /// Bit-identical on 1, 2 and 3 threads and in batches of any size, in f32 and in f16; the
+    /// f16 field is the f32 one rounded to nearest.
+    #[test]
+    fn fields_are_bit_identical_for_any_thread_count_and_batch_size() {
+        let s = scene();
+        let accel = Accel::build(&s).unwrap();
+        let mut f32_field = None;
+        for scalar in [ScalarType::F32, ScalarType::F16] {
+            let st = settings(scalar);
+            let (base, stats) = in_pool(1, || sample_field(&s, &accel, &st)).unwrap();
+            let count = (s.camera.width * s.camera.height) as usize;
+            assert!(
+                base.pixels.len() > 10 && base.pixels.len() < count,
+                "some pixels see the floor, some only the sky: {}",
+                base.pixels.len()
+            );
+            assert_eq!(stats.pixels, base.pixels.len() as u64);
+            assert_eq!(base.values.scalar(), scalar);
+            assert_eq!(base.values.len(), base.pixels.len() * 3 * 32);
+            for threads in [2, 3] {
+                let (f, _) = in_pool(threads, || sample_field(&s, &accel, &st)).unwrap();
+                assert_eq!(f.pixels, base.pixels, "{threads} threads");
+                assert!(
+                    f.values.as_le_bytes() == base.values.as_le_bytes(),
+                    "{scalar:?} on {threads} threads: the values differ"
+                );
+            }
+            for batch in [1, 5, 37] {
+                let (f, _) = in_pool(2, || sample_in_batches(&s, &accel, &st, batch)).unwrap();
+                assert_eq!(f.pixels, base.pixels, "batches of {batch}");
+                assert!(
+                    f.values.as_le_bytes() == base.values.as_le_bytes(),
+                    "{scalar:?} in batches of {batch}: the values differ"
+                );
+            }
+            match scalar {
+                ScalarType::F32 => f32_field = Some(base),
+                ScalarType::F16 => {
+                    let f32_field = f32_field.take().unwrap();
+                    assert_eq!(f32_field.pixels, base.pixels);
+                    let rounded =
+                        FieldValues::from_f32_as(&f32_field.values.to_f32_vec(), ScalarType::F16)
+                            .unwrap();
+                    assert!(
+                        rounded.as_le_bytes() == base.values.as_le_bytes(),
+                        "the f16 field is the f32 one rounded"
+                    );
+                    assert!(base.values.to_f32_vec().iter().any(|&v| v > 0.0));
+                }
+            }
+        }
     }
 }

@@ -30,7 +30,8 @@ pub struct ReflectanceArgs {
     /// Seed (default: the scene's `[render] seed`).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Store the values as f16.
+    /// Store the values as f16 (half the file; the field is sampled straight into f16, so
+    /// half the memory too).
     #[arg(long)]
     pub f16: bool,
     /// Print one JSON object.
@@ -62,6 +63,11 @@ pub fn run(args: &ReflectanceArgs) -> Result<()> {
     let directions = parse_grid(&args.directions, "--directions")?;
     let scene = crate::common::load_scene(&args.scene)?;
     let bounces = crate::common::bake_bounces(args.bounces, &scene, &args.scene)?;
+    let scalar = if args.f16 {
+        ScalarType::F16
+    } else {
+        ScalarType::F32
+    };
     let settings = ReflectanceSettings {
         directions,
         bounces,
@@ -69,6 +75,8 @@ pub fn run(args: &ReflectanceArgs) -> Result<()> {
         pixel_samples: args.pixel_samples,
         seed: args.seed.unwrap_or(scene.render.seed),
         progress: true,
+        // Sampled straight into the file's precision: an f16 field is never held as f32.
+        scalar,
     };
     let dirs = u64::from(directions[0]) * u64::from(directions[1]);
     if dirs > MAX_DIRECTIONS || directions[0] < 2 || directions[1] < 1 {
@@ -100,11 +108,6 @@ pub fn run(args: &ReflectanceArgs) -> Result<()> {
     let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
     let (field, stats) = prt_bake::reflectance::sample_field(&scene, &accel, &settings)?;
     let bake = prt_bake::reflectance::field_bake(&scene, field, &settings);
-    let scalar = if args.f16 {
-        ScalarType::F16
-    } else {
-        ScalarType::F32
-    };
     prt_bakefile::write_bake(&args.out, &bake, scalar)?;
     if args.json {
         outln!(

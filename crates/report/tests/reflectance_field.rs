@@ -75,6 +75,7 @@ fn direct(directions: [u32; 2], pixel_samples: u32, seed: u64) -> ReflectanceSet
         pixel_samples,
         seed,
         progress: false,
+        scalar: prt_bakefile::ScalarType::F32,
     }
 }
 
