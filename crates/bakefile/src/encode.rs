@@ -1,5 +1,7 @@
 //! The writer: `Bake` → bytes of format 1.1, canonical layout (SPEC.md §3 and §7).
 
+use std::io::{Seek, SeekFrom, Write};
+
 use crate::error::BakeFileError;
 use crate::field::{extend_f32_le, f32_to_f16_le, CHUNK};
 use crate::layout::{
@@ -54,7 +56,12 @@ impl Strings {
 
 enum Payload {
     Bytes(Vec<u8>),
-    Block { object: usize, block: usize },
+    Block {
+        object: usize,
+        block: usize,
+    },
+    /// The `RFLD` section: its header and pixel indices, then the field's values.
+    Field(Vec<u8>),
 }
 
 struct Planned {
@@ -75,6 +82,34 @@ struct Planned {
 /// (see [`Bake::validate`]), [`BakeFileError::OutOfF16Range`] when `scalar` is f16 and a value
 /// rounds beyond ±65504.
 pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError> {
+    let plan = Plan::new(bake, scalar)?;
+    let total = usize::try_from(plan.file_size)
+        .map_err(|_| BakeFileError::InvalidBake("file too large for this machine".into()))?;
+    let mut out = std::io::Cursor::new(Vec::with_capacity(total));
+    plan.write_to(&mut out)?;
+    let out = out.into_inner();
+    debug_assert_eq!(out.len(), total);
+    Ok(out)
+}
+
+/// A file laid out but not yet written: the small payloads built, the large ones (transfer
+/// blocks, a reflectance field's values) referenced in the bake, every offset known.
+pub(crate) struct Plan<'b> {
+    bake: &'b Bake,
+    scalar: ScalarType,
+    sections: Vec<Planned>,
+    offsets: Vec<u64>,
+    file_size: u64,
+}
+
+impl<'b> Plan<'b> {
+    /// Validates `bake` and lays out its file.
+    pub(crate) fn new(bake: &'b Bake, scalar: ScalarType) -> Result<Self, BakeFileError> {
+        plan(bake, scalar)
+    }
+}
+
+fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
     bake.validate()?;
     let m = &bake.meta;
     if matches!(m.sample_kind, SampleKind::Pixel { .. }) && m.camera.is_none() {
@@ -350,7 +385,6 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
         length: v.len() as u64,
         payload: Payload::Bytes(v),
     };
-    let optional = |tag: Tag| tag == Tag::MESH || tag == Tag::CVRG;
     let mut plan = vec![
         bytes(Tag::BINF, binf.0),
         bytes(Tag::STRS, strings.0),
@@ -377,9 +411,18 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
         }
     }
     if let Some(r) = &bake.reflectance {
-        plan.push(bytes(Tag::RFLD, bytes_of_reflectance(r, scalar)?));
+        let head = reflectance_head(r);
+        let length = (r.values.len() as u64)
+            .checked_mul(scalar.size() as u64)
+            .and_then(|v| v.checked_add(head.len() as u64))
+            .ok_or_else(|| BakeFileError::InvalidBake("reflectance field too large".into()))?;
+        plan.push(Planned {
+            tag: Tag::RFLD,
+            payload: Payload::Field(head),
+            length,
+        });
     }
-    let section_count = u32_of(plan.len(), "section count")?;
+    u32_of(plan.len(), "section count")?;
 
     // Offsets.
     let align = PAYLOAD_ALIGNMENT as u64;
@@ -393,55 +436,130 @@ pub fn encode(bake: &Bake, scalar: ScalarType) -> Result<Vec<u8>, BakeFileError>
             .checked_add(p.length)
             .ok_or_else(|| BakeFileError::InvalidBake("file too large".into()))?;
     }
-    let file_size = cursor;
-    let total = usize::try_from(file_size)
-        .map_err(|_| BakeFileError::InvalidBake("file too large for this machine".into()))?;
-    let mut out = vec![0u8; total];
-
-    // Payloads and the section table.
-    for (i, (p, &off)) in plan.iter().zip(&offsets).enumerate() {
-        let range = off as usize..(off + p.length) as usize;
-        let dst = &mut out[range.clone()];
-        match &p.payload {
-            Payload::Bytes(v) => dst.copy_from_slice(v),
-            Payload::Block { object, block } => {
-                let data = &bake.objects[*object].blocks[*block].data;
-                write_scalars(dst, data, scalar, *object, *block)?;
-            }
-        }
-        let crc = crc32fast::hash(&out[range]);
-        let e = HEADER_SIZE + i * SECTION_ENTRY_SIZE;
-        let entry = &mut out[e..e + SECTION_ENTRY_SIZE];
-        entry[0..4].copy_from_slice(&p.tag.0);
-        // MESH and CVRG (1.1) are not REQUIRED: a 1.0 reader skips them.
-        let flags = if optional(p.tag) {
-            0
-        } else {
-            SECTION_FLAG_REQUIRED
-        };
-        entry[4..8].copy_from_slice(&flags.to_le_bytes());
-        entry[8..16].copy_from_slice(&off.to_le_bytes());
-        entry[16..24].copy_from_slice(&p.length.to_le_bytes());
-        entry[24..28].copy_from_slice(&crc.to_le_bytes());
-    }
-
-    // Header.
-    let h = &mut out[..HEADER_SIZE];
-    h[0..8].copy_from_slice(&MAGIC);
-    h[8..12].copy_from_slice(&VERSION_MAJOR.to_le_bytes());
-    h[12..16].copy_from_slice(&VERSION_MINOR.to_le_bytes());
-    h[16..20].copy_from_slice(&(HEADER_SIZE as u32).to_le_bytes());
-    h[20..24].copy_from_slice(&0u32.to_le_bytes());
-    h[24..32].copy_from_slice(&file_size.to_le_bytes());
-    h[32..40].copy_from_slice(&(HEADER_SIZE as u64).to_le_bytes());
-    h[40..44].copy_from_slice(&section_count.to_le_bytes());
-    h[44..48].copy_from_slice(&(SECTION_ENTRY_SIZE as u32).to_le_bytes());
-    h[48..52].copy_from_slice(&(PAYLOAD_ALIGNMENT as u32).to_le_bytes());
-    h[52..56].copy_from_slice(&scalar.code().to_le_bytes());
-    let crc = header_crc(&out[..HEADER_SIZE], &out[HEADER_SIZE..table_end as usize]);
-    out[60..64].copy_from_slice(&crc.to_le_bytes());
-    Ok(out)
+    Ok(Plan {
+        bake,
+        scalar,
+        sections: plan,
+        offsets,
+        file_size: cursor,
+    })
 }
+
+impl Plan<'_> {
+    /// Writes the file to `w`, which starts empty at position 0: a zeroed header and section
+    /// table, then every payload in order (converted to the file's scalar type a chunk at a
+    /// time, its CRC-32 computed as it goes, alignment padding zero), then the header and
+    /// table over the zeros. No payload is held whole beyond what the bake holds, so writing a
+    /// reflectance field does not copy it.
+    ///
+    /// # Errors
+    /// I/O errors of `w`; [`BakeFileError::OutOfF16Range`] when a value does not fit f16.
+    pub(crate) fn write_to<W: Write + Seek>(&self, w: &mut W) -> Result<(), BakeFileError> {
+        let scalar = self.scalar;
+        let table_end = HEADER_SIZE + self.sections.len() * SECTION_ENTRY_SIZE;
+        let mut head = vec![0u8; table_end];
+        w.write_all(&head)?;
+        let mut pos = table_end as u64;
+        let mut buf = Vec::new();
+        let mut values = Vec::new();
+        for (i, (p, &off)) in self.sections.iter().zip(&self.offsets).enumerate() {
+            // Padding: fewer than PAYLOAD_ALIGNMENT zeros.
+            w.write_all(&[0u8; PAYLOAD_ALIGNMENT][..(off - pos) as usize])?;
+            let mut crc = crc32fast::Hasher::new();
+            let mut written = 0u64;
+            let mut out = |bytes: &[u8]| -> std::io::Result<()> {
+                for piece in bytes.chunks(WRITE_PIECE) {
+                    crc.update(piece);
+                    w.write_all(piece)?;
+                }
+                written += bytes.len() as u64;
+                Ok(())
+            };
+            match &p.payload {
+                Payload::Bytes(v) => out(v)?,
+                Payload::Block { object, block } => {
+                    let data = &self.bake.objects[*object].blocks[*block].data;
+                    for (ci, chunk) in data.chunks(CHUNK).enumerate() {
+                        buf.clear();
+                        match scalar {
+                            ScalarType::F32 => extend_f32_le(&mut buf, chunk),
+                            ScalarType::F16 => f32_to_f16_le(&mut buf, chunk, ci * CHUNK, || {
+                                format!("object {object} block {block}")
+                            })?,
+                        }
+                        out(&buf)?;
+                    }
+                }
+                Payload::Field(field_head) => {
+                    out(field_head)?;
+                    let v = &self
+                        .bake
+                        .reflectance
+                        .as_ref()
+                        .expect("planned from the field")
+                        .values;
+                    if v.scalar() == scalar {
+                        out(v.as_le_bytes())?;
+                    } else {
+                        values.resize(CHUNK.min(v.len()), 0.0f32);
+                        for start in (0..v.len()).step_by(CHUNK) {
+                            let n = CHUNK.min(v.len() - start);
+                            v.read_into(start, &mut values[..n]);
+                            buf.clear();
+                            match scalar {
+                                ScalarType::F32 => extend_f32_le(&mut buf, &values[..n]),
+                                ScalarType::F16 => {
+                                    f32_to_f16_le(&mut buf, &values[..n], start, || "RFLD".into())?;
+                                }
+                            }
+                            out(&buf)?;
+                        }
+                    }
+                }
+            }
+            debug_assert_eq!(written, p.length, "{}", p.tag);
+            let e = HEADER_SIZE + i * SECTION_ENTRY_SIZE;
+            let entry = &mut head[e..e + SECTION_ENTRY_SIZE];
+            entry[0..4].copy_from_slice(&p.tag.0);
+            // MESH and CVRG (1.1) are not REQUIRED: a 1.0 reader skips them.
+            let flags = if [Tag::MESH, Tag::CVRG].contains(&p.tag) {
+                0
+            } else {
+                SECTION_FLAG_REQUIRED
+            };
+            entry[4..8].copy_from_slice(&flags.to_le_bytes());
+            entry[8..16].copy_from_slice(&off.to_le_bytes());
+            entry[16..24].copy_from_slice(&p.length.to_le_bytes());
+            entry[24..28].copy_from_slice(&crc.finalize().to_le_bytes());
+            pos = off + p.length;
+        }
+        debug_assert_eq!(pos, self.file_size);
+
+        // Header.
+        let section_count = self.sections.len() as u32;
+        let h = &mut head[..HEADER_SIZE];
+        h[0..8].copy_from_slice(&MAGIC);
+        h[8..12].copy_from_slice(&VERSION_MAJOR.to_le_bytes());
+        h[12..16].copy_from_slice(&VERSION_MINOR.to_le_bytes());
+        h[16..20].copy_from_slice(&(HEADER_SIZE as u32).to_le_bytes());
+        h[20..24].copy_from_slice(&0u32.to_le_bytes());
+        h[24..32].copy_from_slice(&self.file_size.to_le_bytes());
+        h[32..40].copy_from_slice(&(HEADER_SIZE as u64).to_le_bytes());
+        h[40..44].copy_from_slice(&section_count.to_le_bytes());
+        h[44..48].copy_from_slice(&(SECTION_ENTRY_SIZE as u32).to_le_bytes());
+        h[48..52].copy_from_slice(&(PAYLOAD_ALIGNMENT as u32).to_le_bytes());
+        h[52..56].copy_from_slice(&scalar.code().to_le_bytes());
+        let crc = header_crc(&head[..HEADER_SIZE], &head[HEADER_SIZE..]);
+        head[60..64].copy_from_slice(&crc.to_le_bytes());
+        w.seek(SeekFrom::Start(0))?;
+        w.write_all(&head)?;
+        w.seek(SeekFrom::Start(self.file_size))?;
+        Ok(())
+    }
+}
+
+/// Bytes hashed and written per step (so the CRC reads them while they are in cache).
+const WRITE_PIECE: usize = 1 << 20;
 
 /// The payload of a CPCA section (SPEC.md §3.13); counts were checked by `validate`.
 fn bytes_of_cpca(object: u32, c: &crate::model::Cpca) -> Vec<u8> {
@@ -527,11 +645,8 @@ pub(crate) fn header_crc(header: &[u8], table: &[u8]) -> u32 {
     h.finalize()
 }
 
-/// The `RFLD` payload (SPEC §3.14): header, pixel indices, values as `scalar`.
-fn bytes_of_reflectance(
-    r: &ReflectanceField,
-    scalar: ScalarType,
-) -> Result<Vec<u8>, BakeFileError> {
+/// The start of the `RFLD` payload (SPEC §3.14): header and pixel indices; the values follow.
+fn reflectance_head(r: &ReflectanceField) -> Vec<u8> {
     let mut b = Buf::default();
     b.u32(r.directions[0]);
     b.u32(r.directions[1]);
@@ -543,51 +658,5 @@ fn bytes_of_reflectance(
     for &p in &r.pixels {
         b.u32(p);
     }
-    let mut out = b.0;
-    let v = &r.values;
-    if v.scalar() == scalar {
-        out.extend_from_slice(v.as_le_bytes());
-        return Ok(out);
-    }
-    let mut buf = vec![0.0f32; CHUNK.min(v.len())];
-    for start in (0..v.len()).step_by(CHUNK) {
-        let n = CHUNK.min(v.len() - start);
-        v.read_into(start, &mut buf[..n]);
-        match scalar {
-            // f16 → f32: exact.
-            ScalarType::F32 => extend_f32_le(&mut out, &buf[..n]),
-            ScalarType::F16 => f32_to_f16_le(&mut out, &buf[..n], start, || "RFLD".into())?,
-        }
-    }
-    Ok(out)
-}
-
-fn write_scalars(
-    dst: &mut [u8],
-    data: &[f32],
-    scalar: ScalarType,
-    object: usize,
-    block: usize,
-) -> Result<(), BakeFileError> {
-    match scalar {
-        ScalarType::F32 => {
-            for (d, v) in dst.chunks_exact_mut(4).zip(data) {
-                d.copy_from_slice(&v.to_le_bytes());
-            }
-        }
-        ScalarType::F16 => {
-            for (i, (d, &v)) in dst.chunks_exact_mut(2).zip(data).enumerate() {
-                let h = half::f16::from_f32(v);
-                if h.is_infinite() {
-                    return Err(BakeFileError::OutOfF16Range {
-                        section: format!("object {object} block {block}"),
-                        index: i as u64,
-                        value: v,
-                    });
-                }
-                d.copy_from_slice(&h.to_le_bytes());
-            }
-        }
-    }
-    Ok(())
+    b.0
 }

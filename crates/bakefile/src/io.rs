@@ -6,7 +6,9 @@ use std::path::Path;
 use crate::error::BakeFileError;
 use crate::model::{Bake, ScalarType};
 
-/// Encodes `bake` and writes it to `path` atomically: the bytes go to a temporary file in the
+/// Writes `bake` to `path` as [`crate::encode`] would encode it (the same bytes, streamed: the
+/// payloads are converted and checksummed a chunk at a time, a reflectance field's values
+/// written straight from the field), atomically: the bytes go to a temporary file in the
 /// same directory, which is flushed to disk (`fsync`) and then renamed over `path`; the
 /// directory is synced afterwards where the platform allows it. On any error, no file at
 /// `path` is created or changed and no temporary file is left behind.
@@ -18,7 +20,9 @@ pub fn write_bake(path: &Path, bake: &Bake, scalar: ScalarType) -> Result<(), Ba
 }
 
 fn write_inner(path: &Path, bake: &Bake, scalar: ScalarType) -> Result<(), BakeFileError> {
-    let bytes = crate::encode(bake, scalar)?;
+    // Laid out (and validated) first; the payloads are streamed into the file, so a
+    // reflectance field is written from its own bytes, not from a second copy.
+    let plan = crate::encode::Plan::new(bake, scalar)?;
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -34,7 +38,11 @@ fn write_inner(path: &Path, bake: &Bake, scalar: ScalarType) -> Result<(), BakeF
         builder.permissions(std::fs::Permissions::from_mode(0o644));
     }
     let mut tmp = builder.tempfile_in(dir)?;
-    tmp.write_all(&bytes)?;
+    {
+        let mut w = std::io::BufWriter::with_capacity(1 << 16, tmp.as_file_mut());
+        plan.write_to(&mut w)?;
+        w.flush()?;
+    }
     tmp.as_file().sync_all()?;
     tmp.persist(path).map_err(|e| BakeFileError::Io(e.error))?;
     #[cfg(unix)]

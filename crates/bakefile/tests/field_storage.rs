@@ -309,3 +309,69 @@ fn the_writer_refuses_bad_values_in_either_storage() {
     );
     assert_eq!(values.len(), 8, "nothing appended");
 }
+
+#[test]
+fn write_bake_streams_exactly_the_bytes_of_encode() {
+    let dir = tempfile::tempdir().unwrap();
+    let directions = [16, 8];
+    let v = f16_values(directions, 8);
+    let halves: Vec<f16> = v.iter().map(|&x| f16::from_f32(x)).collect();
+    let mut bakes = vec![
+        ("sample bake", sample_bake()),
+        ("random bake", random_bake(&mut rng(9))),
+        (
+            "f32 field",
+            field_bake(field(directions, FieldValues::from_f32(&v))),
+        ),
+        (
+            "f16 field",
+            field_bake(field(directions, FieldValues::from_f16(&halves))),
+        ),
+    ];
+    // A field without pixels, and one whose values need f32.
+    bakes.push((
+        "empty field",
+        field_bake(ReflectanceField {
+            directions,
+            pixels: Vec::new(),
+            values: FieldValues::new(ScalarType::F16),
+        }),
+    ));
+    let mut r = rng(10);
+    let fine: Vec<f32> = v
+        .iter()
+        .map(|&x| x * r.random_range(1.0f32..1.001))
+        .collect();
+    bakes.push((
+        "fine f32 field",
+        field_bake(field(directions, FieldValues::from_f32(&fine))),
+    ));
+    let mut beyond = fine.clone();
+    beyond[100] = 70000.0;
+    bakes.push((
+        "f32 field beyond f16",
+        field_bake(field(directions, FieldValues::from_f32(&beyond))),
+    ));
+    for (name, bake) in &bakes {
+        for scalar in [ScalarType::F32, ScalarType::F16] {
+            let path = dir.path().join(format!("{name}-{}.prtb", scalar.name()));
+            let want = match encode(bake, scalar) {
+                Ok(b) => b,
+                Err(e) => {
+                    // Refused alike, and no file left.
+                    let w = write_bake(&path, bake, scalar).unwrap_err();
+                    assert!(w.to_string().contains(&e.to_string()), "{w} / {e}");
+                    assert!(!path.exists());
+                    continue;
+                }
+            };
+            write_bake(&path, bake, scalar).unwrap();
+            let got = std::fs::read(&path).unwrap();
+            assert_eq!(got.len(), want.len(), "{name} as {scalar:?}");
+            assert!(got == want, "{name} as {scalar:?}: the bytes differ");
+            if scalar == ScalarType::F32 || name.starts_with("f16") {
+                assert_eq!(&decode(&got).unwrap(), bake, "{name} as {scalar:?}");
+            }
+        }
+    }
+}
