@@ -232,17 +232,48 @@ fn le_to_f32(scalar: ScalarType, raw: &[u8], out: &mut [f32]) {
             }
         }
         ScalarType::F16 => {
-            if cfg!(target_endian = "little") {
-                if let Ok(h) = bytemuck::try_cast_slice::<u8, f16>(raw) {
-                    // Hardware conversion (F16C) where the CPU has it; exact either way.
-                    h.convert_to_f32_slice(out);
-                    return;
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx")
+                && std::arch::is_x86_feature_detected!("f16c")
+            {
+                // SAFETY: the CPU has AVX and F16C (checked just above).
+                #[allow(unsafe_code)]
+                unsafe {
+                    f16_to_f32_f16c(raw, out);
                 }
+                return;
             }
             for (o, c) in out.iter_mut().zip(raw.chunks_exact(2)) {
                 *o = f16::from_le_bytes([c[0], c[1]]).to_f32();
             }
         }
+    }
+}
+
+/// Little-endian f16 `raw` to f32 `out`, eight at a time with F16C's `vcvtph2ps` (exact, as
+/// the software conversion). Relighting decodes every function of an f16 field per frame;
+/// with `half`'s slice conversion `prt relight`'s linear shading of a 0.94 GB field took a
+/// median 288 ms, with this 262 ms (f32 values in place: 215 ms).
+///
+/// # Safety
+/// The CPU must support AVX and F16C; `raw.len() == 2 * out.len()`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,f16c")]
+#[allow(unsafe_code)] // Runtime feature dispatch, as prt-relight's AVX2 kernels.
+unsafe fn f16_to_f32_f16c(raw: &[u8], out: &mut [f32]) {
+    use std::arch::x86_64::{__m128i, _mm256_cvtph_ps, _mm256_storeu_ps, _mm_loadu_si128};
+    assert_eq!(raw.len(), 2 * out.len());
+    let n = out.len() / 8 * 8;
+    for i in (0..n).step_by(8) {
+        // SAFETY: i + 8 ≤ out.len(), so bytes [2i, 2i + 16) of `raw` and floats [i, i + 8) of
+        // `out` are in bounds; both intrinsics take unaligned addresses.
+        unsafe {
+            let h = _mm_loadu_si128(raw.as_ptr().add(2 * i).cast::<__m128i>());
+            _mm256_storeu_ps(out.as_mut_ptr().add(i), _mm256_cvtph_ps(h));
+        }
+    }
+    for (o, c) in out[n..].iter_mut().zip(raw[2 * n..].chunks_exact(2)) {
+        *o = f16::from_le_bytes([c[0], c[1]]).to_f32();
     }
 }
 
@@ -378,6 +409,26 @@ mod tests {
         for (i, &x) in ok.iter().enumerate() {
             let want = f16::from_f32(x).to_le_bytes();
             assert_eq!(bytes[2 * i..2 * i + 2], want, "{x:e}");
+        }
+    }
+
+    /// Decoding (F16C where the CPU has it) is exact: every f16 bit pattern, at every
+    /// offset of an 8-lane step, equals `f16::to_f32`.
+    #[test]
+    fn f16_decoding_is_exact_for_every_bit_pattern() {
+        let raw: Vec<u8> = (0..=u16::MAX).flat_map(u16::to_le_bytes).collect();
+        for skip in [0usize, 1, 3] {
+            let raw = &raw[2 * skip..];
+            let mut out = vec![0.0f32; raw.len() / 2];
+            le_to_f32(ScalarType::F16, raw, &mut out);
+            for (k, &v) in out.iter().enumerate() {
+                let want = f16::from_bits((k + skip) as u16).to_f32();
+                assert!(
+                    v.to_bits() == want.to_bits() || (v.is_nan() && want.is_nan()),
+                    "{:#06x}: {v} vs {want}",
+                    k + skip
+                );
+            }
         }
     }
 
