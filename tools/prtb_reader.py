@@ -14,6 +14,16 @@ with the `camera` and a `CVRG` coverage section per object) and per-texel (light
 describes each object's lightmap), in f32 or f16, sharded or not, 1.0 or 1.1 files, including
 `MESH` geometry (hash recomputed) and blocks compressed by clustered PCA (`CPCA`, §3.13).
 
+Reflectance fields (`RFLD`, §3.14, written by `prt reflectance`) are read and validated: the
+section is REQUIRED, 1.1, once at most, only in an unsharded per-pixel file with no objects;
+W ≥ 2, H ≥ 1, W·H ≤ 2²⁴, channels 3, P ≤ image pixels and the exact length
+`32 + 4P + size·3WHP` before any array is viewed; pixel indices strictly increasing and inside
+the image; every value (f32 or f16, the file's scalar type) finite and ≥ 0; and
+`settings.pixel_samples` plus `settings.reflectance` (directions = RFLD's W, H; bounces = BINF;
+rays = BINF rays_per_point; pixel_samples = settings.pixel_samples; geometry a non-empty list of
+uniquely named meshes with well-formed hashes), which no file without a field may carry. Fields
+are not relit here (§3.14 leaves the quadrature of ∫R·L dω undefined).
+
 Requirements: Python 3.11 standard library + numpy (`tools/requirements-reader.txt`).
 
 Usage
@@ -28,7 +38,14 @@ Usage
         "pixel" or "texel", with `width`/`height` the BINF image or lightmap size (0 × 0 for
         per-vertex bakes). Blocks compressed by clustered PCA (`CPCA`, §3.13) are
         reconstructed in f32 exactly as §3.13 says and summarised like `XFER` blocks, plus a
-        `cpca` entry (clusters, components, dimension, rel_error).
+        `cpca` entry (clusters, components, dimension, rel_error). `reflectance` is null, or
+        for a file with a reflectance field (`RFLD`, §3.14) its directions `[W, H]`, channels,
+        scalar type, pixel count, first/last pixel, CRC-32s of the pixel indices (u32 LE) and
+        of the values widened to f32 (LE, file order), their sum, max and count of zeros.
+
+    python3 tools/prtb_reader.py FILE.prtb --field-out OUT.bin
+        Also write a reflectance field raw: the P held pixel indices (u32 LE), then the
+        3·W·H·P values widened to f32 LE, `[pixel held][channel][direction]` (exact for f16).
 
     python3 tools/prtb_reader.py FILE.prtb --relight OBJECT --albedo R,G,B [--order N] \
             --colours OUT.csv
@@ -44,7 +61,9 @@ Usage
         whose CRCs are repaired (so the semantic checks are exercised; for CPCA blocks also
         targeted ones that break a §3.13 rule and must be refused; for per-texel bakes also
         targeted binary and META JSON mutations that break a §3.1/§3.9/§3.11 rule, the META
-        section being rewritten at its new length with the following sections moved). Prints
+        section being rewritten at its new length with the following sections moved; for
+        files with a reflectance field likewise targeted RFLD/BINF/flags and
+        `settings.reflectance` mutations that break a §3.14 rule, plus allowed controls). Prints
         the figures and exits 1 if a corruption that must be refused was accepted, or if any
         input crashed the reader (any exception other than a clean validation error).
 
@@ -98,7 +117,7 @@ LOBE_NAMES = {1: "clamped-cosine", 2: "phong"}
 SAMPLE_KINDS = {1: "vertex", 2: "pixel", 3: "texel"}
 
 TAGS_ONCE = (b"BINF", b"STRS", b"OBJT", b"BLKT", b"META")  # required, exactly once
-TAGS_OPTIONAL = (b"ENVL", b"BRDF", b"GLSY")  # at most once
+TAGS_OPTIONAL = (b"ENVL", b"BRDF", b"GLSY", b"RFLD")  # at most once
 TAGS_MANY = (b"XFER", b"CPCA", b"MESH", b"CVRG")  # found through BLKT / OBJT
 KNOWN_TAGS = set(TAGS_ONCE) | set(TAGS_OPTIONAL) | set(TAGS_MANY)
 
@@ -109,6 +128,13 @@ BLKT_RECORD = 48
 BRDF_RECORD = 32
 GLSY_RECORD = 40
 BINF_SIZE = 40
+
+# RFLD (§3.14): a sampled reflectance field
+RFLD_HEADER = 32
+RFLD_CHANNELS = 3
+RFLD_MAX_DIRECTIONS = 2**24
+# Elements checked at a time for finiteness / sign (bounds the temporary arrays of a big field)
+FIELD_CHUNK = 1 << 22
 
 SH_FIXED = {
     "basis": "real-orthonormal",
@@ -204,6 +230,7 @@ class Bake:
         self.brdfs = []
         self.glossy = []
         self.meta = None
+        self.field = None  # RFLD (§3.14): dict, see rfld_structure()
 
 
 # --------------------------------------------------------------------------------------------
@@ -686,6 +713,10 @@ def parse(data: bytes) -> Bake:
     if covered and per_pixel:  # §3.11: each lightmap is its own image, so not per-texel
         check_pixel_sums(covered, common_k)
 
+    # RFLD (§3.14): header, counts and exact length before anything is viewed; pixel indices
+    if b"RFLD" in opt:
+        bake.field = rfld_structure(bake, opt[b"RFLD"], objt_count)
+
     # ---- §4.10 finite values, recomputed geometry hashes -----------------------------------------
     for obj in bake.objects:
         for block in obj.blocks:
@@ -700,6 +731,8 @@ def parse(data: bytes) -> Bake:
             block["values"] = values
     if bake.env is not None:
         check_finite(bake.env["values"], "ENVL values")
+    if bake.field is not None:
+        check_field_values(bake.field)
     for k, brdf in enumerate(bake.brdfs):
         check_finite(brdf["values"], "BRDF record %d values" % k)
     for k, g in enumerate(bake.glossy):
@@ -824,6 +857,87 @@ def cpca_reconstruct(cpca: dict, what: str) -> np.ndarray:
     # §3.5/§4.10: the reconstruction is used as an XFER block's data, whose scalars are finite.
     check_finite(t, what + " reconstructed transfer")
     return t
+
+
+def rfld_structure(bake: Bake, s: Section, objt_count: int) -> dict:
+    """§3.14 `RFLD` (with §3.1, §4.8, §4.9): where a field may be, its header, its exact
+    length (checked before anything is viewed or allocated) and its pixel indices. The values
+    are left for check_field_values() (§4.10)."""
+    what = "%s" % s
+    binf = bake.binf
+    # §3 table: `REQUIRED` (a reader that does not know RFLD must refuse the file, not skip a
+    # field and read an empty per-pixel bake); §3.14 is a 1.1 section
+    if not s.flags & FLAG_REQUIRED:
+        fail("%s: the REQUIRED flag is not set (§3: RFLD is REQUIRED)" % what)
+    if bake.minor < 1:
+        fail("%s: a reflectance field in a %d.%d file (RFLD is a 1.1 section)"
+             % (what, bake.major, bake.minor))
+    # §3.14: per-pixel files only (sample_kind 2, the JSON camera)
+    if binf["sample_kind"] != 2:
+        fail("%s: a reflectance field in a per-%s file (per-pixel files only)"
+             % (what, SAMPLE_KINDS[binf["sample_kind"]]))
+    # §3.14: a file with RFLD has no objects
+    if objt_count:
+        fail("%s: a file with a reflectance field has %d objects (OBJT must have 0 records)"
+             % (what, objt_count))
+    # §3.14 says nothing of shards; prt neither shards nor merges fields: one shard only
+    if binf["shard_count"] != 1:
+        fail("%s: a reflectance field in shard %d of %d (fields are not sharded)"
+             % (what, binf["shard_index"], binf["shard_count"]))
+    if s.length < RFLD_HEADER:
+        fail("%s: length %d, shorter than its %d-byte header" % (what, s.length, RFLD_HEADER))
+    p = s.payload
+    W, H, channels, _r0, P, _r1 = struct.unpack_from("<4IQQ", p, 0)
+    if W < 2:
+        fail("%s: W = %d directions per row (must be >= 2)" % (what, W))
+    if H < 1:
+        fail("%s: H = %d rows (must be >= 1)" % (what, H))
+    if W * H > RFLD_MAX_DIRECTIONS:
+        fail("%s: W×H = %d×%d = %d directions > 2^24" % (what, W, H, W * H))
+    if channels != RFLD_CHANNELS:
+        fail("%s: channels %d (must be 3)" % (what, channels))
+    image = binf["width"] * binf["height"]
+    if P > image:  # strictly increasing indices below W×H: at most W×H of them
+        fail("%s: P = %d pixels held, more than the %dx%d image has"
+             % (what, P, binf["width"], binf["height"]))
+    _sname, sdtype, ssize = SCALAR_TYPES[bake.scalar_type]
+    count = RFLD_CHANNELS * W * H * P
+    expect = RFLD_HEADER + 4 * P + ssize * count  # Python ints: no overflow
+    if s.length != expect:
+        fail("%s: length %d != 32 + 4P + %d·3WHP = %d (W=%d, H=%d, P=%d)"
+             % (what, s.length, ssize, expect, W, H, P))
+    pixels = np.frombuffer(p[RFLD_HEADER:RFLD_HEADER + 4 * P], dtype="<u4")
+    if P:
+        steps = np.diff(pixels.astype(np.int64))
+        if steps.size and not (steps > 0).all():
+            k = int(np.argmax(steps <= 0)) + 1
+            fail("%s: pixel indices not strictly increasing: pixels[%d] = %d after "
+                 "pixels[%d] = %d" % (what, k, int(pixels[k]), k - 1, int(pixels[k - 1])))
+        if int(pixels[-1]) >= image:  # increasing: the last is the largest
+            fail("%s: pixels[%d] = %d outside the %dx%d image (>= %d)"
+                 % (what, P - 1, int(pixels[-1]), binf["width"], binf["height"], image))
+    values = np.frombuffer(p[RFLD_HEADER + 4 * P:expect], dtype=sdtype)
+    return dict(section=s.index, W=W, H=H, channels=channels, P=P, pixels=pixels,
+                values=values, scalar=SCALAR_TYPES[bake.scalar_type][0])
+
+
+def check_field_values(field: dict) -> None:
+    """§3.14 / §4.10: every value of the field finite and >= 0 (−0.0 compares equal to 0 and
+    is accepted), checked in chunks so that a big field needs no full-size temporaries."""
+    values = field["values"]
+    per_pixel = RFLD_CHANNELS * field["W"] * field["H"]
+    directions = field["W"] * field["H"]
+    for start in range(0, values.size, FIELD_CHUNK):
+        chunk = values[start:start + FIELD_CHUNK]
+        bad = ~(np.isfinite(chunk) & (chunk >= 0))
+        if bad.any():
+            k = start + int(np.argmax(bad))
+            v = float(values[k])
+            held, rest = divmod(k, per_pixel)
+            channel, direction = divmod(rest, directions)
+            fail("%s: value %d (pixel %d, channel %d, direction %d) is %s (%r)" % (
+                "section %d (RFLD)" % field["section"], k, int(field["pixels"][held]), channel,
+                direction, "negative" if math.isfinite(v) else "not finite", v))
 
 
 def check_finite(values: np.ndarray, what: str) -> None:
@@ -1009,6 +1123,11 @@ def check_meta(bake: Bake, payload) -> dict:
         M.typed(settings["target_psnr"], "number", "settings.target_psnr")
     if per_texel:
         check_lightmaps(M, bake, settings)
+    if bake.field is not None:
+        check_reflectance_settings(M, bake, settings)
+    elif "reflectance" in settings:
+        # §3.14: the key records a field's parameters; without a field it describes nothing
+        fail("META: settings.reflectance in a file without a reflectance field (RFLD)")
     # decisions
     decisions = M.get(meta, "decisions", "array", root)
     for k, d in enumerate(decisions):
@@ -1157,6 +1276,49 @@ def check_meta(bake: Bake, payload) -> dict:
     return meta
 
 
+def check_reflectance_settings(M: Meta, bake: Bake, settings: dict) -> None:
+    """§3.14 / §3.9 for a file with a reflectance field: `settings.pixel_samples` (a per-pixel
+    bake's, mandatory here since RFLD is 1.1) and `settings.reflectance` =
+    `{"directions": [W, H], "bounces", "rays", "pixel_samples", "geometry": [{"object": name,
+    "geometry_hash": "0x…"}]}`, which must agree with RFLD, BINF and settings.pixel_samples.
+    The meshes are not in the file, so the hashes cannot be recomputed: only their form is
+    checked."""
+    field, binf = bake.field, bake.binf
+    if "pixel_samples" not in settings:
+        fail("META: settings.pixel_samples missing in a file with a reflectance field")
+    refl = M.get(settings, "reflectance", "object", "settings")
+    w = "settings.reflectance"
+    directions = M.get(refl, "directions", "array", w)
+    if len(directions) != 2 or not all(is_int(v) and 0 <= v <= U32_MAX for v in directions):
+        fail("META: %s.directions must be an array of two u32 integers [W, H], got %s"
+             % (w, short(directions)))
+    if directions != [field["W"], field["H"]]:
+        fail("META: %s.directions %s, but RFLD says [%d, %d]"
+             % (w, short(directions), field["W"], field["H"]))
+    M.equal(M.get(refl, "bounces", "u32", w), binf["bounces"], w + ".bounces", "BINF bounces")
+    M.equal(M.get(refl, "rays", "u32", w), binf["rays_per_point"], w + ".rays",
+            "BINF rays_per_point")
+    M.equal(M.get(refl, "pixel_samples", "u32", w), settings["pixel_samples"],
+            w + ".pixel_samples", "settings.pixel_samples")
+    geometry = M.get(refl, "geometry", "array", w)
+    if not geometry:
+        fail("META: %s.geometry is empty (it lists the scene's meshes)" % w)
+    names = set()
+    for k, g in enumerate(geometry):
+        wk = "%s.geometry[%d]" % (w, k)
+        M.typed(g, "object", wk)
+        name = M.get(g, "object", "string", wk)
+        if not name:
+            fail("META: %s.object is empty" % wk)
+        if name in names:
+            fail("META: %s.object %s named twice" % (wk, short(name)))
+        names.add(name)
+        gh = M.get(g, "geometry_hash", "string", wk)
+        if not re.fullmatch(r"0x[0-9a-f]{16}", gh):
+            fail("META: %s.geometry_hash %s is not 0x + 16 lower-case hex digits"
+                 % (wk, short(gh)))
+
+
 def check_lightmaps(M: Meta, bake: Bake, settings: dict) -> None:
     """§3.9 `settings.lightmaps` of a per-texel bake: one entry per object, in object order;
     `null` exactly for an object baked per vertex (no CVRG, §3.1), else
@@ -1271,7 +1433,46 @@ def dump(bake: Bake) -> dict:
                     "crc32_values": zlib.crc32(g["values_raw"])}
                    for g in bake.glossy],
         "camera": bake.meta.get("camera"),
+        "reflectance": field_summary(bake.field),
     }
+
+
+def field_summary(field):
+    """--dump's `reflectance`: null, or the RFLD header and CRC-32s of its arrays (pixels as
+    u32 LE, values widened to f32 LE — exact for f16 — in the file's order)."""
+    if field is None:
+        return None
+    values = field["values"]
+    return {
+        "directions": [field["W"], field["H"]],
+        "channels": field["channels"],
+        "scalar_type": field["scalar"],
+        "pixels": field["P"],
+        "first_pixel": int(field["pixels"][0]) if field["P"] else None,
+        "last_pixel": int(field["pixels"][-1]) if field["P"] else None,
+        "crc32_pixels": zlib.crc32(field["pixels"].astype("<u4").tobytes()),
+        "crc32_f32": field_crc32_f32(values),
+        "sum": float(values.astype(np.float64).sum()),
+        "max": float(values.max()) if values.size else 0.0,
+        "zero_values": int(values.size - np.count_nonzero(values)),
+    }
+
+
+def field_crc32_f32(values: np.ndarray) -> int:
+    crc = 0
+    for start in range(0, values.size, FIELD_CHUNK):
+        crc = zlib.crc32(values[start:start + FIELD_CHUNK].astype("<f4").tobytes(), crc)
+    return crc
+
+
+def write_field(path: str, field) -> None:
+    """--field-out: the held pixel indices (P × u32 LE), then every value widened to f32 LE
+    (3·W·H·P, [pixel held][channel][direction]); exact for f16 files."""
+    with open(path, "wb") as f:
+        f.write(field["pixels"].astype("<u4").tobytes())
+        values = field["values"]
+        for start in range(0, values.size, FIELD_CHUNK):
+            f.write(values[start:start + FIELD_CHUNK].astype("<f4").tobytes())
 
 
 # --------------------------------------------------------------------------------------------
@@ -1293,6 +1494,12 @@ def parse_albedo(text: str):
 
 def relight(bake: Bake, name: str, albedo, order=None):
     """Exit radiance of every point of object `name` (§3.4, §3.6). Returns (first, rgb[P,3])."""
+    if bake.field is not None:
+        # §3.14 gives the integral ∫ R(ω) L(ω) dω but not its quadrature over the W×H grid
+        # (cell weights, how L is sampled per cell) and the background term needs the scene's
+        # geometry, which a field file does not hold: no relighting of fields here.
+        fail("--relight of a reflectance field (RFLD) is not implemented: SPEC §3.14 does not "
+             "define its discretisation, and the background term needs the scene")
     obj = next((o for o in bake.objects if o.name == name), None)
     if obj is None:
         fail("no object named %s (objects: %s)"
@@ -1542,6 +1749,143 @@ def texel_cases(data: bytes, bake: Bake, rng: random.Random):
     return cases
 
 
+def field_cases(data: bytes, bake: Bake, rng: random.Random):
+    """Targeted mutations of a VALID file with a reflectance field (§3.14), CRCs repaired: a
+    list of (label, file bytes, must_refuse); must_refuse False marks an allowed control."""
+    cases = []
+    field = bake.field
+    sec = {s.tag: s for s in bake.sections if s.tag in TAGS_ONCE}
+    binf = sec[b"BINF"]
+    rf = bake.sections[field["section"]]
+    o = rf.offset
+    W, H, P = field["W"], field["H"], field["P"]
+    image = bake.binf["width"] * bake.binf["height"]
+    ssize = SCALAR_TYPES[bake.scalar_type][2]
+    values_at = o + RFLD_HEADER + 4 * P
+
+    def patched(pos, new, section):
+        buf = bytearray(data)
+        buf[pos:pos + len(new)] = new
+        fix_crcs(buf, section.index)
+        return bytes(buf)
+
+    def flags(value):
+        buf = bytearray(data)
+        table_offset = struct.unpack_from("<Q", buf, 32)[0]
+        struct.pack_into("<I", buf, table_offset + ENTRY_SIZE * rf.index + 4, value)
+        fix_crcs(buf)
+        return bytes(buf)
+
+    u32 = lambda v: struct.pack("<I", v)  # noqa: E731
+    u64 = lambda v: struct.pack("<Q", v)  # noqa: E731
+    cases += [
+        ("RFLD flags 0 (not REQUIRED)", flags(0), True),
+        ("RFLD flags REQUIRED | hint bit 16 (control)", flags(FLAG_REQUIRED | 1 << 16), False),
+        ("BINF per-vertex (sample_kind 1, image 0x0)",
+         patched(binf.offset, struct.pack("<4I", 1, bake.binf["bounces"], 0, 0), binf), True),
+        ("BINF sample_kind 3", patched(binf.offset, u32(3), binf), True),
+        ("BINF shard_count 2", patched(binf.offset + 24, u32(2), binf), True),
+        ("header minor 0", patched(12, u32(0), binf), True),
+        ("RFLD W = 1", patched(o, u32(1), rf), True),
+        ("RFLD W = 0", patched(o, u32(0), rf), True),
+        ("RFLD H = 0", patched(o + 4, u32(0), rf), True),
+        ("RFLD W + 1", patched(o, u32(W + 1), rf), True),
+        ("RFLD H + 1", patched(o + 4, u32(H + 1), rf), True),
+        ("RFLD W×H > 2^24", patched(o, u32(2**24 // H + 1), rf), True),
+        ("RFLD W = 2^32-1", patched(o, u32(U32_MAX), rf), True),
+        ("RFLD channels 1", patched(o + 8, u32(1), rf), True),
+        ("RFLD channels 4", patched(o + 8, u32(4), rf), True),
+        ("RFLD P + 1", patched(o + 16, u64(P + 1), rf), True),
+        ("RFLD P = 2^63", patched(o + 16, u64(2**63), rf), True),
+        ("RFLD P = image + 1", patched(o + 16, u64(image + 1), rf), True),
+        ("RFLD reserved fields non-zero (control)",
+         patched(o + 12, u32(7), rf), False),
+    ]
+    if P:
+        cases += [
+            ("RFLD P - 1", patched(o + 16, u64(P - 1), rf), True),
+            ("RFLD last pixel = image size",
+             patched(o + RFLD_HEADER + 4 * (P - 1), u32(image), rf), True),
+            ("RFLD last pixel = 2^32-1",
+             patched(o + RFLD_HEADER + 4 * (P - 1), u32(U32_MAX), rf), True),
+        ]
+    if P >= 2:
+        k = rng.randrange(1, P)
+        prev = int(field["pixels"][k - 1])
+        cases += [
+            ("RFLD pixels[%d] = pixels[%d] (repeat)" % (k, k - 1),
+             patched(o + RFLD_HEADER + 4 * k, u32(prev), rf), True),
+            ("RFLD pixels[0] > pixels[1]",
+             patched(o + RFLD_HEADER, u32(int(field["pixels"][1]) + 1), rf), True),
+        ]
+    bad_values = ((("NaN", float("nan")), ("+inf", float("inf")), ("-inf", float("-inf")),
+                   ("-1e-3", -1e-3), ("-65504", -65504.0)))
+    count = field["values"].size
+    for label, v in bad_values:
+        for _ in range(2):
+            k = rng.randrange(count) if count else None
+            if k is None:
+                break
+            new = (struct.pack("<f", v) if ssize == 4 else
+                   np.array([v], dtype="<f2").tobytes())
+            cases.append(("RFLD value %d = %s" % (k, label),
+                          patched(values_at + ssize * k, new, rf), True))
+    if count:
+        k = rng.randrange(count)
+        neg_zero = struct.pack("<f", -0.0) if ssize == 4 else np.array([-0.0], "<f2").tobytes()
+        cases.append(("RFLD value %d = -0.0 (control)" % k,
+                      patched(values_at + ssize * k, neg_zero, rf), False))
+
+    meta_section = sec[b"META"]
+    table_offset = struct.unpack_from("<Q", data, 32)[0]
+    if table_offset + ENTRY_SIZE * len(bake.sections) > meta_section.offset:
+        return cases
+    original = bytes(meta_section.payload).decode("utf-8")
+
+    def meta_case(label, change, must_refuse=True):
+        meta = json.loads(original)
+        change(meta)
+        cases.append(("META " + label, replace_meta(data, json.dumps(meta, indent=2)),
+                      must_refuse))
+
+    def setter(path, value):
+        def change(meta):
+            node = meta
+            for key in path[:-1]:
+                node = node[key]
+            if value is DELETE:
+                del node[path[-1]]
+            else:
+                node[path[-1]] = value
+        return change
+
+    r = ("settings", "reflectance")
+    meta_case("re-serialised unchanged (control)", lambda meta: None, False)
+    meta_case("settings.reflectance unknown key (control)", setter(r + ("note",), "x"), False)
+    meta_case("settings.reflectance missing", setter(r, DELETE))
+    meta_case("settings.reflectance null", setter(r, None))
+    meta_case("settings.pixel_samples missing", setter(("settings", "pixel_samples"), DELETE))
+    for key in ("directions", "bounces", "rays", "pixel_samples", "geometry"):
+        meta_case("settings.reflectance.%s missing" % key, setter(r + (key,), DELETE))
+    for key, bad in (("directions", [W + 1, H]), ("directions", [W, H + 1]),
+                     ("directions", [W, H, 1]), ("directions", [W, float(H)]),
+                     ("directions", "%dx%d" % (W, H)),
+                     ("bounces", bake.binf["bounces"] + 1), ("bounces", -1),
+                     ("rays", bake.binf["rays_per_point"] + 1), ("rays", "16"),
+                     ("pixel_samples", 0), ("geometry", []), ("geometry", {}),
+                     ("geometry", [None]), ("geometry", [{"object": "a"}]),
+                     ("geometry", [{"object": "", "geometry_hash": "0x" + "0" * 16}]),
+                     ("geometry", [{"object": "a", "geometry_hash": "0x" + "A" * 16}]),
+                     ("geometry", [{"object": "a", "geometry_hash": "0x" + "0" * 15}]),
+                     ("geometry", [{"object": "a", "geometry_hash": "0x" + "0" * 16}] * 2)):
+        meta_case("settings.reflectance.%s = %s" % (key, short(bad)), setter(r + (key,), bad))
+    meta_case("settings.pixel_samples + 1 (reflectance's differs)",
+              setter(("settings", "pixel_samples"),
+                     json.loads(original)["settings"].get("pixel_samples", 1) + 1))
+    meta_case("camera null", setter(("camera",), None))
+    return cases
+
+
 def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
     with open(path, "rb") as f:
         data = f.read()
@@ -1698,23 +2042,28 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
                    % (label, block["index"], pos))
     # 3c. per-texel bakes (§3.1, §3.9, §3.11): targeted binary and META mutations that must be
     #     refused, and control variants the spec allows that must still be accepted
+    targeted = []
     if bake.binf["sample_kind"] == 3:
-        for label, buf, must_refuse in texel_cases(data, bake, rng):
+        targeted = texel_cases(data, bake, rng)
+    if bake.field is not None:
+        targeted = field_cases(data, bake, rng)
+    if targeted:
+        for label, buf, must_refuse in targeted:
             outcome = try_parse(buf)
             if must_refuse:
-                record("texel", outcome, "per-texel mutation (%s)" % label)
+                record("texel", outcome, "targeted mutation (%s)" % label)
             else:
                 r = results["control"]
                 r[1] += 1
                 if isinstance(outcome, tuple):
-                    crashes.append("per-texel control (%s): %s" % (label, outcome[1]))
+                    crashes.append("control (%s): %s" % (label, outcome[1]))
                 elif outcome == "ok":
                     r[0] += 1
                 else:
                     try:
                         parse(buf)
                     except PrtbError as e:
-                        refused_valid.append("per-texel control (%s) refused: %s" % (label, e))
+                        refused_valid.append("control (%s) refused: %s" % (label, e))
     # 4. the command line itself on a few corrupted files: exit 1, one line, no traceback
     cli_bad = 0
     with tempfile.TemporaryDirectory() as tmp:
@@ -1747,7 +2096,8 @@ def self_test(path: str, seed: int, cli_samples: int = 12) -> int:
     if c[1]:
         print("  CRC-repaired CPCA mutations:    %d of %d refused (§3.13 rules)" % (c[0], c[1]))
     if x[1] or ok[1]:
-        print("  per-texel mutations:            %d of %d refused (§3.1/§3.9/§3.11 rules); "
+        print("  targeted mutations:             %d of %d refused (per-texel §3.1/§3.9/§3.11 "
+              "or field §3.14 rules); "
               "controls accepted: %d of %d" % (x[0], x[1], ok[0], ok[1]))
     print("  command line on corrupted files: %d of %d gave exit 1 and one clean line"
           % (cli_samples - cli_bad, cli_samples))
@@ -1781,6 +2131,8 @@ def main(argv=None) -> int:
                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("file", help="the .prtb file")
     parser.add_argument("--dump", metavar="OUT.json", help="write a JSON summary")
+    parser.add_argument("--field-out", metavar="OUT.bin",
+                        help="write a reflectance field's pixels (u32) and values (f32), raw LE")
     parser.add_argument("--relight", metavar="OBJECT", help="relight this object's points")
     parser.add_argument("--albedo", metavar="R,G,B", help="diffuse albedo for --relight")
     parser.add_argument("--order", type=int, metavar="N", help="SH order cap for --relight")
@@ -1820,6 +2172,13 @@ def main(argv=None) -> int:
                     f.write("\n")
             except OSError as e:
                 raise PrtbError("cannot write %s: %s" % (args.dump, e.strerror or e))
+        if args.field_out:
+            if bake.field is None:
+                raise PrtbError("--field-out: the file has no reflectance field (RFLD)")
+            try:
+                write_field(args.field_out, bake.field)
+            except OSError as e:
+                raise PrtbError("cannot write %s: %s" % (args.field_out, e.strerror or e))
         if args.relight is not None:
             first, rgb = relight(bake, args.relight, albedo, args.order)
             try:
