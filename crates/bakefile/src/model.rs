@@ -994,6 +994,71 @@ impl Bake {
         Ok(())
     }
 
+    /// Reflectance fields (SPEC §3.14): `settings.reflectance` is present exactly when the
+    /// file holds a field, and then names the field's directions, the file's bounces and rays
+    /// per point, its `pixel_samples`, and a non-empty `geometry` list of uniquely named
+    /// meshes with `0x`-prefixed 16-digit lower-case hashes.
+    fn check_reflectance_settings(&self) -> Result<(), BakeFileError> {
+        let settings = &self.meta.settings;
+        let s = settings.get("reflectance");
+        let (r, s) = match (&self.reflectance, s) {
+            (None, None) => return Ok(()),
+            (None, Some(_)) => {
+                return Err(bad(
+                    "settings.reflectance in a file without a reflectance field",
+                ))
+            }
+            (Some(_), None) => return Err(bad("a reflectance field without settings.reflectance")),
+            (Some(r), Some(s)) => (r, s),
+        };
+        let u64_of = |k: &str| s.get(k).and_then(serde_json::Value::as_u64);
+        let dirs = s
+            .get("directions")
+            .and_then(serde_json::Value::as_array)
+            .map(|a| a.iter().map(serde_json::Value::as_u64).collect::<Vec<_>>());
+        let want_dirs = Some(vec![
+            Some(u64::from(r.directions[0])),
+            Some(u64::from(r.directions[1])),
+        ]);
+        let pixel_samples = settings
+            .get("pixel_samples")
+            .and_then(serde_json::Value::as_u64);
+        if dirs != want_dirs
+            || u64_of("bounces") != Some(u64::from(self.meta.bounces))
+            || u64_of("rays") != Some(u64::from(self.meta.rays_per_point))
+            || pixel_samples.is_none()
+            || u64_of("pixel_samples") != pixel_samples
+        {
+            return Err(bad(format!(
+                "settings.reflectance must name the field's directions [{}, {}], the file's bounces {} and rays per point {}, and settings.pixel_samples: {s}",
+                r.directions[0], r.directions[1], self.meta.bounces, self.meta.rays_per_point
+            )));
+        }
+        let geometry = s
+            .get("geometry")
+            .and_then(serde_json::Value::as_array)
+            .filter(|g| !g.is_empty())
+            .ok_or_else(|| bad("settings.reflectance.geometry must list the scene's meshes"))?;
+        let mut names = std::collections::HashSet::new();
+        for (i, g) in geometry.iter().enumerate() {
+            let name = g.get("object").and_then(serde_json::Value::as_str);
+            let hash = g.get("geometry_hash").and_then(serde_json::Value::as_str);
+            let hash_ok = hash.is_some_and(|h| {
+                h.len() == 18
+                    && h.starts_with("0x")
+                    && h[2..]
+                        .bytes()
+                        .all(|c| c.is_ascii_digit() || (b'a'..=b'f').contains(&c))
+            });
+            if !name.is_some_and(|n| !n.is_empty() && names.insert(n)) || !hash_ok {
+                return Err(bad(format!(
+                    "settings.reflectance.geometry[{i}] must be {{\"object\": a unique name, \"geometry_hash\": \"0x\" + 16 lower-case hex digits}}: {g}"
+                )));
+            }
+        }
+        Ok(())
+    }
+
     /// Per-texel bakes (SPEC §3.9): `settings.lightmaps` has one entry per object, `null`
     /// exactly for objects without coverage, else the object's name, the file's lightmap size,
     /// a `uv_set` (u32) and a `uv_hash` (u64 as a decimal string without sign or leading
@@ -1260,6 +1325,7 @@ impl Bake {
         }
         self.check_coverage_sums()?;
         self.check_lightmaps()?;
+        self.check_reflectance_settings()?;
         if let Some(env) = &self.environment {
             if env.order == 0 || env.order > u32::from(u16::MAX) {
                 return Err(bad(format!("environment order {}", env.order)));

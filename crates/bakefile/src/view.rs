@@ -759,6 +759,16 @@ impl<'a> BakeView<'a> {
                 return Err(BakeFileError::MissingSection(tag.to_string()));
             }
         }
+        // A field must be marked REQUIRED (§3's table): a reader that skipped it unmarked
+        // would relight nothing and not know it.
+        if let Some(&(_, Some(i), _)) = single.iter().find(|(t, _, _)| *t == Tag::RFLD) {
+            if sections[i].flags & SECTION_FLAG_REQUIRED == 0 {
+                return Err(invalid(
+                    "RFLD",
+                    "a reflectance field without the REQUIRED flag (SPEC §3)",
+                ));
+            }
+        }
         let payload = |i: usize| {
             let s = &sections[i];
             &bytes[s.offset as usize..(s.offset + s.length) as usize]

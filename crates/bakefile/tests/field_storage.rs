@@ -27,7 +27,10 @@ fn field_bake(field: ReflectanceField) -> Bake {
             settings: serde_json::json!({
                 "points": "pixel",
                 "pixel_samples": 2,
-                "reflectance": {"directions": field.directions, "pixel_samples": 2},
+                "reflectance": {
+                    "directions": field.directions, "bounces": 0, "rays": 1, "pixel_samples": 2,
+                    "geometry": [{"object": "floor", "geometry_hash": "0x0123456789abcdef"}],
+                },
             }),
             decisions: Vec::new(),
             shard: ShardInfo::default(),
@@ -374,4 +377,50 @@ fn write_bake_streams_exactly_the_bytes_of_encode() {
             }
         }
     }
+}
+
+/// `settings.reflectance` (SPEC §3.14) is there exactly when the field is, and agrees with it
+/// and with the file: each departure is refused by the writer's validation, naming it.
+#[test]
+fn settings_reflectance_must_describe_the_field() {
+    let good = field_bake(field([2, 1], FieldValues::from_f32(&[0.5; 24])));
+    assert!(encode(&good, ScalarType::F32).is_ok());
+    let refused = |edit: &dyn Fn(&mut Bake), needle: &str| {
+        let mut b = good.clone();
+        edit(&mut b);
+        let e = encode(&b, ScalarType::F32).unwrap_err().to_string();
+        assert!(e.contains(needle), "{needle}: {e}");
+    };
+    refused(
+        &|b| {
+            b.meta
+                .settings
+                .as_object_mut()
+                .unwrap()
+                .remove("reflectance");
+        },
+        "without settings.reflectance",
+    );
+    refused(
+        &|b| b.meta.settings["reflectance"]["directions"] = serde_json::json!([4, 1]),
+        "directions [2, 1]",
+    );
+    refused(
+        &|b| b.meta.settings["reflectance"]["bounces"] = 2.into(),
+        "bounces 0",
+    );
+    refused(
+        &|b| b.meta.settings["reflectance"]["geometry"] = serde_json::json!([]),
+        "geometry must list",
+    );
+    refused(
+        &|b| {
+            b.meta.settings["reflectance"]["geometry"][0]["geometry_hash"] = "0x0123".into();
+        },
+        "16 lower-case hex digits",
+    );
+    refused(
+        &|b| b.reflectance = None,
+        "settings.reflectance in a file without",
+    );
 }
