@@ -360,6 +360,23 @@ pub enum ReconstructArg {
     Bspline,
 }
 
+impl ReconstructArg {
+    /// The reconstruction it names.
+    pub fn method(self) -> prt_report::reflectance::Reconstruction {
+        use prt_report::reflectance::Reconstruction as R;
+        match self {
+            ReconstructArg::Nearest => R::Nearest,
+            ReconstructArg::Linear => R::Linear,
+            ReconstructArg::Legall53 => R::LeGall53,
+            ReconstructArg::Cdf97 => R::Cdf97,
+            ReconstructArg::Idw => R::Idw,
+            ReconstructArg::Biquadric => R::Biquadric,
+            ReconstructArg::Sh25 => R::Sh25,
+            ReconstructArg::Bspline => R::BSpline,
+        }
+    }
+}
+
 /// `prt relight` of a reflectance field.
 fn run_field(
     args: &RelightArgs,
@@ -372,16 +389,7 @@ fn run_field(
     let field = prt_report::reflectance::check_field(scene, bake, &args.bake)?;
     let accel = prt_tracer::Accel::build(scene).context("building the BVH")?;
     let opt = prt_report::reflectance::FieldOptions {
-        reconstruction: match args.reconstruct {
-            ReconstructArg::Nearest => prt_report::reflectance::Reconstruction::Nearest,
-            ReconstructArg::Linear => prt_report::reflectance::Reconstruction::Linear,
-            ReconstructArg::Legall53 => prt_report::reflectance::Reconstruction::LeGall53,
-            ReconstructArg::Cdf97 => prt_report::reflectance::Reconstruction::Cdf97,
-            ReconstructArg::Idw => prt_report::reflectance::Reconstruction::Idw,
-            ReconstructArg::Biquadric => prt_report::reflectance::Reconstruction::Biquadric,
-            ReconstructArg::Sh25 => prt_report::reflectance::Reconstruction::Sh25,
-            ReconstructArg::Bspline => prt_report::reflectance::Reconstruction::BSpline,
-        },
+        reconstruction: args.reconstruct.method(),
         fine: crate::reflectance_cmd::parse_grid(&args.fine, "--fine")?,
         rotate_y_deg: args.rotate_y,
         timing_frames: 5,

@@ -48,6 +48,46 @@ pub struct ReportArgs {
     /// Frames timed per relighting (the median is reported, with the fastest and slowest).
     #[arg(long, default_value_t = 15)]
     pub frames: usize,
+    /// Add the reflectance-field section (Masselus et al. 2004): sample the scene's
+    /// reflectance field at `WxH` lat-long directions (cached), relight it with every
+    /// reconstruction, compress it with each wavelet, and compare it with per-pixel SH of as
+    /// many coefficients, all against the path-traced reference.
+    #[arg(long, value_name = "WxH")]
+    pub reflectance: Option<String>,
+    /// Reflectance section: the fine grid the functions are reconstructed on.
+    #[arg(
+        long,
+        value_name = "WxH",
+        default_value = "256x128",
+        requires = "reflectance"
+    )]
+    pub rf_fine: String,
+    /// Reflectance section: wavelet coefficients per pixel and channel of the compressed
+    /// relightings (a comma list; each beside per-pixel SH of order ⌊√K⌋).
+    #[arg(long, default_value = "64,256", requires = "reflectance")]
+    pub rf_coefficients: String,
+    /// Reflectance section: the reconstruction the compressed functions start from.
+    #[arg(long, value_enum, default_value_t = crate::relight_cmd::ReconstructArg::Linear, requires = "reflectance")]
+    pub rf_compress_from: crate::relight_cmd::ReconstructArg,
+    /// Reflectance section: frames of the flicker measurement (map turned each frame).
+    #[arg(long, default_value_t = 8, requires = "reflectance")]
+    pub rf_frames: usize,
+    /// Reflectance section: degrees the map turns about +Y between flicker frames.
+    #[arg(
+        long,
+        default_value_t = 0.5,
+        allow_negative_numbers = true,
+        requires = "reflectance"
+    )]
+    pub rf_rotate_step: f64,
+    /// Reflectance section: footprint samples per pixel of the field and of the per-pixel SH
+    /// bake beside it.
+    #[arg(long, default_value_t = 16, requires = "reflectance")]
+    pub rf_pixel_samples: u32,
+    /// Reflectance section: measure the compression errors over at most this many pixels (an
+    /// even subsample).
+    #[arg(long, default_value_t = 2048, requires = "reflectance")]
+    pub rf_error_pixels: usize,
 }
 
 fn parse_orders(text: &str) -> Result<Vec<usize>> {
@@ -80,6 +120,38 @@ fn parse_orders(text: &str) -> Result<Vec<usize>> {
     Ok(orders)
 }
 
+/// The reflectance section's settings from the `--rf-*` options.
+fn rf_settings(args: &ReportArgs, directions: &str) -> Result<prt_report::rf_section::RfSettings> {
+    let directions = crate::reflectance_cmd::parse_grid(directions, "--reflectance")?;
+    let fine = crate::reflectance_cmd::parse_grid(&args.rf_fine, "--rf-fine")?;
+    let coefficients = args
+        .rf_coefficients
+        .split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<usize>()
+                .with_context(|| format!("--rf-coefficients: {t:?} is not a number"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    if !args.rf_rotate_step.is_finite() {
+        bail!("--rf-rotate-step {} must be finite", args.rf_rotate_step);
+    }
+    if args.rf_pixel_samples == 0 || args.rf_error_pixels == 0 {
+        bail!("--rf-pixel-samples and --rf-error-pixels must be at least 1");
+    }
+    Ok(prt_report::rf_section::RfSettings {
+        directions,
+        fine,
+        coefficients,
+        compress_from: args.rf_compress_from.method(),
+        frames: args.rf_frames,
+        rotate_step_deg: args.rf_rotate_step,
+        pixel_samples: args.rf_pixel_samples,
+        error_pixels: args.rf_error_pixels,
+        timing_frames: args.frames.min(5),
+    })
+}
+
 /// Runs `prt report`.
 pub fn run(args: &ReportArgs) -> Result<()> {
     let orders = parse_orders(&args.orders)?;
@@ -110,6 +182,10 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         seed: scene.render.seed,
         timing_frames: args.frames,
         progress: true,
+        reflectance: match &args.reflectance {
+            Some(d) => Some(rf_settings(args, d)?),
+            None => None,
+        },
     };
     let data = prt_report::run_report(&args.scene, &scene, &args.out, &settings)?;
     outln!("order  full ms  adaptive ms  speed-up  PSNR ad/full  PSNR full/PT  PSNR ad/PT  ROI diff %  ROI spec %");

@@ -32,6 +32,7 @@ pub mod reflectance;
 pub mod relit;
 pub mod report;
 pub mod rf_reconstruct;
+pub mod rf_section;
 pub mod target;
 pub mod viewer;
 

@@ -223,6 +223,9 @@ pub struct FieldStats {
     /// The same in the discrete Sobolev H¹ norm (the function and its angular gradient;
     /// Masselus et al. 2004, Fig. 9), when compressed.
     pub rf_rel_h1: Option<f64>,
+    /// Held pixels whose functions `rf_rel_l2` and `rf_rel_h1` were measured over (all of
+    /// them for `prt relight`; an even subsample in the report's series), when compressed.
+    pub rf_error_pixels: Option<usize>,
     /// Time to reconstruct, transform and truncate every function (once, not per frame), ms.
     pub compress_ms: Option<f64>,
 }
@@ -234,13 +237,49 @@ struct Sparse {
     runs: Vec<[(u32, u32); 3]>,
     entries: Vec<(u32, f32)>,
     kept: u64,
+    /// Squared L2 norms of the errors and of the functions, over the measured pixels.
     error2: f64,
     norm2: f64,
     /// Squared Sobolev H¹ norms of the errors and of the functions (`prt_wavelet`'s discrete
-    /// norm).
+    /// norm), over the measured pixels.
     h1_error2: f64,
     h1_norm2: f64,
+    /// Held pixels whose functions' errors were measured.
+    error_pixels: usize,
     ms: f64,
+}
+
+impl Sparse {
+    fn rel_l2(&self) -> f64 {
+        if self.norm2 > 0.0 {
+            (self.error2 / self.norm2).sqrt()
+        } else {
+            0.0
+        }
+    }
+
+    fn rel_h1(&self) -> f64 {
+        if self.h1_norm2 > 0.0 {
+            (self.h1_error2 / self.h1_norm2).sqrt()
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The indices of the `k` most important coefficients, most important first: ranked by
+/// `c_i² ‖Φ_i‖²`, ties by index (so the `K` kept for a smaller `K` are always the first `K` of
+/// a larger one's, and the choice does not depend on the sort's internals).
+fn rank_top(coef: &[f64], norms: &[f64], k: usize) -> Vec<u32> {
+    let weight = |i: u32| coef[i as usize].powi(2) * norms[i as usize];
+    let order = |a: &u32, b: &u32| weight(*b).total_cmp(&weight(*a)).then(a.cmp(b));
+    let mut idx: Vec<u32> = (0..coef.len() as u32).collect();
+    if k < idx.len() {
+        idx.select_nth_unstable_by(k - 1, order);
+        idx.truncate(k);
+    }
+    idx.sort_unstable_by(order);
+    idx
 }
 
 /// Reconstructs, transforms and truncates every function of `field`.
@@ -250,106 +289,150 @@ fn compress(
     fine: [u32; 2],
     c: Compression,
 ) -> Result<Sparse, ReportError> {
+    let mut v = compress_series(field, prepared, fine, c.wavelet, &[c.budget], 1, false)?;
+    Ok(v.remove(0))
+}
+
+/// [`compress`] for several budgets of one wavelet in one pass: each function is reconstructed
+/// and transformed once, its coefficients ranked once, and every fixed budget `K` keeps the
+/// first `K` of that ranking. The errors are exact (one sparse inverse transform per function
+/// and budget) over every `error_stride`-th held pixel (1: all of them); the time is the
+/// whole pass's.
+fn compress_series(
+    field: &ReflectanceField,
+    prepared: &Prepared,
+    fine: [u32; 2],
+    wavelet: prt_wavelet::Wavelet,
+    budgets: &[Budget],
+    error_stride: usize,
+    only_measured: bool,
+) -> Result<Vec<Sparse>, ReportError> {
     let start = std::time::Instant::now();
     let wav = |e: prt_wavelet::WaveletError| ReportError::Invalid(format!("wavelet: {e}"));
     let transform =
-        prt_wavelet::Transform2d::lat_long(c.wavelet, fine[0] as usize, fine[1] as usize, None)
+        prt_wavelet::Transform2d::lat_long(wavelet, fine[0] as usize, fine[1] as usize, None)
             .map_err(wav)?;
     let n = transform.len();
-    match c.budget {
-        Budget::Coefficients(k) if k == 0 || k > n => {
-            return Err(ReportError::Invalid(format!(
-                "--coefficients {k}: give between 1 and the fine grid's {n}"
-            )))
+    for b in budgets {
+        match *b {
+            Budget::Coefficients(k) if k == 0 || k > n => {
+                return Err(ReportError::Invalid(format!(
+                    "--coefficients {k}: give between 1 and the fine grid's {n}"
+                )))
+            }
+            Budget::RelativeError(e) if !(e > 0.0 && e < 1.0) => {
+                return Err(ReportError::Invalid(format!(
+                    "--rf-error {e}: give a relative error in (0, 1)"
+                )))
+            }
+            _ => {}
         }
-        Budget::RelativeError(e) if !(e > 0.0 && e < 1.0) => {
-            return Err(ReportError::Invalid(format!(
-                "--rf-error {e}: give a relative error in (0, 1)"
-            )))
-        }
-        _ => {}
     }
+    let error_stride = error_stride.max(1);
+    let max_k = budgets
+        .iter()
+        .filter_map(|b| match b {
+            Budget::Coefficients(k) => Some(*k),
+            Budget::RelativeError(_) => None,
+        })
+        .max();
     let norms = transform.basis_norms_squared();
     let d = field.direction_count();
-    // Per pixel: three channels' kept coefficients, the squared error and norm.
-    type PixelOut = (Vec<Vec<(u32, f32)>>, [f64; 4]);
+    // Per pixel and budget: three channels' kept coefficients, the squared errors and norms.
+    type PixelOut = Vec<(Vec<Vec<(u32, f32)>>, [f64; 4])>;
     let per_pixel: Vec<PixelOut> = (0..field.pixels.len())
         .into_par_iter()
         .map_init(Vec::new, |scratch, i| -> Result<PixelOut, ReportError> {
+            let measure = i % error_stride == 0;
+            if only_measured && !measure {
+                return Ok(vec![(vec![Vec::new(); 3], [0.0; 4]); budgets.len()]);
+            }
             let f = field.function(i, scratch);
             let mut fine_f = vec![0.0f64; n];
-            let mut out = Vec::with_capacity(3);
-            let (mut e2, mut n2, mut h1e, mut h1n) = (0.0, 0.0, 0.0, 0.0);
+            let mut out: PixelOut = vec![(Vec::with_capacity(3), [0.0; 4]); budgets.len()];
             let (fw, fh) = (fine[0] as usize, fine[1] as usize);
             for ch in 0..3 {
                 prepared.apply(&f[ch * d..(ch + 1) * d], &mut fine_f)?;
                 let norm2: f64 = fine_f.iter().map(|v| v * v).sum();
-                n2 += norm2;
-                h1n += prt_wavelet::sobolev_h1_norm2(&fine_f, fw, fh);
                 if norm2 == 0.0 {
-                    out.push(Vec::new());
+                    out.iter_mut().for_each(|o| o.0.push(Vec::new()));
                     continue;
                 }
-                let kept: Vec<(usize, f64)> = match c.budget {
-                    Budget::Coefficients(k) => {
-                        let coef = transform.forward(&fine_f).map_err(wav)?;
-                        let mut idx: Vec<u32> = (0..n as u32).collect();
-                        let weight = |i: u32| coef[i as usize].powi(2) * norms[i as usize];
-                        if k < n {
-                            idx.select_nth_unstable_by(k - 1, |a, b| {
-                                weight(*b).total_cmp(&weight(*a))
-                            });
-                        }
-                        idx[..k]
+                let h1n = if measure {
+                    prt_wavelet::sobolev_h1_norm2(&fine_f, fw, fh)
+                } else {
+                    0.0
+                };
+                let coef = match max_k {
+                    Some(_) => transform.forward(&fine_f).map_err(wav)?,
+                    None => Vec::new(),
+                };
+                let ranked = max_k.map(|k| rank_top(&coef, norms, k));
+                for (b, o) in budgets.iter().zip(out.iter_mut()) {
+                    let kept: Vec<(usize, f64)> = match *b {
+                        Budget::Coefficients(k) => ranked.as_ref().expect("ranked")[..k]
                             .iter()
                             .map(|&i| (i as usize, coef[i as usize]))
-                            .collect()
+                            .collect(),
+                        Budget::RelativeError(e) => transform
+                            .rank(&fine_f)
+                            .map_err(wav)?
+                            .keep_for_exact_error(e)
+                            .map_err(wav)?,
+                    };
+                    if measure {
+                        // The exact error of what is kept: one sparse inverse transform.
+                        let approx = transform.reconstruct_sparse(&kept).map_err(wav)?;
+                        let err: Vec<f64> =
+                            approx.iter().zip(&fine_f).map(|(a, b)| a - b).collect();
+                        o.1[0] += err.iter().map(|e| e * e).sum::<f64>();
+                        o.1[1] += norm2;
+                        o.1[2] += prt_wavelet::sobolev_h1_norm2(&err, fw, fh);
+                        o.1[3] += h1n;
                     }
-                    Budget::RelativeError(e) => transform
-                        .rank(&fine_f)
-                        .map_err(wav)?
-                        .keep_for_exact_error(e)
-                        .map_err(wav)?,
-                };
-                // The exact error of what is kept: one sparse inverse transform.
-                let approx = transform.reconstruct_sparse(&kept).map_err(wav)?;
-                let err: Vec<f64> = approx.iter().zip(&fine_f).map(|(a, b)| a - b).collect();
-                e2 += err.iter().map(|e| e * e).sum::<f64>();
-                h1e += prt_wavelet::sobolev_h1_norm2(&err, fw, fh);
-                let mut kept: Vec<(u32, f32)> =
-                    kept.iter().map(|&(i, v)| (i as u32, v as f32)).collect();
-                kept.sort_unstable_by_key(|e| e.0);
-                out.push(kept);
+                    let mut kept: Vec<(u32, f32)> =
+                        kept.iter().map(|&(i, v)| (i as u32, v as f32)).collect();
+                    kept.sort_unstable_by_key(|e| e.0);
+                    o.0.push(kept);
+                }
             }
-            Ok((out, [e2, n2, h1e, h1n]))
+            Ok(out)
         })
         .collect::<Result<_, _>>()?;
-    let mut runs = Vec::with_capacity(per_pixel.len());
-    let mut entries = Vec::new();
-    let (mut error2, mut norm2, mut h1_error2, mut h1_norm2) = (0.0, 0.0, 0.0, 0.0);
-    for (chans, [e2, n2, h1e, h1n]) in per_pixel {
-        error2 += e2;
-        norm2 += n2;
-        h1_error2 += h1e;
-        h1_norm2 += h1n;
-        let mut r = [(0u32, 0u32); 3];
-        for (ch, kept) in chans.into_iter().enumerate() {
-            r[ch] = (entries.len() as u32, kept.len() as u32);
-            entries.extend(kept);
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    let mut out: Vec<Sparse> = budgets
+        .iter()
+        .map(|_| Sparse {
+            transform: transform.clone(),
+            runs: Vec::with_capacity(per_pixel.len()),
+            entries: Vec::new(),
+            kept: 0,
+            error2: 0.0,
+            norm2: 0.0,
+            h1_error2: 0.0,
+            h1_norm2: 0.0,
+            error_pixels: field.pixels.len().div_ceil(error_stride),
+            ms,
+        })
+        .collect();
+    for pixel in per_pixel {
+        for (sp, (chans, [e2, n2, h1e, h1n])) in out.iter_mut().zip(pixel) {
+            sp.error2 += e2;
+            sp.norm2 += n2;
+            sp.h1_error2 += h1e;
+            sp.h1_norm2 += h1n;
+            let mut r = [(0u32, 0u32); 3];
+            for (ch, kept) in chans.into_iter().enumerate() {
+                r[ch] = (sp.entries.len() as u32, kept.len() as u32);
+                sp.entries.extend(kept);
+            }
+            sp.runs.push(r);
         }
-        runs.push(r);
     }
-    Ok(Sparse {
-        transform,
-        kept: entries.len() as u64,
-        runs,
-        entries,
-        error2,
-        norm2,
-        h1_error2,
-        h1_norm2,
-        ms: start.elapsed().as_secs_f64() * 1e3,
-    })
+    for sp in &mut out {
+        sp.kept = sp.entries.len() as u64;
+    }
+    Ok(out)
 }
 
 /// Per fine cell, `L̄_k Δω_k` (RGB): the environment (rotated by `rotate_y_deg`) averaged over
@@ -663,19 +746,130 @@ pub fn relight_field_frames(
     if angles.is_empty() {
         return Err(ReportError::Invalid("no frames to relight".into()));
     }
-    let [fw, fh] = opt.fine;
+    check_fine(field, opt.fine)?;
+    let prepared = Prepared::new(opt.reconstruction, field.directions, opt.fine)?;
+    let sparse = opt
+        .compression
+        .map(|c| compress(field, &prepared, opt.fine, c))
+        .transpose()?;
+    let (images, shade_ms, lighting_ms) = shade_frames(
+        scene,
+        accel,
+        bake,
+        field,
+        &prepared,
+        sparse.as_ref(),
+        opt,
+        angles,
+    )?;
+    let wavelet = opt.compression.map(|c| c.wavelet);
+    Ok((
+        images,
+        field_stats(field, opt, wavelet, sparse.as_ref(), shade_ms, lighting_ms),
+    ))
+}
+
+/// Checks the fine grid against the field's.
+fn check_fine(field: &ReflectanceField, fine: [u32; 2]) -> Result<(), ReportError> {
+    let [fw, fh] = fine;
     let [cw, ch] = field.directions;
     if fw < cw || fh < ch || u64::from(fw) * u64::from(fh) > 1 << 24 {
         return Err(ReportError::Invalid(format!(
             "the fine grid {fw}×{fh} must be at least the sampled grid {cw}×{ch} in each direction (and at most 2^24 cells)"
         )));
     }
-    let d = field.direction_count();
+    Ok(())
+}
+
+/// One wavelet at several coefficient counts `ks` (the report's error-against-coefficients
+/// series): the functions are reconstructed (`opt.reconstruction`), transformed and ranked
+/// once, each `K` keeps the first `K` coefficients of every function's ranking (the same
+/// coefficients [`relight_field`] keeps with `--coefficients K`) and relights the frame at
+/// `opt.rotate_y_deg`. `rf_rel_l2` and `rf_rel_h1` are exact over every `error_stride`-th
+/// held pixel's functions (1: all; `FieldStats::rf_error_pixels` says how many);
+/// `compress_ms` is the one pass's. `opt.compression` is ignored.
+///
+/// # Errors
+/// As [`relight_field`]; a `K` of 0 or beyond the fine grid.
+pub fn relight_field_series(
+    scene: &Scene,
+    accel: &Accel,
+    bake: &Bake,
+    field: &ReflectanceField,
+    opt: &FieldOptions,
+    wavelet: prt_wavelet::Wavelet,
+    ks: &[usize],
+    error_stride: usize,
+) -> Result<Vec<(RgbImage, FieldStats)>, ReportError> {
+    check_fine(field, opt.fine)?;
     let prepared = Prepared::new(opt.reconstruction, field.directions, opt.fine)?;
-    let sparse = opt
-        .compression
-        .map(|c| compress(field, &prepared, opt.fine, c))
-        .transpose()?;
+    let budgets: Vec<Budget> = ks.iter().map(|&k| Budget::Coefficients(k)).collect();
+    let series = compress_series(
+        field,
+        &prepared,
+        opt.fine,
+        wavelet,
+        &budgets,
+        error_stride,
+        false,
+    )?;
+    let mut out = Vec::with_capacity(ks.len());
+    for sp in series {
+        let (mut images, shade_ms, lighting_ms) = shade_frames(
+            scene,
+            accel,
+            bake,
+            field,
+            &prepared,
+            Some(&sp),
+            opt,
+            &[opt.rotate_y_deg],
+        )?;
+        let stats = field_stats(field, opt, Some(wavelet), Some(&sp), shade_ms, lighting_ms);
+        out.push((images.remove(0), stats));
+    }
+    Ok(out)
+}
+
+/// The compression error against coefficient count (Masselus et al. 2004, Fig. 9) of the
+/// functions of every `stride`-th held pixel, reconstructed with `opt.reconstruction` onto
+/// `opt.fine`: per `K` of `ks`, `(K, relative L2, relative Sobolev H¹)` of the `K`-term
+/// approximations against the uncompressed functions (exact: one inverse transform each).
+///
+/// # Errors
+/// A `K` of 0 or beyond the fine grid; grids the reconstruction cannot work with.
+pub fn compression_errors(
+    field: &ReflectanceField,
+    opt: &FieldOptions,
+    wavelet: prt_wavelet::Wavelet,
+    ks: &[usize],
+    stride: usize,
+) -> Result<Vec<(usize, f64, f64)>, ReportError> {
+    check_fine(field, opt.fine)?;
+    let prepared = Prepared::new(opt.reconstruction, field.directions, opt.fine)?;
+    let budgets: Vec<Budget> = ks.iter().map(|&k| Budget::Coefficients(k)).collect();
+    let series = compress_series(field, &prepared, opt.fine, wavelet, &budgets, stride, true)?;
+    Ok(ks
+        .iter()
+        .zip(series)
+        .map(|(&k, sp)| (k, sp.rel_l2(), sp.rel_h1()))
+        .collect())
+}
+
+/// The frames at `angles`, with the median shading time of the first (ms) and the lighting's
+/// projection time (ms).
+#[allow(clippy::too_many_arguments)]
+fn shade_frames(
+    scene: &Scene,
+    accel: &Accel,
+    bake: &Bake,
+    field: &ReflectanceField,
+    prepared: &Prepared,
+    sparse: Option<&Sparse>,
+    opt: &FieldOptions,
+    angles: &[f64],
+) -> Result<(Vec<RgbImage>, f64, f64), ReportError> {
+    let d = field.direction_count();
     let mut times = Vec::new();
     let mut lighting_ms = 0.0;
     let k = bake
@@ -695,7 +889,7 @@ pub fn relight_field_frames(
             let lighting = fine_lighting(scene, opt.fine, angle);
             lighting_ms = t0.elapsed().as_secs_f64() * 1e3;
             let t = std::time::Instant::now();
-            if let Some(sp) = &sparse {
+            if let Some(sp) = sparse {
                 // The lighting's primal coefficients Sᵀℓ per channel, then sparse dot products.
                 let lc: Vec<Vec<f32>> = (0..3)
                     .map(|c| {
@@ -765,43 +959,42 @@ pub fn relight_field_frames(
         });
     }
     times.sort_by(f64::total_cmp);
-    Ok((
-        images,
-        FieldStats {
-            shade_ms: times[times.len() / 2],
-            lighting_ms,
-            pixels: field.pixels.len(),
-            directions: field.directions,
-            fine: opt.fine,
-            reconstruction: opt.reconstruction,
-            wavelet: opt.compression.map(|c| {
-                match c.wavelet {
-                    prt_wavelet::Wavelet::Haar => "haar",
-                    prt_wavelet::Wavelet::LeGall53 => "legall53",
-                    prt_wavelet::Wavelet::Cdf97 => "cdf97",
-                }
-                .to_owned()
-            }),
-            mean_coefficients: sparse
-                .as_ref()
-                .map(|s| s.kept as f64 / (3.0 * field.pixels.len().max(1) as f64)),
-            rf_rel_l2: sparse.as_ref().map(|s| {
-                if s.norm2 > 0.0 {
-                    (s.error2 / s.norm2).sqrt()
-                } else {
-                    0.0
-                }
-            }),
-            rf_rel_h1: sparse.as_ref().map(|s| {
-                if s.h1_norm2 > 0.0 {
-                    (s.h1_error2 / s.h1_norm2).sqrt()
-                } else {
-                    0.0
-                }
-            }),
-            compress_ms: sparse.as_ref().map(|s| s.ms),
-        },
-    ))
+    Ok((images, times[times.len() / 2], lighting_ms))
+}
+
+/// What a relighting measured.
+fn field_stats(
+    field: &ReflectanceField,
+    opt: &FieldOptions,
+    wavelet: Option<prt_wavelet::Wavelet>,
+    sparse: Option<&Sparse>,
+    shade_ms: f64,
+    lighting_ms: f64,
+) -> FieldStats {
+    FieldStats {
+        shade_ms,
+        lighting_ms,
+        pixels: field.pixels.len(),
+        directions: field.directions,
+        fine: opt.fine,
+        reconstruction: opt.reconstruction,
+        wavelet: wavelet.map(|w| wavelet_name(w).to_owned()),
+        mean_coefficients: sparse.map(|s| s.kept as f64 / (3.0 * field.pixels.len().max(1) as f64)),
+        rf_rel_l2: sparse.map(Sparse::rel_l2),
+        rf_rel_h1: sparse.map(Sparse::rel_h1),
+        rf_error_pixels: sparse.map(|s| s.error_pixels),
+        compress_ms: sparse.map(|s| s.ms),
+    }
+}
+
+/// The command-line name of a wavelet (`--wavelet`).
+#[must_use]
+pub fn wavelet_name(w: prt_wavelet::Wavelet) -> &'static str {
+    match w {
+        prt_wavelet::Wavelet::Haar => "haar",
+        prt_wavelet::Wavelet::LeGall53 => "legall53",
+        prt_wavelet::Wavelet::Cdf97 => "cdf97",
+    }
 }
 
 #[cfg(test)]

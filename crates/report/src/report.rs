@@ -62,6 +62,8 @@ pub struct ReportSettings {
     pub timing_frames: usize,
     /// Show progress bars.
     pub progress: bool,
+    /// The reflectance-field section ([`crate::rf_section`]), or `None` to leave it out.
+    pub reflectance: Option<crate::rf_section::RfSettings>,
 }
 
 /// One row of the per-order table.
@@ -170,6 +172,8 @@ pub struct ReportData {
     pub orders: Vec<OrderRow>,
     /// Notes from the relighter.
     pub notes: Vec<String>,
+    /// The reflectance-field section, when asked for (`--reflectance`).
+    pub reflectance: Option<crate::rf_section::RfSection>,
 }
 
 /// The path-traced reference of a report (`report.json`: `reference`).
@@ -350,7 +354,7 @@ fn machine() -> Machine {
     }
 }
 
-fn fnv(bytes: &[u8], mut h: u64) -> u64 {
+pub(crate) fn fnv(bytes: &[u8], mut h: u64) -> u64 {
     for b in bytes {
         h ^= u64::from(*b);
         h = h.wrapping_mul(0x0000_0100_0000_01b3);
@@ -397,7 +401,7 @@ fn reference_key(scene: &Scene, r: &prt_tracer::RenderSettings) -> u64 {
 }
 
 /// Hash of what every cached result depends on: geometry, materials, environment texels.
-fn scene_key(scene: &Scene) -> u64 {
+pub(crate) fn scene_key(scene: &Scene) -> u64 {
     let mut h = fnv(
         format!("{} {CACHE_EPOCH}", env!("CARGO_PKG_VERSION")).as_bytes(),
         0xcbf2_9ce4_8422_2325u64,
@@ -427,6 +431,42 @@ fn scene_key(scene: &Scene) -> u64 {
     h
 }
 
+/// A bake from the report's cache (`DIR/cache/bake-KEY.prtb`), or baked and cached: the bake,
+/// its file and the bake time (`None` when reused).
+pub(crate) fn cached_bake(
+    scene: &Scene,
+    accel: &prt_tracer::Accel,
+    out_dir: &Path,
+    bs: &BakeSettings,
+    what: &str,
+    progress: bool,
+) -> Result<(Bake, PathBuf, Option<f64>), ReportError> {
+    let key = bake_key(scene, bs);
+    let path = out_dir.join("cache").join(format!("bake-{key:016x}.prtb"));
+    if let Some(b) = prt_bakefile::read_bake(&path)
+        .ok()
+        .filter(|b| check_bake(scene, b, &path).is_ok())
+    {
+        if progress {
+            eprintln!("report: reusing the cached {what} {}", path.display());
+        }
+        return Ok((b, path, None));
+    }
+    if progress {
+        eprintln!(
+            "report: baking the {what}: order {}, {} rays per point, {} bounce(s)",
+            bs.order.map_or("auto".into(), |o| o.to_string()),
+            bs.rays,
+            bs.bounces
+        );
+    }
+    let t = Instant::now();
+    let out = prt_bake::bake(scene, accel, bs)?;
+    let seconds = t.elapsed().as_secs_f64();
+    prt_bakefile::write_bake(&path, &out.bake, prt_bakefile::ScalarType::F32)?;
+    Ok((out.bake, path, Some(seconds)))
+}
+
 fn to_image(radiance: &[Vec3], w: u32, h: u32) -> Image {
     Image {
         width: w as usize,
@@ -435,7 +475,7 @@ fn to_image(radiance: &[Vec3], w: u32, h: u32) -> Image {
     }
 }
 
-fn srgb_tile(img: &Image, caption: String) -> Tile {
+pub(crate) fn srgb_tile(img: &Image, caption: String) -> Tile {
     let lin: Vec<Vec3> = img.pixels.iter().map(|p| Vec3::from_array(*p)).collect();
     let bytes = prt_tracer::output::to_srgb8(&lin, 0.0);
     Tile {
@@ -624,26 +664,7 @@ pub fn run_report(
         ..BakeSettings::final_quality()
     };
     let cached_bake =
-        |bs: &BakeSettings, what: &str| -> Result<(Bake, PathBuf, Option<f64>), ReportError> {
-            let key = bake_key(scene, bs);
-            let path = out_dir.join("cache").join(format!("bake-{key:016x}.prtb"));
-            if let Some(b) = prt_bakefile::read_bake(&path)
-                .ok()
-                .filter(|b| check_bake(scene, b, &path).is_ok())
-            {
-                say(&format!("reusing the cached {what} {}", path.display()));
-                return Ok((b, path, None));
-            }
-            say(&format!(
-                "baking the {what}: order {max_order}, {} rays per point, {} bounce(s)",
-                bs.rays, bs.bounces
-            ));
-            let t = Instant::now();
-            let out = prt_bake::bake(scene, &accel, bs)?;
-            let seconds = t.elapsed().as_secs_f64();
-            prt_bakefile::write_bake(&path, &out.bake, prt_bakefile::ScalarType::F32)?;
-            Ok((out.bake, path, Some(seconds)))
-        };
+        |bs: &BakeSettings, what: &str| cached_bake(scene, &accel, out_dir, bs, what, s.progress);
     let (bake, bake_path, baked) = cached_bake(&bs, "bake")?;
     let bake_seconds = baked.unwrap_or(0.0);
     let bake_cached = baked.is_none();
@@ -949,6 +970,33 @@ pub fn run_report(
     notes.sort();
     notes.dedup();
 
+    // 4b. The reflectance-field section (after the timed relightings, so it does not load
+    // them).
+    let reflectance = match &s.reflectance {
+        Some(rf) => {
+            let out = crate::rf_section::run_section(
+                &crate::rf_section::RfContext {
+                    scene,
+                    accel: &accel,
+                    out_dir,
+                    reference: &reference,
+                    mask: &mask,
+                    reference_noise_psnr,
+                    bounces: s.bounces,
+                    rays: s.rays,
+                    seed: s.seed,
+                    sh_timing_frames: s.timing_frames,
+                    progress: s.progress,
+                },
+                scene_key(scene),
+                rf,
+            )?;
+            viewer_images.extend(out.viewer_images);
+            Some(out.section)
+        }
+        None => None,
+    };
+
     let error_budget_summary = summary_sentence(&error_budget);
     // Per object: quality against the path tracer at every order, and what meets the target.
     // (from the full-order images of step 3, not relit again)
@@ -1197,6 +1245,7 @@ pub fn run_report(
         convergence,
         orders: rows,
         notes,
+        reflectance,
     };
     write_text(
         &out_dir.join("report.json"),
@@ -1549,6 +1598,9 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
             }
         );
     }
+    if let Some(rf) = &d.reflectance {
+        s.push_str(&crate::rf_section::markdown(rf));
+    }
     if !d.notes.is_empty() {
         let _ = writeln!(s, "\n## Notes\n");
         for n in &d.notes {
@@ -1559,8 +1611,10 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
         // The page's viewer and interactive charts take the place of the static plots.
         let _ = writeln!(
             s,
-            "\n## Static files\n\nThe same plots as PNG files: error_vs_time.png, psnr_vs_order.png, roi_vs_order.png{}, and images.png (an image grid); every image as EXR in images/.",
-            if d.error_budget.is_empty() { "" } else { ", error_budget.png" }
+            "\n## Static files\n\nThe same plots as PNG files: error_vs_time.png, psnr_vs_order.png, roi_vs_order.png{}{}, and images.png (an image grid){}; every image as EXR in images/.",
+            if d.error_budget.is_empty() { "" } else { ", error_budget.png" },
+            if d.reflectance.is_none() { "" } else { ", rf_psnr_vs_coefficients.png, rf_error_vs_coefficients.png, rf_h1_vs_coefficients.png" },
+            if d.reflectance.is_none() { "" } else { " and rf_images.png (one tile per reflectance-field method)" }
         );
         return s;
     }
@@ -1579,6 +1633,28 @@ fn markdown(d: &ReportData, html_images: bool) -> String {
         "images.png",
         "reference, relit images, error images and ROI",
     );
+    if d.reflectance.is_some() {
+        img(
+            &mut s,
+            "rf_psnr_vs_coefficients.png",
+            "reflectance fields and per-pixel SH against coefficients",
+        );
+        img(
+            &mut s,
+            "rf_error_vs_coefficients.png",
+            "compression error (L2) against coefficients",
+        );
+        img(
+            &mut s,
+            "rf_h1_vs_coefficients.png",
+            "compression error (H1) against coefficients",
+        );
+        img(
+            &mut s,
+            "rf_images.png",
+            "one image per reflectance-field method",
+        );
+    }
     s
 }
 
