@@ -248,3 +248,158 @@ fn textured_asset_exports_its_vertex_albedo() {
     assert!(floor.colors.is_none());
     assert_validates(&glb);
 }
+
+/// A per-texel bake (the bunny per vertex, the floor's UVs shrunk to a quarter of a 48² map so
+/// that its chart has inner borders) exports its floor as lightmap textures: the file
+/// validates cleanly; every covered texel reads back to the bake's transfer within half a
+/// quantisation step; the documented formula on the file's numbers gives `prt relight`'s
+/// per-texel radiance within the bound those steps imply; and an engine's plain bilinear
+/// lookup of the exported (dilated) textures forms nearly `prt relight`'s image.
+#[test]
+fn lightmap_export_validates_and_relights_like_prt() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = common::write_lightmap_scene(dir.path(), 0.5);
+    let (bake_path, glb) = bake_and_export(
+        &scene_path,
+        dir.path(),
+        "t",
+        &["--rays", "64", "--order", "3", "--per-texel", "48"],
+    );
+    assert_validates(&glb);
+    let back = prt_report::export::read_export(&glb).unwrap();
+    let bake = prt_bakefile::read_bake(&bake_path).unwrap();
+    let scene = prt_scene::load_scene(&scene_path).unwrap().scene;
+    let lightmaps = prt_report::relit::lightmaps(&scene, &bake).unwrap();
+    // The bunny (no UVs) stays per vertex, bit for bit.
+    let bunny = &back[0];
+    assert!(bunny.lightmap.is_none());
+    assert!(bunny.transfer == prt_bake::diffuse_block(&bake.objects[0]).unwrap().data);
+    // The floor: its covered texels (bake point k is texel k) within half a step.
+    let floor = &back[1];
+    let lm = floor.lightmap.as_ref().expect("the floor is lightmapped");
+    let ours = lightmaps[1].as_ref().unwrap();
+    assert_eq!((lm.width, lm.height), (48, 48));
+    assert_eq!(lm.uvs.len(), floor.positions.len());
+    let data = &prt_bake::diffuse_block(&bake.objects[1]).unwrap().data;
+    let (c, n2) = (floor.channels, floor.order * floor.order);
+    let row = c * n2;
+    let mut k = 0;
+    let mut worst = 0.0f64;
+    for (t, texel) in ours.texels.iter().enumerate() {
+        if texel.is_none() {
+            continue;
+        }
+        for i in 0..row {
+            let (a, b) = (lm.transfer[t * row + i], data[t * row + i]);
+            let half = f64::from(lm.step[i]) / 2.0;
+            // Half a step, plus the f32 rounding of the dequantisation (offset + scale·q/255).
+            let bound = half + 4.0 * f64::from(f32::EPSILON) * f64::from(a.abs().max(b.abs()));
+            worst = worst.max((f64::from(a) - f64::from(b)).abs() / half.max(1e-30));
+            assert!(
+                (f64::from(a) - f64::from(b)).abs() <= bound,
+                "texel {t} coefficient {i}: {a} vs {b} (step {})",
+                lm.step[i]
+            );
+        }
+        k += 1;
+    }
+    assert_eq!(k, ours.covered());
+    eprintln!("worst texel error: {worst:.3} half-steps");
+
+    // The documented formula on the file's own numbers against prt relight's texel radiance.
+    let colours = dir.path().join("texels.csv");
+    let image = dir.path().join("prt.exr");
+    run(prt()
+        .arg("relight")
+        .arg(&scene_path)
+        .arg("--bake")
+        .arg(&bake_path)
+        .arg("--vertex-colours")
+        .arg(&colours)
+        .arg("--out")
+        .arg(&image));
+    let doc: serde_json::Value = {
+        let bytes = std::fs::read(&glb).unwrap();
+        let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        serde_json::from_slice(&bytes[20..20 + len]).unwrap()
+    };
+    let prim = &doc["meshes"][1]["primitives"][0];
+    let env: Vec<[f64; 3]> =
+        serde_json::from_value(prim["extras"]["prt"]["environment"].clone()).unwrap();
+    let albedo: Vec<f64> = serde_json::from_value(
+        doc["materials"][prim["material"].as_u64().unwrap() as usize]["pbrMetallicRoughness"]
+            ["baseColorFactor"]
+            .clone(),
+    )
+    .unwrap();
+    let covered: Vec<usize> = (0..ours.texels.len())
+        .filter(|&t| ours.texels[t].is_some())
+        .collect();
+    let text = std::fs::read_to_string(&colours).unwrap();
+    let first_point = bake.objects[1].point_first as usize;
+    let mut checked = 0;
+    let mut texel_radiance = vec![[0.0f32; 3]; ours.texels.len()];
+    for t in 0..ours.texels.len() {
+        for (ch, r) in texel_radiance[t].iter_mut().enumerate() {
+            let tc = if c == 3 { ch } else { 0 };
+            let coeffs = &lm.transfer[t * row + tc * n2..][..n2];
+            let v: f64 = coeffs
+                .iter()
+                .zip(&env)
+                .map(|(&x, l)| f64::from(x) * l[ch])
+                .sum();
+            *r = (v * albedo[ch] / std::f64::consts::PI) as f32;
+        }
+    }
+    for line in text.lines().skip(1).filter(|l| l.starts_with("quad.obj,")) {
+        let f: Vec<f64> = line
+            .split(',')
+            .skip(1)
+            .map(|x| x.parse().unwrap())
+            .collect();
+        let t = f[0] as usize - first_point;
+        if ours.texels[t].is_none() {
+            continue;
+        }
+        for ch in 0..3 {
+            let tc = if c == 3 { ch } else { 0 };
+            // Each coefficient off by at most half its step: Σ ½·step·|L| · albedo/π, plus
+            // f32 shading (n² products and sums) on the radiance's scale.
+            let bound: f64 = (0..n2)
+                .map(|i| f64::from(lm.step[tc * n2 + i]) / 2.0 * env[i][ch].abs())
+                .sum::<f64>()
+                * albedo[ch]
+                / std::f64::consts::PI
+                + 1e-5 * f[1 + ch].abs();
+            let ours = f64::from(texel_radiance[t][ch]);
+            assert!(
+                (ours - f[1 + ch]).abs() <= bound,
+                "texel {t} channel {ch}: {ours} vs {} (bound {bound})",
+                f[1 + ch]
+            );
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, covered.len());
+
+    // An engine: plain bilinear over every texel of the exported (dilated) maps.
+    let accel = prt_tracer::Accel::build(&scene).unwrap();
+    let mut relit = prt_report::relight(
+        &scene,
+        &accel,
+        &bake,
+        &prt_report::RelightOptions::default(),
+    )
+    .unwrap();
+    let any = *ours.texels.iter().flatten().next().unwrap();
+    let mut all = ours.clone();
+    all.texels = vec![Some(any); all.texels.len()];
+    relit.lightmaps[1] = Some(all);
+    relit.radiance[1] = texel_radiance;
+    let engine = prt_report::form_image(&scene, &accel, &relit, 0.0).unwrap();
+    let engine_path = dir.path().join("engine.exr");
+    prt_report::io::write_exr(&engine_path, &engine, &[]).unwrap();
+    let psnr = common::psnr_ldr(&engine_path, &image);
+    eprintln!("engine-style lookup of the export against prt relight: {psnr:.2} dB");
+    assert!(psnr > 40.0, "{psnr}");
+}

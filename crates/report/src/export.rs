@@ -13,8 +13,18 @@
 //! bake's projection), and `albedo` the material's `baseColorFactor` — times the vertex's
 //! `COLOR_0` when the scene material varies over the surface (textures, vertex colours): the
 //! diffuse albedo there, with the factor 1. View-dependent terms are not exported.
+//!
+//! A per-texel (lightmap) bake exports each lightmapped object's transfer as **lightmap
+//! textures** instead: coefficient `i` of channel `c` is component `i mod 4` of the RGBA8 PNG
+//! image `extras.prt.lightmap.textures[c][⌊i/4⌋]` (a glTF texture with bilinear filtering and
+//! clamp-to-edge wrapping), read at the primitive's `TEXCOORD_0` (the lightmap UVs the bake
+//! used), quantised per coefficient: `t = offset[c][i] + scale[c][i] · code / 255` with the
+//! range of that coefficient over the covered texels (so the rounding error is at most
+//! `scale / 510`). Texels no triangle touches are dilated from their covered neighbours (two
+//! rings), so that an engine's plain bilinear filtering does not pull chart borders toward 0.
 
 use crate::error::ReportError;
+use image::ImageEncoder as _;
 use prt_bakefile::{Bake, SampleKind};
 use prt_scene::Scene;
 use serde_json::{json, Value};
@@ -45,6 +55,19 @@ struct Bin {
 }
 
 impl Bin {
+    /// Appends `bytes` (4-byte aligned) as a buffer view without accessor or target (an
+    /// image); returns the view's index.
+    fn add_view(&mut self, bytes: &[u8]) -> usize {
+        while !self.data.len().is_multiple_of(4) {
+            self.data.push(0);
+        }
+        self.views.push(json!({
+            "buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len(),
+        }));
+        self.data.extend_from_slice(bytes);
+        self.views.len() - 1
+    }
+
     /// Appends `bytes` (4-byte aligned) as a buffer view with an accessor; returns the
     /// accessor's index.
     fn add(&mut self, bytes: &[u8], target: u32, accessor: Value) -> usize {
@@ -78,6 +101,136 @@ pub fn attribute_name(channel: usize, group: usize) -> String {
     format!("_PRT_C{channel}_{group}")
 }
 
+/// A lightmapped object's transfer as quantised RGBA8 PNG images.
+struct QuantisedLightmap {
+    /// `[channel][group]` PNG files.
+    pngs: Vec<Vec<Vec<u8>>>,
+    /// `[channel][coefficient]` offsets and scales: `t = offset + scale · code / 255`.
+    offset: Vec<Vec<f32>>,
+    scale: Vec<Vec<f32>>,
+}
+
+/// Per texel of `lm`, `[channel][coefficient]` values (`data`: the bake's rows, one per
+/// texel, SPEC §3.1) where covered, and uncovered texels dilated from their covered
+/// neighbours: two rings, each texel the mean of its already-filled 8-neighbours; `None`
+/// beyond.
+#[must_use]
+pub fn dilated_lightmap(
+    lm: &prt_bake::texels::Lightmap,
+    data: &[f32],
+    row: usize,
+) -> Vec<Option<Vec<f32>>> {
+    let (w, h) = (lm.width as usize, lm.height as usize);
+    let mut texels: Vec<Option<Vec<f32>>> = lm
+        .texels
+        .iter()
+        .enumerate()
+        .map(|(k, t)| t.as_ref().map(|_| data[k * row..(k + 1) * row].to_vec()))
+        .collect();
+    for _ in 0..2 {
+        let before = texels.clone();
+        for y in 0..h {
+            for x in 0..w {
+                if before[y * w + x].is_some() {
+                    continue;
+                }
+                let mut sum = vec![0.0f64; row];
+                let mut n = 0usize;
+                for (dx, dy) in [
+                    (-1i64, -1i64),
+                    (0, -1),
+                    (1, -1),
+                    (-1, 0),
+                    (1, 0),
+                    (-1, 1),
+                    (0, 1),
+                    (1, 1),
+                ] {
+                    let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+                    if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                        continue;
+                    }
+                    if let Some(v) = &before[yy as usize * w + xx as usize] {
+                        sum.iter_mut().zip(v).for_each(|(s, v)| *s += f64::from(*v));
+                        n += 1;
+                    }
+                }
+                if n > 0 {
+                    texels[y * w + x] = Some(sum.iter().map(|s| (s / n as f64) as f32).collect());
+                }
+            }
+        }
+    }
+    texels
+}
+
+fn quantise_lightmap(
+    lm: &prt_bake::texels::Lightmap,
+    data: &[f32],
+    channels: usize,
+    n2: usize,
+) -> QuantisedLightmap {
+    let row = channels * n2;
+    let texels = dilated_lightmap(lm, data, row);
+    // The range of each coefficient over the covered texels (the dilated ones are means of
+    // covered ones, so inside it).
+    let (mut lo, mut hi) = (vec![f32::INFINITY; row], vec![f32::NEG_INFINITY; row]);
+    for r in data
+        .chunks_exact(row)
+        .zip(&lm.texels)
+        .filter_map(|(r, t)| t.as_ref().map(|_| r))
+    {
+        for (k, &v) in r.iter().enumerate() {
+            lo[k] = lo[k].min(v);
+            hi[k] = hi[k].max(v);
+        }
+    }
+    let scale: Vec<f32> = lo.iter().zip(&hi).map(|(l, h)| (h - l).max(0.0)).collect();
+    let code = |k: usize, v: f32| -> u8 {
+        if scale[k] > 0.0 {
+            (((v - lo[k]) / scale[k]) * 255.0).round().clamp(0.0, 255.0) as u8
+        } else {
+            0
+        }
+    };
+    let (w, h) = (lm.width, lm.height);
+    let mut pngs = Vec::with_capacity(channels);
+    for ch in 0..channels {
+        let mut per_group = Vec::new();
+        for g in 0..n2.div_ceil(4) {
+            let mut rgba = vec![0u8; (w * h * 4) as usize];
+            for (t, texel) in texels.iter().enumerate() {
+                for j in 0..4 {
+                    let i = 4 * g + j;
+                    if i >= n2 {
+                        continue;
+                    }
+                    let k = ch * n2 + i;
+                    // Texels out of reach of the dilation: the code nearest to 0.
+                    let v = texel.as_ref().map_or(0.0, |r| r[k]);
+                    rgba[4 * t + j] = code(k, v);
+                }
+            }
+            let mut png = Vec::new();
+            image::codecs::png::PngEncoder::new(&mut png)
+                .write_image(&rgba, w, h, image::ExtendedColorType::Rgba8)
+                .expect("encoding a PNG into memory");
+            per_group.push(png);
+        }
+        pngs.push(per_group);
+    }
+    let split = |v: &[f32]| v.chunks(n2).map(<[f32]>::to_vec).collect::<Vec<_>>();
+    QuantisedLightmap {
+        pngs,
+        offset: split(
+            &lo.iter()
+                .map(|l| if l.is_finite() { *l } else { 0.0 })
+                .collect::<Vec<_>>(),
+        ),
+        scale: split(&scale),
+    }
+}
+
 /// Writes `bake` (per vertex, made for `scene`, already checked with
 /// [`crate::check_bake`]) as a binary glTF 2.0 file at `path`, atomically.
 ///
@@ -92,12 +245,9 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
                 "glTF export carries per-vertex transfer: this is a per-pixel bake (bake without --per-pixel)",
             ))
         }
-        SampleKind::Texel { .. } => {
-            return Err(invalid(
-                "glTF export carries per-vertex transfer: this is a per-texel (lightmap) bake, whose export as lightmap textures is not written yet (bake without --per-texel)",
-            ))
-        }
+        SampleKind::Texel { .. } => {}
     }
+    let lightmaps = crate::relit::lightmaps(scene, bake)?;
     let env = bake
         .environment
         .as_ref()
@@ -108,6 +258,7 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
         views: Vec::new(),
         accessors: Vec::new(),
     };
+    let (mut images, mut textures) = (Vec::new(), Vec::new());
     let (mut meshes, mut nodes, mut materials) = (Vec::new(), Vec::new(), Vec::new());
     let (mut vertices, mut attributes) = (0usize, 0usize);
     for (o, obj) in bake.objects.iter().enumerate() {
@@ -119,9 +270,15 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
             .clone()
             .unwrap_or_else(|| prt_bake::mesh_geometry(scene_mesh));
         let v = geometry.positions.len();
-        if v as u64 != obj.point_count || v == 0 {
+        let lightmap = lightmaps[o].as_ref();
+        // A lightmapped object's points are its texels, covered or not (SPEC §3.1).
+        let points = match lightmap {
+            Some(lm) => lm.texels.len(),
+            None => v,
+        };
+        if points as u64 != obj.point_count || v == 0 {
             return Err(invalid(format!(
-                "object {}: {v} vertices for {} points",
+                "object {}: {v} vertices ({points} points) for {} points in the bake",
                 obj.name, obj.point_count
             )));
         }
@@ -159,7 +316,35 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
         attrs.insert("POSITION".into(), json!(position));
         attrs.insert("NORMAL".into(), json!(normal));
         let mut names = Vec::new();
-        for ch in 0..c {
+        let mut lightmap_extras = Value::Null;
+        if let Some(lm) = lightmap {
+            let uv = &scene_mesh.texcoords[lm.uv_set];
+            let uv_acc = bin.add(
+                &f32_bytes(uv.iter().flatten().copied()),
+                ARRAY_BUFFER,
+                json!({"componentType": FLOAT, "count": v, "type": "VEC2"}),
+            );
+            attrs.insert("TEXCOORD_0".into(), json!(uv_acc));
+            let q = quantise_lightmap(lm, &block.data, c, n2);
+            let mut tex_ids = Vec::new();
+            for pngs in &q.pngs {
+                let mut ids = Vec::new();
+                for png in pngs {
+                    let view = bin.add_view(png);
+                    images.push(json!({"bufferView": view, "mimeType": "image/png"}));
+                    textures.push(json!({"sampler": 0, "source": images.len() - 1}));
+                    ids.push(textures.len() - 1);
+                }
+                tex_ids.push(ids);
+            }
+            lightmap_extras = json!({
+                "width": lm.width, "height": lm.height, "uv": "TEXCOORD_0",
+                "textures": tex_ids, "offset": q.offset, "scale": q.scale,
+                "covered_texels": lm.covered(),
+                "layout": "coefficient i of channel c is component i mod 4 (RGBA) of texture textures[c][floor(i/4)], sampled bilinearly at TEXCOORD_0 (texel centres at (x + 1/2)/width, image row 0 at v = 0): t = offset[c][i] + scale[c][i] * code / 255",
+            });
+        }
+        for ch in (0..c).filter(|_| lightmap.is_none()) {
             for g in 0..groups {
                 let values = (0..v).flat_map(|p| {
                     let row = &block.data[(p * c + ch) * n2..(p * c + ch + 1) * n2];
@@ -214,8 +399,10 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
                 "extras": {"prt": {
                     "format": "prt-transfer", "version": 1,
                     "kind": block.kind.name(), "order": n, "channels": c,
+                    "storage": if lightmap.is_some() { "lightmap" } else { "vertex" },
                     "attributes": names,
-                    "layout": "coefficient i (SH index l(l+1)+m) of channel c is component i mod 4 of the FLOAT VEC4 attribute _PRT_C{c}_{floor(i/4)}; unused components are 0",
+                    "lightmap": lightmap_extras,
+                    "layout": if lightmap.is_some() { "see lightmap.layout; SH index l(l+1)+m" } else { "coefficient i (SH index l(l+1)+m) of channel c is component i mod 4 of the FLOAT VEC4 attribute _PRT_C{c}_{floor(i/4)}; unused components are 0" },
                     "sh": {"basis": "real-orthonormal", "phase": "condon-shortley", "index_order": "l(l+1)+m", "angles": "theta-from-+Z, phi=atan2(y,x)"},
                     "radiance": "exit radiance of channel c = (albedo_c / pi) * sum_i t[c or 0][i] * environment[i][c]; albedo = the material's baseColorFactor, times the vertex's COLOR_0 when the primitive has one (the scene material's diffuse albedo at the vertex, textures applied); view-dependent terms (specular lobes) are not in the file",
                     "albedo_in_transfer": false,
@@ -229,7 +416,7 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
     while !bin.data.len().is_multiple_of(4) {
         bin.data.push(0);
     }
-    let doc = json!({
+    let mut doc = json!({
         "asset": {"version": "2.0", "generator": format!("prt {}", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
         "scenes": [{"nodes": (0..nodes.len()).collect::<Vec<_>>()}],
@@ -241,6 +428,14 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
         "buffers": [{"byteLength": bin.data.len()}],
         "extras": {"prt": {"bake_seed": bake.meta.seed.to_string(), "rays_per_point": bake.meta.rays_per_point, "bounces": bake.meta.bounces}},
     });
+    if !images.is_empty() {
+        doc["images"] = json!(images);
+        doc["textures"] = json!(textures);
+        // Bilinear (LINEAR), clamp to edge: the lookup prt's image formation does, bar its
+        // renormalisation over covered texels (which the dilation stands in for).
+        doc["samplers"] =
+            json!([{"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}]);
+    }
     let mut json_bytes = serde_json::to_vec(&doc).map_err(|e| invalid(e.to_string()))?;
     while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
@@ -290,6 +485,23 @@ pub struct ExportedObject {
     pub transfer: Vec<f32>,
     /// `COLOR_0` (the diffuse albedo per vertex of a textured material), if written.
     pub colors: Option<Vec<[f32; 3]>>,
+    /// A lightmapped object's transfer (then `transfer` is empty).
+    pub lightmap: Option<ExportedLightmap>,
+}
+
+/// A lightmapped object's transfer read back from its textures.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExportedLightmap {
+    /// Size in texels.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+    /// Per texel (`y · width + x`), `[channel][coefficient]`, dequantised.
+    pub transfer: Vec<f32>,
+    /// The lightmap UVs (`TEXCOORD_0`), per vertex.
+    pub uvs: Vec<[f32; 2]>,
+    /// `[channel][coefficient]` quantisation steps (`scale / 255`).
+    pub step: Vec<f32>,
 }
 
 /// Reads an export back with the `gltf` crate (the layout of [`export_glb`]).
@@ -298,7 +510,7 @@ pub struct ExportedObject {
 /// When the file is not a readable glTF or lacks the prt attributes.
 pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
     let bad = |m: String| invalid(format!("{}: {m}", path.display()));
-    let (doc, buffers, _) = gltf::import(path).map_err(|e| bad(e.to_string()))?;
+    let (doc, buffers, images) = gltf::import(path).map_err(|e| bad(e.to_string()))?;
     let floats = |acc: &gltf::Accessor| -> Result<Vec<f32>, ReportError> {
         let view = acc
             .view()
@@ -343,8 +555,21 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
             .map(|c| [c[0], c[1], c[2]])
             .collect();
         let v = positions.len();
-        let mut transfer = vec![0.0f32; v * channels * n2];
-        for ch in 0..channels {
+        let lightmap = match prt.get("lightmap").filter(|l| !l.is_null()) {
+            Some(l) => Some(read_lightmap(
+                l, channels, n2, &images, &attrs, &floats, &bad,
+            )?),
+            None => None,
+        };
+        let mut transfer = vec![
+            0.0f32;
+            if lightmap.is_some() {
+                0
+            } else {
+                v * channels * n2
+            }
+        ];
+        for ch in (0..channels).filter(|_| lightmap.is_none()) {
             for g in 0..n2.div_ceil(4) {
                 let name = attribute_name(ch, g);
                 let acc = attrs
@@ -377,7 +602,82 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
             positions,
             transfer,
             colors,
+            lightmap,
         });
     }
     Ok(out)
+}
+
+/// Dequantises a primitive's lightmap textures (`extras.prt.lightmap`).
+fn read_lightmap(
+    l: &Value,
+    channels: usize,
+    n2: usize,
+    images: &[gltf::image::Data],
+    attrs: &std::collections::HashMap<String, gltf::Accessor>,
+    floats: &dyn Fn(&gltf::Accessor) -> Result<Vec<f32>, ReportError>,
+    bad: &dyn Fn(String) -> ReportError,
+) -> Result<ExportedLightmap, ReportError> {
+    let num = |k: &str| {
+        l[k].as_u64()
+            .ok_or_else(|| bad(format!("lightmap.{k} is missing")))
+    };
+    let (w, h) = (num("width")? as u32, num("height")? as u32);
+    let table = |k: &str| -> Result<Vec<Vec<f64>>, ReportError> {
+        serde_json::from_value(l[k].clone()).map_err(|e| bad(format!("lightmap.{k}: {e}")))
+    };
+    let (offset, scale) = (table("offset")?, table("scale")?);
+    let tex: Vec<Vec<usize>> = serde_json::from_value(l["textures"].clone())
+        .map_err(|e| bad(format!("lightmap.textures: {e}")))?;
+    if offset.len() != channels
+        || scale.len() != channels
+        || tex.len() != channels
+        || offset.iter().chain(&scale).any(|r| r.len() != n2)
+        || tex.iter().any(|t| t.len() != n2.div_ceil(4))
+    {
+        return Err(bad(
+            "lightmap tables do not match the order and channels".into()
+        ));
+    }
+    let texels = (w * h) as usize;
+    let mut transfer = vec![0.0f32; texels * channels * n2];
+    for ch in 0..channels {
+        for (g, &t) in tex[ch].iter().enumerate() {
+            // Texture t's image: the export writes texture k with source k.
+            let img = images
+                .get(t)
+                .ok_or_else(|| bad(format!("lightmap texture {t} is missing")))?;
+            if (img.width, img.height) != (w, h) || img.format != gltf::image::Format::R8G8B8A8 {
+                return Err(bad(format!(
+                    "lightmap texture {t}: {}×{} {:?}, expected {w}×{h} RGBA8",
+                    img.width, img.height, img.format
+                )));
+            }
+            for p in 0..texels {
+                for j in 0..4 {
+                    let i = 4 * g + j;
+                    if i < n2 {
+                        let code = f64::from(img.pixels[4 * p + j]);
+                        transfer[(p * channels + ch) * n2 + i] =
+                            (offset[ch][i] + scale[ch][i] * code / 255.0) as f32;
+                    }
+                }
+            }
+        }
+    }
+    let uv = attrs
+        .get("TEXCOORD_0")
+        .ok_or_else(|| bad("a lightmapped primitive without TEXCOORD_0".into()))?;
+    let uvs = floats(uv)?.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
+    Ok(ExportedLightmap {
+        width: w,
+        height: h,
+        transfer,
+        uvs,
+        step: scale
+            .iter()
+            .flatten()
+            .map(|s| (*s / 255.0) as f32)
+            .collect(),
+    })
 }

@@ -117,3 +117,59 @@ bounces = 1
     .unwrap();
     scene
 }
+
+/// The bunny on the 2-triangle floor of `scenes/hard` (whose only UVs are the floor's, planar
+/// over the unit square, here scaled by `uv_scale`) under the upper-sky map, 64 × 48 pixels,
+/// bounces 0: `DIR/scene{uv_scale}.toml`.
+pub fn write_lightmap_scene(dir: &Path, uv_scale: f32) -> std::path::PathBuf {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    // The floor with its UVs scaled (1: the repository's quad.obj).
+    let quad = std::fs::read_to_string(repo.join("hard/quad.obj")).unwrap();
+    let quad: String = quad
+        .lines()
+        .map(|l| match l.strip_prefix("vt ") {
+            Some(uv) => {
+                let v: Vec<f32> = uv.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                format!("vt {} {}\n", v[0] * uv_scale, v[1] * uv_scale)
+            }
+            None => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(dir.join("quad.obj"), quad).unwrap();
+    let s = dir.join(format!("scene{uv_scale}.toml"));
+    std::fs::write(
+        &s,
+        format!(
+            r#"[camera]
+eye = [0.0, 0.75, 2.4]
+target = [0.0, 0.42, 0.0]
+fov_y = 40.0
+resolution = [64, 48]
+
+[environment]
+file = "{sky}"
+
+[materials.clay]
+type = "lambert"
+albedo = [0.8, 0.8, 0.8]
+
+[[objects]]
+mesh = "{bunny}"
+material = "clay"
+scale = 0.1
+
+[[objects]]
+mesh = "quad.obj"
+material = "clay"
+scale = [2.0, 1.0, 2.0]
+
+[render]
+bounces = 0
+"#,
+            sky = repo.join("hard/upper_sky.hdr").display(),
+            bunny = repo.join("meshes/bunny_lowres.obj").display(),
+        ),
+    )
+    .unwrap();
+    s
+}
