@@ -80,6 +80,7 @@ fn the_reflectance_section_is_complete_and_reproduced_by_hand() {
         "images/rf_haar_512.exr",
         "images/rf_sh_04.exr",
         "images/rf_sh_22.exr",
+        "images/rf_sh_fit_04.exr",
     ] {
         let len = std::fs::metadata(out.join(p))
             .unwrap_or_else(|e| panic!("{p}: {e}"))
@@ -119,6 +120,14 @@ fn the_reflectance_section_is_complete_and_reproduced_by_hand() {
         ]
     );
     let linear = &rf["reconstructions"][1];
+    // SH fitted to the 16 × 8 samples: order 4 fits (W ≥ 7, H ≥ 4), order 22 cannot.
+    let fit = rf["sh_fit"].as_array().unwrap();
+    assert_eq!(fit.len(), 1, "{rf}");
+    assert_eq!(fit[0]["order"], 4);
+    assert!(
+        rf["notes"][0].as_str().unwrap().contains("order 22"),
+        "{rf}"
+    );
     let k = rf["sh"].as_array().unwrap();
     assert_eq!(k.len(), 2, "SH orders 4 and 22 (⌊√512⌋): {rf}");
     assert_eq!(k[1]["order"], 22);

@@ -67,6 +67,11 @@ pub enum Reconstruction {
     /// Multilevel B-splines (Lee, Wolberg & Shin 1997; [`crate::rf_reconstruct::MultilevelBSpline`]).
     #[serde(rename = "bspline")]
     BSpline,
+    /// Spherical harmonics of this order (order² coefficients), least squares from the
+    /// samples ([`crate::rf_reconstruct::ShFit`]): the report's noise-free SH of a given
+    /// coefficient count, fitted to the same samples as the other reconstructions.
+    #[serde(rename = "sh_fit")]
+    ShFit(usize),
 }
 
 /// A reconstruction set up for one pair of grids: the built-in ones are evaluated directly,
@@ -101,6 +106,7 @@ impl Prepared {
                 fine,
                 rf::ShFit::DEFAULT_ORDER,
             )?)),
+            Reconstruction::ShFit(order) => Some(Box::new(rf::ShFit::new(coarse, fine, order)?)),
             Reconstruction::BSpline => Some(Box::new(rf::MultilevelBSpline::new(
                 coarse,
                 fine,
@@ -532,6 +538,7 @@ pub fn reconstruct(
         Reconstruction::Idw
             | Reconstruction::Biquadric
             | Reconstruction::Sh25
+            | Reconstruction::ShFit(_)
             | Reconstruction::BSpline
     ) {
         return Err(ReportError::Invalid(format!(

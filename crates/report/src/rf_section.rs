@@ -220,8 +220,14 @@ pub struct RfSection {
     pub reconstructions: Vec<RfMethodRow>,
     /// Compressed relightings.
     pub compressed: Vec<RfCompressedRow>,
-    /// Per-pixel SH at the same coefficient counts.
+    /// Per-pixel SH at the same coefficient counts (a per-pixel bake: its Monte Carlo noise
+    /// included).
     pub sh: Vec<RfShRow>,
+    /// Rays per pixel of that bake.
+    pub sh_bake_rays: u32,
+    /// SH of the same orders fitted (least squares) to the field's own samples: the basis
+    /// alone, without bake noise (shaded through the samples, so its time is the field's).
+    pub sh_fit: Vec<RfShRow>,
     /// The per-pixel SH bake (in the cache).
     pub sh_bake_file: String,
     /// Compression error against coefficient count.
@@ -230,6 +236,8 @@ pub struct RfSection {
     pub error_pixels: usize,
     /// Time to reconstruct, transform and rank every function once per wavelet, ms.
     pub compress_ms: Vec<(String, f64)>,
+    /// What the section left out, and why.
+    pub notes: Vec<String>,
     /// Frames and rotation step of the flicker measurement.
     pub flicker_frames: usize,
     /// Degrees per frame.
@@ -628,6 +636,55 @@ pub fn run_section(
         });
     }
 
+    // 5b. SH of the same orders fitted to the field's samples.
+    let mut sh_fit = Vec::new();
+    let mut notes = Vec::new();
+    for &order in &orders {
+        let [dw, dh] = s.directions;
+        if 2 * order > dw as usize + 1 || order > dh as usize {
+            notes.push(format!(
+                "SH of order {order} cannot be fitted to {dw}×{dh} samples (it needs W ≥ 2n − 1 and H ≥ n): no fitted row"
+            ));
+            continue;
+        }
+        say(&format!("the field fitted with SH of order {order}"));
+        let opt = FieldOptions {
+            reconstruction: Reconstruction::ShFit(order),
+            fine: s.fine,
+            rotate_y_deg: 0.0,
+            timing_frames: s.timing_frames,
+            compression: None,
+        };
+        let (frames, stats) = relight_field_frames(scene, accel, &bake, field, &opt, &[0.0])?;
+        let (psnr_ldr, rel_l2, _) = measure(&frames[0])?;
+        save(
+            &format!("rf_sh_fit_{order:02}"),
+            &frames[0],
+            "SH fitted to the field",
+        )?;
+        viewer_images.push(ViewerImage {
+            id: format!("rf_sh_fit_{order:02}"),
+            label: format!("SH order {order} fitted to the field's samples"),
+            rgb: rgb_of(&frames[0]),
+        });
+        if order == top {
+            tiles.insert(
+                2,
+                crate::report::srgb_tile(
+                    &to_compare_image(&frames[0]),
+                    format!("SH {order} fitted to the field: {psnr_ldr:.2} dB"),
+                ),
+            );
+        }
+        sh_fit.push(RfShRow {
+            order,
+            coefficients: order * order,
+            shade_ms: stats.shade_ms,
+            psnr_ldr,
+            rel_l2,
+        });
+    }
+
     // 6. Plots and the image grid.
     let colours = [
         RGBColor(31, 119, 180),
@@ -686,7 +743,15 @@ pub fn run_section(
         })
         .collect();
     series.push(Series {
-        label: "per-pixel SH".into(),
+        label: "SH fitted to the field's samples".into(),
+        points: sh_fit
+            .iter()
+            .map(|r| (r.coefficients as f64, r.psnr_ldr))
+            .collect(),
+        colour: RGBColor(148, 103, 189),
+    });
+    series.push(Series {
+        label: "per-pixel SH bake".into(),
         points: sh
             .iter()
             .map(|r| (r.coefficients as f64, r.psnr_ldr))
@@ -734,6 +799,9 @@ pub fn run_section(
             reconstructions,
             compressed,
             sh,
+            sh_bake_rays: cx.rays,
+            notes,
+            sh_fit,
             sh_bake_file: sh_path.display().to_string(),
             error_curve,
             error_pixels,
@@ -815,9 +883,11 @@ pub fn markdown(r: &RfSection) -> String {
     }
     let _ = writeln!(
         s,
-        "\n### Wavelet compression beside per-pixel SH\n\nK coefficients per pixel and channel ({} reconstruction, then the K largest by their L2 contribution); `rf_rel_l2`, `rf_rel_h1`: the compressed functions against the uncompressed ones over {} pixels. Per-pixel SH of order n has n² coefficients.\n",
+        "\n### Wavelet compression beside per-pixel SH\n\nK coefficients per pixel and channel ({} reconstruction, then the K largest by their L2 contribution); `rf_rel_l2`, `rf_rel_h1`: the compressed functions against the uncompressed ones over {} pixels. SH of order n has n² coefficients: the per-pixel SH bake ({} rays per pixel over {} footprint samples, its Monte Carlo noise included) and SH fitted by least squares to the field's own samples (the basis alone; shaded through the samples, so its time is the uncompressed field's).\n",
         reconstruction_name(r.compress_from),
-        r.error_pixels
+        r.error_pixels,
+        r.sh_bake_rays,
+        r.pixel_samples
     );
     let _ = writeln!(
         s,
@@ -842,17 +912,26 @@ pub fn markdown(r: &RfSection) -> String {
                 pct(c.rf_rel_h1)
             );
         }
-        if let Some(h) = r.sh.iter().find(|h| h.order == (k as f64).sqrt() as usize) {
-            let _ = writeln!(
-                s,
-                "| per-pixel SH, order {} | {} | {:.1} | {:.2} | {} | — | — |",
-                h.order,
-                h.coefficients,
-                h.shade_ms,
-                h.psnr_ldr,
-                pct(h.rel_l2)
-            );
+        let order = (k as f64).sqrt() as usize;
+        for (label, rows) in [
+            ("per-pixel SH bake", &r.sh),
+            ("SH fitted to the field", &r.sh_fit),
+        ] {
+            if let Some(h) = rows.iter().find(|h| h.order == order) {
+                let _ = writeln!(
+                    s,
+                    "| {label}, order {} | {} | {:.1} | {:.2} | {} | — | — |",
+                    h.order,
+                    h.coefficients,
+                    h.shade_ms,
+                    h.psnr_ldr,
+                    pct(h.rel_l2)
+                );
+            }
         }
+    }
+    for n in &r.notes {
+        let _ = writeln!(s, "\n- {n}");
     }
     let _ = writeln!(
         s,
