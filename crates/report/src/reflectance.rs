@@ -346,97 +346,108 @@ fn compress_series(
     let d = field.direction_count();
     // Per pixel and budget: three channels' kept coefficients, the squared errors and norms.
     type PixelOut = Vec<(Vec<Vec<(u32, f32)>>, [f64; 4])>;
-    let per_pixel: Vec<PixelOut> = (0..field.pixels.len())
-        .into_par_iter()
-        .map_init(Vec::new, |scratch, i| -> Result<PixelOut, ReportError> {
-            let measure = i % error_stride == 0;
-            if only_measured && !measure {
-                return Ok(vec![(vec![Vec::new(); 3], [0.0; 4]); budgets.len()]);
-            }
-            let f = field.function(i, scratch);
-            let mut fine_f = vec![0.0f64; n];
-            let mut out: PixelOut = vec![(Vec::with_capacity(3), [0.0; 4]); budgets.len()];
-            let (fw, fh) = (fine[0] as usize, fine[1] as usize);
-            for ch in 0..3 {
-                prepared.apply(&f[ch * d..(ch + 1) * d], &mut fine_f)?;
-                let norm2: f64 = fine_f.iter().map(|v| v * v).sum();
-                if norm2 == 0.0 {
-                    out.iter_mut().for_each(|o| o.0.push(Vec::new()));
-                    continue;
-                }
-                let h1n = if measure {
-                    prt_wavelet::sobolev_h1_norm2(&fine_f, fw, fh)
-                } else {
-                    0.0
-                };
-                let coef = match max_k {
-                    Some(_) => transform.forward(&fine_f).map_err(wav)?,
-                    None => Vec::new(),
-                };
-                let ranked = max_k.map(|k| rank_top(&coef, norms, k));
-                for (b, o) in budgets.iter().zip(out.iter_mut()) {
-                    let kept: Vec<(usize, f64)> = match *b {
-                        Budget::Coefficients(k) => ranked.as_ref().expect("ranked")[..k]
-                            .iter()
-                            .map(|&i| (i as usize, coef[i as usize]))
-                            .collect(),
-                        Budget::RelativeError(e) => transform
-                            .rank(&fine_f)
-                            .map_err(wav)?
-                            .keep_for_exact_error(e)
-                            .map_err(wav)?,
-                    };
-                    if measure {
-                        // The exact error of what is kept: one sparse inverse transform.
-                        let approx = transform.reconstruct_sparse(&kept).map_err(wav)?;
-                        let err: Vec<f64> =
-                            approx.iter().zip(&fine_f).map(|(a, b)| a - b).collect();
-                        o.1[0] += err.iter().map(|e| e * e).sum::<f64>();
-                        o.1[1] += norm2;
-                        o.1[2] += prt_wavelet::sobolev_h1_norm2(&err, fw, fh);
-                        o.1[3] += h1n;
-                    }
-                    let mut kept: Vec<(u32, f32)> =
-                        kept.iter().map(|&(i, v)| (i as u32, v as f32)).collect();
-                    kept.sort_unstable_by_key(|e| e.0);
-                    o.0.push(kept);
-                }
-            }
-            Ok(out)
-        })
-        .collect::<Result<_, _>>()?;
-    let ms = start.elapsed().as_secs_f64() * 1e3;
+    let len = field.pixels.len();
     let mut out: Vec<Sparse> = budgets
         .iter()
-        .map(|_| Sparse {
+        .map(|b| Sparse {
             transform: transform.clone(),
-            runs: Vec::with_capacity(per_pixel.len()),
-            entries: Vec::new(),
+            runs: Vec::with_capacity(len),
+            // Fixed budgets: at most K per function, reserved once (no growth by doubling).
+            entries: Vec::with_capacity(match *b {
+                Budget::Coefficients(k) if !only_measured => 3 * len * k,
+                _ => 0,
+            }),
             kept: 0,
             error2: 0.0,
             norm2: 0.0,
             h1_error2: 0.0,
             h1_norm2: 0.0,
-            error_pixels: field.pixels.len().div_ceil(error_stride),
-            ms,
+            error_pixels: len.div_ceil(error_stride),
+            ms: 0.0,
         })
         .collect();
-    for pixel in per_pixel {
-        for (sp, (chans, [e2, n2, h1e, h1n])) in out.iter_mut().zip(pixel) {
-            sp.error2 += e2;
-            sp.norm2 += n2;
-            sp.h1_error2 += h1e;
-            sp.h1_norm2 += h1n;
-            let mut r = [(0u32, 0u32); 3];
-            for (ch, kept) in chans.into_iter().enumerate() {
-                r[ch] = (sp.entries.len() as u32, kept.len() as u32);
-                sp.entries.extend(kept);
+    // Pixels in chunks, each appended before the next is compressed: the kept coefficients
+    // are held once (and one chunk's twice), not per pixel and again in the one array.
+    const CHUNK: usize = 4096;
+    for first in (0..len).step_by(CHUNK) {
+        let per_pixel: Vec<PixelOut> = (first..(first + CHUNK).min(len))
+            .into_par_iter()
+            .map_init(Vec::new, |scratch, i| -> Result<PixelOut, ReportError> {
+                let measure = i % error_stride == 0;
+                if only_measured && !measure {
+                    return Ok(vec![(vec![Vec::new(); 3], [0.0; 4]); budgets.len()]);
+                }
+                let f = field.function(i, scratch);
+                let mut fine_f = vec![0.0f64; n];
+                let mut out: PixelOut = vec![(Vec::with_capacity(3), [0.0; 4]); budgets.len()];
+                let (fw, fh) = (fine[0] as usize, fine[1] as usize);
+                for ch in 0..3 {
+                    prepared.apply(&f[ch * d..(ch + 1) * d], &mut fine_f)?;
+                    let norm2: f64 = fine_f.iter().map(|v| v * v).sum();
+                    if norm2 == 0.0 {
+                        out.iter_mut().for_each(|o| o.0.push(Vec::new()));
+                        continue;
+                    }
+                    let h1n = if measure {
+                        prt_wavelet::sobolev_h1_norm2(&fine_f, fw, fh)
+                    } else {
+                        0.0
+                    };
+                    let coef = match max_k {
+                        Some(_) => transform.forward(&fine_f).map_err(wav)?,
+                        None => Vec::new(),
+                    };
+                    let ranked = max_k.map(|k| rank_top(&coef, norms, k));
+                    for (b, o) in budgets.iter().zip(out.iter_mut()) {
+                        let kept: Vec<(usize, f64)> = match *b {
+                            Budget::Coefficients(k) => ranked.as_ref().expect("ranked")[..k]
+                                .iter()
+                                .map(|&i| (i as usize, coef[i as usize]))
+                                .collect(),
+                            Budget::RelativeError(e) => transform
+                                .rank(&fine_f)
+                                .map_err(wav)?
+                                .keep_for_exact_error(e)
+                                .map_err(wav)?,
+                        };
+                        if measure {
+                            // The exact error of what is kept: one sparse inverse transform.
+                            let approx = transform.reconstruct_sparse(&kept).map_err(wav)?;
+                            let err: Vec<f64> =
+                                approx.iter().zip(&fine_f).map(|(a, b)| a - b).collect();
+                            o.1[0] += err.iter().map(|e| e * e).sum::<f64>();
+                            o.1[1] += norm2;
+                            o.1[2] += prt_wavelet::sobolev_h1_norm2(&err, fw, fh);
+                            o.1[3] += h1n;
+                        }
+                        let mut kept: Vec<(u32, f32)> =
+                            kept.iter().map(|&(i, v)| (i as u32, v as f32)).collect();
+                        kept.sort_unstable_by_key(|e| e.0);
+                        o.0.push(kept);
+                    }
+                }
+                Ok(out)
+            })
+            .collect::<Result<_, _>>()?;
+        for pixel in per_pixel {
+            for (sp, (chans, [e2, n2, h1e, h1n])) in out.iter_mut().zip(pixel) {
+                sp.error2 += e2;
+                sp.norm2 += n2;
+                sp.h1_error2 += h1e;
+                sp.h1_norm2 += h1n;
+                let mut r = [(0u32, 0u32); 3];
+                for (ch, kept) in chans.into_iter().enumerate() {
+                    r[ch] = (sp.entries.len() as u32, kept.len() as u32);
+                    sp.entries.extend(kept);
+                }
+                sp.runs.push(r);
             }
-            sp.runs.push(r);
         }
     }
+    let ms = start.elapsed().as_secs_f64() * 1e3;
     for sp in &mut out {
         sp.kept = sp.entries.len() as u64;
+        sp.ms = ms;
     }
     Ok(out)
 }
