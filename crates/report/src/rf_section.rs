@@ -388,8 +388,7 @@ pub fn run_section(
             let t = Instant::now();
             // f16 (half the memory and file); a value beyond its range (65504 per sr, near-
             // delta lobes only) samples again in f32.
-            let (field, _, scalar) = match prt_bake::reflectance::sample_field(scene, accel, &rs)
-            {
+            let (field, _, scalar) = match prt_bake::reflectance::sample_field(scene, accel, &rs) {
                 Err(prt_bake::BakeError::File(prt_bakefile::BakeFileError::OutOfF16Range {
                     ..
                 })) => {
