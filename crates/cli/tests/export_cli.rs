@@ -79,6 +79,23 @@ fn assert_validates(glb: &std::path::Path) {
     }
 }
 
+/// Mesh `mesh` of the export `glb`: its `extras.prt.environment` (`[coefficient][r, g, b]`)
+/// and its material's `baseColorFactor`.
+fn lighting_and_albedo(glb: &Path, mesh: usize) -> (Vec<[f64; 3]>, Vec<f64>) {
+    let bytes = std::fs::read(glb).unwrap();
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
+    let prim = &doc["meshes"][mesh]["primitives"][0];
+    let env = serde_json::from_value(prim["extras"]["prt"]["environment"].clone()).unwrap();
+    let albedo = serde_json::from_value(
+        doc["materials"][prim["material"].as_u64().unwrap() as usize]["pbrMetallicRoughness"]
+            ["baseColorFactor"]
+            .clone(),
+    )
+    .unwrap();
+    (env, albedo)
+}
+
 #[test]
 fn export_validates_reads_back_and_relights() {
     let dir = tempfile::tempdir().unwrap();
@@ -120,21 +137,8 @@ fn export_validates_reads_back_and_relights() {
             .arg("--vertex-colours")
             .arg(&colours));
         let text = std::fs::read_to_string(&colours).unwrap();
-        let doc: serde_json::Value = {
-            let bytes = std::fs::read(&glb).unwrap();
-            let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-            serde_json::from_slice(&bytes[20..20 + len]).unwrap()
-        };
         let floor = back.iter().position(|e| e.name == "floor.obj").unwrap();
-        let prim = &doc["meshes"][floor]["primitives"][0];
-        let env: Vec<[f64; 3]> =
-            serde_json::from_value(prim["extras"]["prt"]["environment"].clone()).unwrap();
-        let albedo: Vec<f64> = serde_json::from_value(
-            doc["materials"][prim["material"].as_u64().unwrap() as usize]["pbrMetallicRoughness"]
-                ["baseColorFactor"]
-                .clone(),
-        )
-        .unwrap();
+        let (env, albedo) = lighting_and_albedo(&glb, floor);
         let e = &back[floor];
         let n2 = e.order * e.order;
         let u = f64::from(f32::EPSILON) / 2.0;
@@ -318,20 +322,7 @@ fn lightmap_export_validates_and_relights_like_prt() {
         .arg(&colours)
         .arg("--out")
         .arg(&image));
-    let doc: serde_json::Value = {
-        let bytes = std::fs::read(&glb).unwrap();
-        let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-        serde_json::from_slice(&bytes[20..20 + len]).unwrap()
-    };
-    let prim = &doc["meshes"][1]["primitives"][0];
-    let env: Vec<[f64; 3]> =
-        serde_json::from_value(prim["extras"]["prt"]["environment"].clone()).unwrap();
-    let albedo: Vec<f64> = serde_json::from_value(
-        doc["materials"][prim["material"].as_u64().unwrap() as usize]["pbrMetallicRoughness"]
-            ["baseColorFactor"]
-            .clone(),
-    )
-    .unwrap();
+    let (env, albedo) = lighting_and_albedo(&glb, 1);
     let covered: Vec<usize> = (0..ours.texels.len())
         .filter(|&t| ours.texels[t].is_some())
         .collect();

@@ -1027,16 +1027,11 @@ mod tests {
         let lighting: Vec<[f64; 3]> = (0..512)
             .map(|k| [(k % 7) as f64, (k % 5) as f64 * 0.5, 1.0])
             .collect();
-        for m in [
-            Reconstruction::Nearest,
-            Reconstruction::Linear,
-            Reconstruction::LeGall53,
-            Reconstruction::Cdf97,
-            Reconstruction::Idw,
-            Reconstruction::Biquadric,
-            Reconstruction::Sh25,
-            Reconstruction::BSpline,
-        ] {
+        // Every reconstruction of the report, and an SH fit of another order.
+        for m in crate::rf_section::RECONSTRUCTIONS
+            .into_iter()
+            .chain([Reconstruction::ShFit(3)])
+        {
             let p = Prepared::new(m, coarse, fine).unwrap();
             let mut f = vec![0.0; 512];
             p.apply(&samples, &mut f).unwrap();
