@@ -833,7 +833,7 @@ pub fn markdown(r: &RfSection) -> String {
     let _ = writeln!(s, "\n## Reflectance fields (Masselus et al. 2004)\n");
     let _ = writeln!(
         s,
-        "Field: {}×{} directions, {} footprint samples per pixel, {} bounce(s); {} pixels hold a function; `{}` ({:.1} MB, {}). Functions reconstructed onto {}×{}. The map's brightest 1 % of solid angle holds {} of its energy{}.  ",
+        "Field: {}×{} directions, {} footprint samples per pixel, {} bounce(s); {} pixels hold a function; `{}` ({:.1} MB, {}). Functions reconstructed onto {}×{}. The map's brightest 1 % of solid angle holds {} of its energy (a uniform sky: 1 %; the sunrise map: 67 %, its sun alone 59 %). The field depends on the geometry, materials and camera only, not on the map.  ",
         r.directions[0],
         r.directions[1],
         r.pixel_samples,
@@ -849,7 +849,6 @@ pub fn markdown(r: &RfSection) -> String {
         r.fine[0],
         r.fine[1],
         pct(r.brightest_share),
-        if r.brightest_share > 0.2 { " (a sun)" } else { "" },
     );
     if let Some(b) = r.peak_rss_bytes {
         let _ = writeln!(
