@@ -1601,6 +1601,30 @@ def replace_meta(data: bytes, text: str) -> bytes:
 DELETE = object()  # texel_cases: remove the key instead of setting it
 
 
+def meta_case_adder(data: bytes, original: str, cases: list):
+    """A function adding the case `change(META JSON)` (rewritten at its new length) to
+    `cases`, labelled, refused unless `must_refuse` is False."""
+    def meta_case(label, change, must_refuse=True):
+        meta = json.loads(original)
+        change(meta)
+        cases.append(("META " + label, replace_meta(data, json.dumps(meta, indent=2)),
+                      must_refuse))
+    return meta_case
+
+
+def setter(path, value):
+    """A META change setting the key at `path` to `value` (or removing it: `DELETE`)."""
+    def change(meta):
+        node = meta
+        for key in path[:-1]:
+            node = node[key]
+        if value is DELETE:
+            del node[path[-1]]
+        else:
+            node[path[-1]] = value
+    return change
+
+
 def texel_cases(data: bytes, bake: Bake, rng: random.Random):
     """Targeted mutations of a VALID per-texel bake (§3.1, §3.9, §3.11, §4.9), CRCs repaired:
     a list of (label, file bytes, must_refuse). must_refuse False marks a control variant that
@@ -1679,22 +1703,7 @@ def texel_cases(data: bytes, bake: Bake, rng: random.Random):
         return cases
     original = bytes(meta_section.payload).decode("utf-8")
 
-    def meta_case(label, change, must_refuse=True):
-        meta = json.loads(original)
-        change(meta)
-        cases.append(("META " + label, replace_meta(data, json.dumps(meta, indent=2)),
-                      must_refuse))
-
-    def setter(path, value):
-        def change(meta):
-            node = meta
-            for key in path[:-1]:
-                node = node[key]
-            if value is DELETE:
-                del node[path[-1]]
-            else:
-                node[path[-1]] = value
-        return change
+    meta_case = meta_case_adder(data, original, cases)
 
     meta_case("re-serialised unchanged (control)", lambda meta: None, False)
     meta_case("settings.pixel_samples 1 (control)", setter(("settings", "pixel_samples"), 1),
@@ -1842,22 +1851,7 @@ def field_cases(data: bytes, bake: Bake, rng: random.Random):
         return cases
     original = bytes(meta_section.payload).decode("utf-8")
 
-    def meta_case(label, change, must_refuse=True):
-        meta = json.loads(original)
-        change(meta)
-        cases.append(("META " + label, replace_meta(data, json.dumps(meta, indent=2)),
-                      must_refuse))
-
-    def setter(path, value):
-        def change(meta):
-            node = meta
-            for key in path[:-1]:
-                node = node[key]
-            if value is DELETE:
-                del node[path[-1]]
-            else:
-                node[path[-1]] = value
-        return change
+    meta_case = meta_case_adder(data, original, cases)
 
     r = ("settings", "reflectance")
     meta_case("re-serialised unchanged (control)", lambda meta: None, False)
