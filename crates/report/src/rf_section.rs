@@ -313,10 +313,6 @@ fn brightest_share(lighting: &[[f64; 3]], fine: [u32; 2]) -> f64 {
     energy / total
 }
 
-fn rgb_of(img: &RgbImage) -> Vec<[f32; 3]> {
-    img.pixels.clone()
-}
-
 /// Runs the section.
 ///
 /// # Errors
@@ -453,10 +449,7 @@ pub fn run_section(
         .collect();
     let mut reconstructions = Vec::new();
     for m in RECONSTRUCTIONS {
-        let name = serde_json::to_value(m)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_owned))
-            .unwrap_or_default();
+        let name = reconstruction_name(m);
         say(&format!("relighting the field: {name} reconstruction"));
         let opt = FieldOptions {
             reconstruction: m,
@@ -475,7 +468,7 @@ pub fn run_section(
         viewer_images.push(ViewerImage {
             id: format!("rf_{name}"),
             label: format!("reflectance field, {name} reconstruction"),
-            rgb: rgb_of(&frames[0]),
+            rgb: frames[0].pixels.clone(),
         });
         reconstructions.push(RfMethodRow {
             method: m,
@@ -520,7 +513,7 @@ pub fn run_section(
             viewer_images.push(ViewerImage {
                 id: format!("rf_{wname}_{k}"),
                 label: format!("reflectance field, {wname}, {k} coefficients"),
-                rgb: rgb_of(img),
+                rgb: img.pixels.clone(),
             });
             if k == *ks.last().expect("non-empty") {
                 tiles.push(crate::report::srgb_tile(
@@ -615,7 +608,7 @@ pub fn run_section(
         viewer_images.push(ViewerImage {
             id: format!("rf_sh_{order:02}"),
             label: format!("per-pixel SH, order {order}"),
-            rgb: rgb_of(&img),
+            rgb: img.pixels.clone(),
         });
         if order == top {
             tiles.insert(
@@ -664,7 +657,7 @@ pub fn run_section(
         viewer_images.push(ViewerImage {
             id: format!("rf_sh_fit_{order:02}"),
             label: format!("SH order {order} fitted to the field's samples"),
-            rgb: rgb_of(&frames[0]),
+            rgb: frames[0].pixels.clone(),
         });
         if order == top {
             tiles.insert(
@@ -816,10 +809,14 @@ pub fn run_section(
 /// The `--reconstruct` name of a reconstruction.
 #[must_use]
 pub fn reconstruction_name(m: Reconstruction) -> String {
-    serde_json::to_value(m)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_owned))
-        .unwrap_or_default()
+    match m {
+        // (A newtype variant serialises as an object, not a name.)
+        Reconstruction::ShFit(order) => format!("sh_fit_{order}"),
+        _ => serde_json::to_value(m)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_owned))
+            .unwrap_or_default(),
+    }
 }
 
 fn pct(v: f64) -> String {
