@@ -80,19 +80,14 @@ fn assert_validates(glb: &std::path::Path) {
 }
 
 /// Mesh `mesh` of the export `glb`: its `extras.prt.environment` (`[coefficient][r, g, b]`)
-/// and its material's `baseColorFactor`.
+/// and its uniform diffuse albedo `extras.prt.albedo`.
 fn lighting_and_albedo(glb: &Path, mesh: usize) -> (Vec<[f64; 3]>, Vec<f64>) {
     let bytes = std::fs::read(glb).unwrap();
     let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
     let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
     let prim = &doc["meshes"][mesh]["primitives"][0];
     let env = serde_json::from_value(prim["extras"]["prt"]["environment"].clone()).unwrap();
-    let albedo = serde_json::from_value(
-        doc["materials"][prim["material"].as_u64().unwrap() as usize]["pbrMetallicRoughness"]
-            ["baseColorFactor"]
-            .clone(),
-    )
-    .unwrap();
+    let albedo = serde_json::from_value(prim["extras"]["prt"]["albedo"].clone()).unwrap();
     (env, albedo)
 }
 
@@ -221,36 +216,243 @@ fn export_validates_reads_back_and_relights() {
     assert!(!dir.path().join("px.glb").exists() && !dir.path().join("x.glb").exists());
 }
 
-/// A textured glTF asset (Khronos BoxTextured in `scenes/box_textured.toml`): the box's
-/// diffuse albedo per vertex (texture at the vertex's UV, times the factor's `(1 − m)·0.96`)
-/// travels as `COLOR_0`, the untextured floor keeps its factor; the file validates cleanly.
+/// `object,point,r,g,b` CSV (`prt relight --vertex-colours`, `tools/gltf_relight.py`) by
+/// object name: each point's radiance.
+fn read_colours(path: &Path) -> std::collections::HashMap<String, Vec<[f64; 3]>> {
+    let mut out: std::collections::HashMap<String, Vec<[f64; 3]>> = Default::default();
+    let text = std::fs::read_to_string(path).unwrap();
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.rsplitn(5, ',').collect();
+        let (name, p) = (f[4].to_owned(), f[3].parse::<usize>().unwrap());
+        let rgb = [f[2], f[1], f[0]].map(|x| x.parse::<f64>().unwrap());
+        let points = out.entry(name).or_default();
+        assert_eq!(points.len(), p, "{}: points out of order", path.display());
+        points.push(rgb);
+    }
+    out
+}
+
+/// A textured glTF asset with its own material (Khronos BoxTextured, a textured `pbr` cube, on
+/// a `pbr` floor: `scenes/box_textured.toml`) exports everything `prt relight` shades it with
+/// (SPEC §10.1): its own glTF material (base colour texture, UVs, sampler), the diffuse albedo
+/// per vertex as `_PRT_ALBEDO` (texture at the vertex's UV times `(1 − m)·0.96`), the `pbr`
+/// diffuse factor's table, the visibility transfer and the fitted
+/// specular lobe with its per-vertex colours. The file validates cleanly, reads back to the
+/// bake's visibility bit for bit, and `tools/gltf_relight.py` — SPEC §10 implemented from its
+/// text alone, in numpy, with the `L ⊛ V` product by quadrature rather than Gaunt
+/// coefficients — relights the file to `prt relight`'s radiance at every vertex, and so to
+/// its image.
 #[test]
-fn textured_asset_exports_its_vertex_albedo() {
-    let scene =
+fn textured_asset_export_relights_like_prt() {
+    let scene_path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/box_textured.toml");
     let dir = tempfile::tempdir().unwrap();
-    let (_, glb) = bake_and_export(
-        &scene,
+    let (bake_path, glb) = bake_and_export(
+        &scene_path,
         dir.path(),
         "box",
-        &["--rays", "32", "--order", "3", "--bounces", "0"],
+        &["--rays", "32", "--order", "4", "--bounces", "0"],
     );
+    assert_validates(&glb);
     let back = prt_report::export::read_export(&glb).unwrap();
+    let bake = prt_bakefile::read_bake(&bake_path).unwrap();
     let boxed = back
         .iter()
         .find(|e| e.name.starts_with("BoxTextured"))
         .unwrap();
-    let colors = boxed.colors.as_ref().expect("COLOR_0 on the textured box");
-    assert_eq!(colors.len(), boxed.positions.len());
+    assert_eq!(boxed.albedo.len(), boxed.positions.len());
     // The texture is sRGB-decoded colour in [0, 1]; the dielectric's diffuse albedo is 0.96
     // of it.
-    assert!(colors
+    assert!(boxed
+        .albedo
         .iter()
         .flatten()
         .all(|c| (0.0..=0.96 + 1e-6).contains(c)));
-    let floor = back.iter().find(|e| e.name == "floor.obj").unwrap();
-    assert!(floor.colors.is_none());
-    assert_validates(&glb);
+    assert_eq!(
+        back.iter()
+            .find(|e| e.name == "floor.obj")
+            .unwrap()
+            .albedo
+            .len(),
+        1
+    );
+    for (e, o) in back.iter().zip(&bake.objects) {
+        let vis = o
+            .blocks
+            .iter()
+            .find(|b| b.kind == prt_bakefile::TransferKind::Visibility)
+            .expect("pbr objects bake visibility");
+        assert!(
+            e.visibility.as_deref() == Some(&vis.data[..]),
+            "{}: visibility differs after the round trip",
+            e.name
+        );
+    }
+
+    // The asset's own material travels too: its base-colour texture (the scene's texels after
+    // the 8-bit round trip), its wrap modes and the UV set it reads, bit for bit.
+    let scene = prt_scene::load_scene(&scene_path).unwrap().scene;
+    let scene = prt_report::baked_scene(&scene, &bake).unwrap();
+    let o = bake
+        .objects
+        .iter()
+        .position(|x| x.name.starts_with("BoxTextured"))
+        .unwrap();
+    let prt_scene::Material::Pbr {
+        base_color_texture: Some(t),
+        ..
+    } = scene.materials[scene.meshes[o].material]
+    else {
+        panic!("the box's material is a textured pbr");
+    };
+    let source = &scene.textures[t.index];
+    let bytes = std::fs::read(&glb).unwrap();
+    let jlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + jlen]).unwrap();
+    let bin = &bytes[20 + jlen + 8..];
+    let at = |v: &serde_json::Value| v.as_u64().unwrap() as usize;
+    let view_bytes = |view: usize| -> &[u8] {
+        let v = &doc["bufferViews"][view];
+        let off = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+        &bin[off..off + at(&v["byteLength"])]
+    };
+    let prim = &doc["meshes"][o]["primitives"][0];
+    let info = &doc["materials"][at(&prim["material"])]["pbrMetallicRoughness"]["baseColorTexture"];
+    let texture = &doc["textures"][at(&info["index"])];
+    let png = view_bytes(at(&doc["images"][at(&texture["source"])]["bufferView"]));
+    let decoded = image::load_from_memory(png).unwrap().to_rgba8();
+    assert_eq!(
+        (decoded.width() as usize, decoded.height() as usize),
+        (source.width, source.height)
+    );
+    // sRGB decoding (IEC 61966-2-1), as CONVENTIONS.md states it for base colours.
+    let linear = |code: u8| {
+        let v = f32::from(code) / 255.0;
+        if v <= 0.04045 {
+            v / 12.92
+        } else {
+            ((v + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    for (p, q) in decoded.pixels().zip(&source.texels) {
+        for c in 0..3 {
+            assert!((linear(p[c]) - q[c]).abs() <= 1e-6, "{p:?} vs {q:?}");
+        }
+        assert!((f32::from(p[3]) / 255.0 - q[3]).abs() <= 1e-6);
+    }
+    let wrap = |w: prt_scene::Wrap| match w {
+        prt_scene::Wrap::Repeat => 10497,
+        prt_scene::Wrap::MirroredRepeat => 33648,
+        prt_scene::Wrap::ClampToEdge => 33071,
+    };
+    let sampler = &doc["samplers"][at(&texture["sampler"])];
+    assert_eq!(at(&sampler["wrapS"]), wrap(source.wrap[0]));
+    assert_eq!(at(&sampler["wrapT"]), wrap(source.wrap[1]));
+    let uv_accessor =
+        &doc["accessors"][at(&prim["attributes"][format!("TEXCOORD_{}", at(&info["texCoord"]))])];
+    let uvs: Vec<f32> = view_bytes(at(&uv_accessor["bufferView"]))
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    assert_eq!(
+        uvs,
+        scene.meshes[o].texcoords[t.texcoord]
+            .iter()
+            .flatten()
+            .copied()
+            .collect::<Vec<f32>>()
+    );
+
+    let prt_csv = dir.path().join("prt.csv");
+    run(prt()
+        .arg("relight")
+        .arg(&scene_path)
+        .arg("--bake")
+        .arg(&bake_path)
+        .arg("--vertex-colours")
+        .arg(&prt_csv));
+    let Some(py) = common::python_or_skip() else {
+        return;
+    };
+    let py_csv = dir.path().join("py.csv");
+    run(Command::new(py)
+        .arg(tools().join("gltf_relight.py"))
+        .arg(&glb)
+        .arg("--colours")
+        .arg(&py_csv));
+    let (theirs, ours) = (read_colours(&py_csv), read_colours(&prt_csv));
+    assert_eq!(theirs.len(), back.len());
+    let accel = prt_tracer::Accel::build(&scene).unwrap();
+    let mut relit = prt_report::relight(
+        &scene,
+        &accel,
+        &bake,
+        &prt_report::RelightOptions::default(),
+    )
+    .unwrap();
+    let (mut worst, mut vertex_peak) = (0.0f64, 0.0f64);
+    for (o, obj) in bake.objects.iter().enumerate() {
+        let (a, b) = (&theirs[&obj.name], &ours[&obj.name]);
+        assert_eq!(a.len(), b.len());
+        // prt shades in f32: each radiance a sum of ≤ n⁴ + n² = 272 rounded products (order
+        // 4), so within 272·u of the sum of the terms' magnitudes (u = 2⁻²⁴); the f64
+        // quadrature is exact to ~1e-15. The terms' magnitudes are bounded by the object's
+        // brightest radiance times the cancellation of the product's positive and negative
+        // parts (below 10 here: visibility and lighting are non-negative functions), so a
+        // vertex may differ by at most 272·u·10 ≈ 1.6e-4 of the object's peak.
+        let peak = b.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+        vertex_peak = vertex_peak.max(peak);
+        for (p, (x, y)) in a.iter().zip(b).enumerate() {
+            for c in 0..3 {
+                let d = (x[c] - y[c]).abs();
+                worst = worst.max(d / peak);
+                assert!(
+                    d <= 1.6e-4 * peak,
+                    "{} vertex {p} channel {c}: gltf_relight.py {} vs prt {} (peak {peak})",
+                    obj.name,
+                    x[c],
+                    y[c]
+                );
+            }
+        }
+        relit.radiance[o] = a
+            .iter()
+            .map(|x| x.map(|v| v as f32))
+            .collect::<Vec<[f32; 3]>>();
+        assert_eq!(relit.radiance[o].len(), b.len());
+    }
+    eprintln!("gltf_relight.py against prt relight: worst vertex {worst:.2e} of the peak");
+    // The image: each pixel interpolates its triangle's vertex radiance with weights summing to
+    // one, so the two images differ by no more than the vertices do.
+    let theirs_img = prt_report::form_image(&scene, &accel, &relit, 0.0).unwrap();
+    let prt_img = prt_report::form_image(
+        &scene,
+        &accel,
+        &prt_report::relight(
+            &scene,
+            &accel,
+            &bake,
+            &prt_report::RelightOptions::default(),
+        )
+        .unwrap(),
+        0.0,
+    )
+    .unwrap();
+    let max_diff = theirs_img
+        .pixels
+        .iter()
+        .zip(&prt_img.pixels)
+        .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs()))
+        .fold(0.0f32, f32::max);
+    let max_diff = f64::from(max_diff);
+    eprintln!(
+        "image: max difference {:.2e} of the brightest vertex",
+        max_diff / vertex_peak
+    );
+    assert!(
+        max_diff <= 1.6e-4 * vertex_peak,
+        "{max_diff} vs brightest vertex {vertex_peak}"
+    );
 }
 
 /// A per-texel bake (the bunny per vertex, the floor's UVs shrunk to a quarter of a 48² map so

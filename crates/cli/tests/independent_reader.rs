@@ -13,7 +13,7 @@
 
 mod common;
 
-use common::{prt, run, write_scene};
+use common::{prt, python_or_skip, run, write_scene};
 use prt_bakefile::{Bake, SampleKind};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -24,15 +24,6 @@ fn reader_script() -> PathBuf {
 }
 
 /// The Python interpreter to run the reader with, when one with numpy is there.
-fn python() -> Option<String> {
-    let py = std::env::var("PRT_PYTHON").unwrap_or_else(|_| "python3".into());
-    let ok = Command::new(&py)
-        .args(["-c", "import numpy"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    ok.then_some(py)
-}
-
 fn f32_crc(values: &[f32]) -> u32 {
     let mut h = crc32fast::Hasher::new();
     for v in values {
@@ -305,14 +296,7 @@ fn check_relight(py: &str, scene: &Path, file: &Path, object: &str, albedo: [f32
 
 #[test]
 fn independent_reader_agrees_with_prt_on_every_bake_kind() {
-    let Some(py) = python() else {
-        assert!(
-            std::env::var("PRT_REQUIRE_PY_READER").as_deref() != Ok("1"),
-            "PRT_REQUIRE_PY_READER=1 but no Python 3 with numpy (install tools/requirements-reader.txt)"
-        );
-        eprintln!("skipped: no Python 3 with numpy for tools/prtb_reader.py (python3 -m pip install -r tools/requirements-reader.txt)");
-        return;
-    };
+    let Some(py) = python_or_skip() else { return };
     let dir = tempfile::tempdir().unwrap();
     let scene = write_scene(dir.path(), 3);
     let bake = |name: &str, extra: &[&str]| -> PathBuf {
@@ -415,20 +399,6 @@ fn independent_reader_agrees_with_prt_on_every_bake_kind() {
         err.contains("damaged.prtb") && !err.contains("Traceback"),
         "{err}"
     );
-}
-
-/// The interpreter for the reader, or `None` (test skipped) when there is none and CI does not
-/// insist on it (`PRT_REQUIRE_PY_READER=1`).
-fn python_or_skip() -> Option<String> {
-    let py = python();
-    if py.is_none() {
-        assert!(
-            std::env::var("PRT_REQUIRE_PY_READER").as_deref() != Ok("1"),
-            "PRT_REQUIRE_PY_READER=1 but no Python 3 with numpy (install tools/requirements-reader.txt)"
-        );
-        eprintln!("skipped: no Python 3 with numpy for tools/prtb_reader.py");
-    }
-    py
 }
 
 /// `prt reflectance` on the tiny scene: an 8×4 grid of directions, one footprint sample, no

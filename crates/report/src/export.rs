@@ -10,9 +10,13 @@
 //! the only float type core glTF has; the file stores exactly the bake's numbers). Exit
 //! radiance of a vertex is `(albedo/π) Σ_i t_{c,i} L_{c,i}` with the environment's SH
 //! coefficients `L`, which `extras.prt.environment` carries (`[coefficient][r, g, b]`, the
-//! bake's projection), and `albedo` the material's `baseColorFactor` — times the vertex's
-//! `COLOR_0` when the scene material varies over the surface (textures, vertex colours): the
-//! diffuse albedo there, with the factor 1. View-dependent terms are not exported.
+//! bake's projection), and `albedo` `extras.prt.albedo` — or, when the scene material varies
+//! over the surface (textures, vertex colours), the vertex's `_PRT_ALBEDO` — plus the
+//! view-dependent terms `prt relight` shades (SPEC §10.1): the `pbr` diffuse factor
+//! `1 − s̄_d(θ_o)` and the specular lobe (Phong, or the fitted zonal lobes of the glossy
+//! materials) on the visibility transfer `_PRT_V_*`. The glTF material is the scene's own
+//! (a `pbr` material's factors, textures, UV sets and vertex colours), so an engine shades
+//! the asset as it would without the export.
 //!
 //! A per-texel (lightmap) bake exports each lightmapped object's transfer as **lightmap
 //! textures** instead: coefficient `i` of channel `c` is component `i mod 4` of the RGBA8 PNG
@@ -93,6 +97,59 @@ const UNSIGNED_INT: u32 = 5125;
 
 fn f32_bytes(v: impl IntoIterator<Item = f32>) -> Vec<u8> {
     v.into_iter().flat_map(f32::to_le_bytes).collect()
+}
+
+const LINEAR: u32 = 9729;
+const CLAMP_TO_EDGE: u32 = 33071;
+
+/// glTF's code of a wrap mode.
+fn wrap_code(w: prt_scene::Wrap) -> u32 {
+    match w {
+        prt_scene::Wrap::Repeat => 10497,
+        prt_scene::Wrap::MirroredRepeat => 33648,
+        prt_scene::Wrap::ClampToEdge => CLAMP_TO_EDGE,
+    }
+}
+
+/// The index of `sampler` in `samplers`, added if new.
+fn sampler_index(samplers: &mut Vec<Value>, sampler: Value) -> usize {
+    samplers
+        .iter()
+        .position(|s| *s == sampler)
+        .unwrap_or_else(|| {
+            samplers.push(sampler);
+            samplers.len() - 1
+        })
+}
+
+/// A scene texture as an RGBA8 PNG: RGB sRGB-encoded when `srgb` (a base colour: the loader
+/// decoded it), else linear; alpha linear. An 8-bit source image reads back unchanged.
+fn texture_png(t: &prt_scene::Texture, srgb: bool) -> Result<Vec<u8>, ReportError> {
+    let code = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let rgba: Vec<u8> = t
+        .texels
+        .iter()
+        .flat_map(|p| {
+            let c = |x: f32| {
+                code(if srgb {
+                    prt_tracer::output::srgb_encode(x)
+                } else {
+                    x
+                })
+            };
+            [c(p[0]), c(p[1]), c(p[2]), code(p[3])]
+        })
+        .collect();
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(
+            &rgba,
+            t.width as u32,
+            t.height as u32,
+            image::ExtendedColorType::Rgba8,
+        )
+        .map_err(|e| invalid(format!("texture {}: {e}", t.name)))?;
+    Ok(png)
 }
 
 /// The attribute name of coefficient group `g` of channel `c`.
@@ -258,7 +315,9 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
         views: Vec::new(),
         accessors: Vec::new(),
     };
-    let (mut images, mut textures) = (Vec::new(), Vec::new());
+    let (mut images, mut textures, mut samplers) = (Vec::new(), Vec::new(), Vec::new());
+    // Scene textures already written: (scene texture, sRGB) → glTF texture.
+    let mut written: Vec<((usize, bool), usize)> = Vec::new();
     let (mut meshes, mut nodes, mut materials) = (Vec::new(), Vec::new(), Vec::new());
     let (mut vertices, mut attributes) = (0usize, 0usize);
     for (o, obj) in bake.objects.iter().enumerate() {
@@ -332,7 +391,13 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
                 for png in pngs {
                     let view = bin.add_view(png);
                     images.push(json!({"bufferView": view, "mimeType": "image/png"}));
-                    textures.push(json!({"sampler": 0, "source": images.len() - 1}));
+                    // Bilinear, clamp to edge: the lookup prt's image formation does, bar its
+                    // renormalisation over covered texels (which the dilation stands in for).
+                    let sampler = sampler_index(
+                        &mut samplers,
+                        json!({"magFilter": LINEAR, "minFilter": LINEAR, "wrapS": CLAMP_TO_EDGE, "wrapT": CLAMP_TO_EDGE}),
+                    );
+                    textures.push(json!({"sampler": sampler, "source": images.len() - 1}));
                     ids.push(textures.len() - 1);
                 }
                 tex_ids.push(ids);
@@ -363,8 +428,8 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
         attributes = attributes.max(names.len());
         vertices += v;
         let material = &scene.materials[scene_mesh.material];
-        // A material that varies (textures, vertex colours): the diffuse albedo at each vertex
-        // as COLOR_0, the factor 1.
+        // The prt diffuse albedo: one, or per vertex where the material varies over the
+        // surface (textures, vertex colours) as `_PRT_ALBEDO`.
         let varies = scene.material_varies(o) && scene_mesh.positions.len() == v;
         let albedo = if varies {
             let colours = (0..v as u32).flat_map(|i| {
@@ -377,17 +442,126 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
                 ARRAY_BUFFER,
                 json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
             );
-            attrs.insert("COLOR_0".into(), json!(a));
-            [1.0; 3]
+            attrs.insert("_PRT_ALBEDO".into(), json!(a));
+            json!("_PRT_ALBEDO")
         } else {
-            material.albedo()
+            json!(material.albedo())
+        };
+        // The core glTF material: the scene's own where glTF has it (`pbr`: factors and
+        // textures, with the asset's UV sets and vertex colours), else the diffuse albedo.
+        let same_vertices = scene_mesh.positions.len() == v;
+        let uv_shift = usize::from(lightmap.is_some());
+        let mut texture_info = |t: Option<prt_scene::TextureRef>,
+                                srgb: bool,
+                                attrs: &mut serde_json::Map<String, Value>,
+                                bin: &mut Bin|
+         -> Result<Option<Value>, ReportError> {
+            let Some(t) = t.filter(|t| same_vertices && t.texcoord < scene_mesh.texcoords.len())
+            else {
+                return Ok(None);
+            };
+            let index = match written.iter().find(|(k, _)| *k == (t.index, srgb)) {
+                Some(&(_, i)) => i,
+                None => {
+                    let tex = scene.textures.get(t.index).ok_or_else(|| {
+                        invalid(format!(
+                            "object {}: texture {} is missing",
+                            obj.name, t.index
+                        ))
+                    })?;
+                    let view = bin.add_view(&texture_png(tex, srgb)?);
+                    images.push(
+                        json!({"bufferView": view, "mimeType": "image/png", "name": tex.name}),
+                    );
+                    let sampler = sampler_index(
+                        &mut samplers,
+                        json!({"magFilter": LINEAR, "minFilter": LINEAR,
+                               "wrapS": wrap_code(tex.wrap[0]), "wrapT": wrap_code(tex.wrap[1])}),
+                    );
+                    textures.push(json!({"sampler": sampler, "source": images.len() - 1}));
+                    written.push(((t.index, srgb), textures.len() - 1));
+                    textures.len() - 1
+                }
+            };
+            let set = t.texcoord + uv_shift;
+            let name = format!("TEXCOORD_{set}");
+            if !attrs.contains_key(&name) {
+                let uv = &scene_mesh.texcoords[t.texcoord];
+                let acc = bin.add(
+                    &f32_bytes(uv.iter().flatten().copied()),
+                    ARRAY_BUFFER,
+                    json!({"componentType": FLOAT, "count": v, "type": "VEC2"}),
+                );
+                attrs.insert(name, json!(acc));
+            }
+            Ok(Some(json!({"index": index, "texCoord": set})))
+        };
+        let pbr = match *material {
+            prt_scene::Material::Pbr {
+                base_color,
+                metallic,
+                roughness,
+                base_color_texture,
+                metallic_roughness_texture,
+            } => {
+                let mut m = json!({
+                    "baseColorFactor": [base_color[0], base_color[1], base_color[2], 1.0],
+                    "metallicFactor": metallic, "roughnessFactor": roughness,
+                });
+                if let Some(t) = texture_info(base_color_texture, true, &mut attrs, &mut bin)? {
+                    m["baseColorTexture"] = t;
+                }
+                if let Some(t) =
+                    texture_info(metallic_roughness_texture, false, &mut attrs, &mut bin)?
+                {
+                    m["metallicRoughnessTexture"] = t;
+                }
+                m
+            }
+            _ => {
+                let a = material.albedo();
+                json!({"baseColorFactor": [a[0], a[1], a[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0})
+            }
+        };
+        // The asset's vertex colours, which core glTF multiplies into the base colour.
+        if same_vertices && !scene_mesh.colors.is_empty() {
+            let a = bin.add(
+                &f32_bytes(scene_mesh.colors.iter().flatten().copied()),
+                ARRAY_BUFFER,
+                json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
+            );
+            attrs.insert("COLOR_0".into(), json!(a));
+        }
+        // The view-dependent terms (SPEC §10.1), per-vertex objects only.
+        let view = if lightmap.is_none() {
+            let points: Option<Vec<prt_scene::Material>> = varies.then(|| {
+                (0..v as u32)
+                    .map(|i| scene.material_at(o, prt_scene::SurfacePoint::Vertex(i)))
+                    .collect()
+            });
+            let order = n.min(env.order as usize);
+            let vd = crate::relit::view_dependent(material, points.as_deref(), order)?;
+            let vis = obj
+                .blocks
+                .iter()
+                .find(|b| b.kind == prt_bakefile::TransferKind::Visibility);
+            view_extras(
+                &vd,
+                vis.map(|b| b.data.as_slice()),
+                v,
+                n2,
+                &mut bin,
+                &mut attrs,
+            )
+        } else {
+            json!({
+                "diffuse_fresnel": null, "specular": null,
+                "view_dependent": "not exported for lightmapped objects: the diffuse term only",
+            })
         };
         materials.push(json!({
             "name": scene.material_names.get(scene_mesh.material).cloned().unwrap_or_default(),
-            "pbrMetallicRoughness": {
-                "baseColorFactor": [albedo[0], albedo[1], albedo[2], 1.0],
-                "metallicFactor": 0.0, "roughnessFactor": 1.0,
-            },
+            "pbrMetallicRoughness": pbr,
         }));
         let env_rows: Vec<[f64; 3]> = (0..n2.min(en2))
             .map(|i| [env.values[i], env.values[en2 + i], env.values[2 * en2 + i]])
@@ -404,10 +578,14 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
                     "lightmap": lightmap_extras,
                     "layout": if lightmap.is_some() { "see lightmap.layout; SH index l(l+1)+m" } else { "coefficient i (SH index l(l+1)+m) of channel c is component i mod 4 of the FLOAT VEC4 attribute _PRT_C{c}_{floor(i/4)}; unused components are 0" },
                     "sh": {"basis": "real-orthonormal", "phase": "condon-shortley", "index_order": "l(l+1)+m", "angles": "theta-from-+Z, phi=atan2(y,x)"},
-                    "radiance": "exit radiance of channel c = (albedo_c / pi) * sum_i t[c or 0][i] * environment[i][c]; albedo = the material's baseColorFactor, times the vertex's COLOR_0 when the primitive has one (the scene material's diffuse albedo at the vertex, textures applied); view-dependent terms (specular lobes) are not in the file",
+                    "radiance": "exit radiance of channel c = diffuse + specular (SPEC §10.1); diffuse = albedo_c * k_d / pi * sum_i t[c or 0][i] * environment[i][c], albedo = extras.prt.albedo, or the vertex attribute it names (the scene material's diffuse albedo at the vertex, textures applied)",
+                    "albedo": albedo,
                     "albedo_in_transfer": false,
                     "environment": env_rows,
                     "geometry_hash": format!("0x{:016x}", obj.geometry_hash),
+                    "diffuse_fresnel": view["diffuse_fresnel"],
+                    "specular": view["specular"],
+                    "view_dependent": view["view_dependent"],
                 }},
             }],
         }));
@@ -426,15 +604,21 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
         "accessors": bin.accessors,
         "bufferViews": bin.views,
         "buffers": [{"byteLength": bin.data.len()}],
-        "extras": {"prt": {"bake_seed": bake.meta.seed.to_string(), "rays_per_point": bake.meta.rays_per_point, "bounces": bake.meta.bounces}},
+        "extras": {"prt": {
+            "bake_seed": bake.meta.seed.to_string(), "rays_per_point": bake.meta.rays_per_point, "bounces": bake.meta.bounces,
+            // The viewpoint `prt relight` shades the view-dependent terms from (SPEC §10.1).
+            "camera": {
+                "eye": scene.camera.eye.as_vec3().to_array(),
+                "target": scene.camera.target.as_vec3().to_array(),
+                "fov_y": scene.camera.fov_y_deg,
+                "resolution": [scene.camera.width, scene.camera.height],
+            },
+        }},
     });
     if !images.is_empty() {
         doc["images"] = json!(images);
         doc["textures"] = json!(textures);
-        // Bilinear (LINEAR), clamp to edge: the lookup prt's image formation does, bar its
-        // renormalisation over covered texels (which the dilation stands in for).
-        doc["samplers"] =
-            json!([{"magFilter": 9729, "minFilter": 9729, "wrapS": 33071, "wrapT": 33071}]);
+        doc["samplers"] = json!(samplers);
     }
     let mut json_bytes = serde_json::to_vec(&doc).map_err(|e| invalid(e.to_string()))?;
     while !json_bytes.len().is_multiple_of(4) {
@@ -469,6 +653,117 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
     })
 }
 
+/// `extras.prt`'s `diffuse_fresnel`, `specular` and `view_dependent` of a per-vertex object
+/// (SPEC §10.1), adding the attributes they name (`vis`: the visibility block's rows, one per
+/// vertex, `n2` coefficients each).
+fn view_extras(
+    vd: &crate::relit::ViewDependent,
+    vis: Option<&[f32]>,
+    v: usize,
+    n2: usize,
+    bin: &mut Bin,
+    attrs: &mut serde_json::Map<String, Value>,
+) -> Value {
+    let diffuse_fresnel = vd
+        .diffuse_fresnel
+        .as_ref()
+        .map_or(Value::Null, |(e, s)| json!({"elevations": e, "values": s}));
+    let mut add = |name: &str, values: Vec<f32>, kind: &str, attrs: &mut serde_json::Map<_, _>| {
+        let a = bin.add(
+            &f32_bytes(values),
+            ARRAY_BUFFER,
+            json!({"componentType": FLOAT, "count": v, "type": kind}),
+        );
+        attrs.insert(name.to_owned(), json!(a));
+    };
+    let (specular, note) = match (&vd.specular, vis) {
+        (None, _) => (Value::Null, "no specular lobe".to_owned()),
+        (Some(_), None) => (
+            Value::Null,
+            "the bake holds no visibility transfer: no specular (as prt relight)".to_owned(),
+        ),
+        (Some(lobe), Some(vis)) => {
+            let mut names = Vec::new();
+            for g in 0..n2.div_ceil(4) {
+                let values = (0..v).flat_map(|p| {
+                    let row = &vis[p * n2..(p + 1) * n2];
+                    (0..4).map(move |k| row.get(4 * g + k).copied().unwrap_or(0.0))
+                });
+                let name = format!("_PRT_V_{g}");
+                add(&name, values.collect(), "VEC4", attrs);
+                names.push(name);
+            }
+            let mut value = match lobe {
+                crate::relit::ExportLobe::Phong {
+                    exponent,
+                    specular,
+                    bands,
+                } => {
+                    json!({"model": "phong", "exponent": exponent, "specular": specular, "bands": bands})
+                }
+                crate::relit::ExportLobe::Fitted {
+                    table_order,
+                    lobes,
+                    elevations,
+                    roughness_levels,
+                    axis,
+                    bands,
+                    bands_b,
+                    colour_a,
+                    colour_b,
+                    point_roughness,
+                } => {
+                    let (e, k, t) = (elevations.len(), *lobes, *table_order);
+                    // `[level][elevation][lobe]` and `[level][elevation][lobe][band]`.
+                    let nest3 = |x: &[f32]| -> Vec<Vec<Vec<f32>>> {
+                        x.chunks(e * k)
+                            .map(|r| r.chunks(k).map(<[f32]>::to_vec).collect())
+                            .collect()
+                    };
+                    let nest4 = |x: &[f32]| -> Vec<Vec<Vec<Vec<f32>>>> {
+                        x.chunks(e * k * t)
+                            .map(|r| {
+                                r.chunks(k * t)
+                                    .map(|q| q.chunks(t).map(<[f32]>::to_vec).collect())
+                                    .collect()
+                            })
+                            .collect()
+                    };
+                    let mut per_vertex = |name: &str, c: &[[f32; 3]]| -> Value {
+                        if c.len() == 1 {
+                            json!(c[0])
+                        } else {
+                            add(name, c.iter().flatten().copied().collect(), "VEC3", attrs);
+                            json!(name)
+                        }
+                    };
+                    let a = per_vertex("_PRT_SPEC_A", colour_a);
+                    let b = per_vertex("_PRT_SPEC_B", colour_b);
+                    let roughness = if point_roughness.len() == 1 {
+                        json!(point_roughness[0])
+                    } else {
+                        add("_PRT_ROUGHNESS", point_roughness.clone(), "SCALAR", attrs);
+                        json!("_PRT_ROUGHNESS")
+                    };
+                    json!({
+                        "model": "fitted", "table_order": t, "lobes": k,
+                        "elevations": elevations, "roughness_levels": roughness_levels,
+                        "axis": nest3(axis), "bands": nest4(bands),
+                        "bands_b": if bands_b.is_empty() { json!([]) } else { json!(nest4(bands_b)) },
+                        "colour_a": a, "colour_b": b, "roughness": roughness,
+                    })
+                }
+            };
+            value["visibility_attributes"] = json!(names);
+            (
+                value,
+                "as prt relight at full order, --glossy fitted (SPEC §10.1)".to_owned(),
+            )
+        }
+    };
+    json!({"diffuse_fresnel": diffuse_fresnel, "specular": specular, "view_dependent": note})
+}
+
 /// One object of an export read back: positions and its transfer (`[vertex][channel][coeff]`,
 /// as the bake lays it out).
 #[derive(Clone, Debug, PartialEq)]
@@ -483,10 +778,14 @@ pub struct ExportedObject {
     pub positions: Vec<[f32; 3]>,
     /// Transfer, `[vertex][channel][coefficient]`.
     pub transfer: Vec<f32>,
-    /// `COLOR_0` (the diffuse albedo per vertex of a textured material), if written.
-    pub colors: Option<Vec<[f32; 3]>>,
+    /// The diffuse albedo of the relighting formula (`extras.prt.albedo`): one value, or one
+    /// per vertex (`_PRT_ALBEDO`) where the material varies over the surface.
+    pub albedo: Vec<[f32; 3]>,
     /// A lightmapped object's transfer (then `transfer` is empty).
     pub lightmap: Option<ExportedLightmap>,
+    /// The visibility transfer `_PRT_V_*` (`[vertex][coefficient]`) of an object with a
+    /// specular lobe (SPEC §10.1).
+    pub visibility: Option<Vec<f32>>,
 }
 
 /// A lightmapped object's transfer read back from its textures.
@@ -576,6 +875,12 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
                     .get(&name)
                     .ok_or_else(|| bad(format!("no attribute {name}")))?;
                 let vals = floats(acc)?;
+                if vals.len() != 4 * v {
+                    return Err(bad(format!(
+                        "attribute {name}: {} values for {v} vertices",
+                        vals.len() / 4
+                    )));
+                }
                 for p in 0..v {
                     for k in 0..4 {
                         let i = 4 * g + k;
@@ -586,14 +891,46 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
                 }
             }
         }
-        let colors = match attrs.get("COLOR_0") {
-            Some(acc) => Some(
-                floats(acc)?
-                    .chunks_exact(3)
-                    .map(|c| [c[0], c[1], c[2]])
-                    .collect(),
-            ),
-            None => None,
+        let visibility = if attrs.contains_key("_PRT_V_0") {
+            let mut vis = vec![0.0f32; v * n2];
+            for g in 0..n2.div_ceil(4) {
+                let name = format!("_PRT_V_{g}");
+                let acc = attrs
+                    .get(&name)
+                    .ok_or_else(|| bad(format!("no attribute {name}")))?;
+                let vals = floats(acc)?;
+                if vals.len() != 4 * v {
+                    return Err(bad(format!(
+                        "attribute {name}: {} values for {v} vertices",
+                        vals.len() / 4
+                    )));
+                }
+                for p in 0..v {
+                    for k in (0..4).filter(|k| 4 * g + k < n2) {
+                        vis[p * n2 + 4 * g + k] = vals[4 * p + k];
+                    }
+                }
+            }
+            Some(vis)
+        } else {
+            None
+        };
+        let albedo = match &prt["albedo"] {
+            Value::String(name) => {
+                let acc = attrs.get(name).ok_or_else(|| {
+                    bad(format!("extras.prt.albedo names {name}, which is missing"))
+                })?;
+                let vals = floats(acc)?;
+                if vals.len() != 3 * v {
+                    return Err(bad(format!(
+                        "{name}: {} values for {v} vertices",
+                        vals.len() / 3
+                    )));
+                }
+                vals.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+            }
+            other => vec![serde_json::from_value::<[f32; 3]>(other.clone())
+                .map_err(|e| bad(format!("extras.prt.albedo: {e}")))?],
         };
         out.push(ExportedObject {
             name: mesh.name().unwrap_or_default().to_owned(),
@@ -601,8 +938,9 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
             channels,
             positions,
             transfer,
-            colors,
+            albedo,
             lightmap,
+            visibility,
         });
     }
     Ok(out)

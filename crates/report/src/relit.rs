@@ -1010,6 +1010,93 @@ impl GlossyLobe {
 /// Roughness levels of the fit when a texture varies a `pbr` roughness.
 const ROUGHNESS_LEVELS: usize = 5;
 
+/// The view-dependent terms [`relight`] shades an object with at full order on the fitted
+/// glossy path (the default): what `prt export` writes so that an engine relights to the
+/// same radiance (SPEC §10.1).
+pub(crate) struct ViewDependent {
+    /// `pbr`: the table `(elevations, s̄_d)` of the diffuse factor `1 − s̄_d(θ_o)`.
+    pub diffuse_fresnel: Option<(Vec<f32>, Vec<f32>)>,
+    /// The specular lobe, if the material has one [`relight`] shades.
+    pub specular: Option<ExportLobe>,
+}
+
+/// A specular lobe as [`relight`] shades it (SPEC §10.1).
+pub(crate) enum ExportLobe {
+    /// The `phong` material: its exponent and colour and the lobe's band multipliers.
+    Phong {
+        exponent: f32,
+        specular: [f32; 3],
+        bands: Vec<f32>,
+    },
+    /// A fitted lobe: [`prt_relight::FittedLobe`]'s tables (stacked `[level][elevation]`)
+    /// and its colours and roughness, one or one per point.
+    Fitted {
+        table_order: usize,
+        lobes: usize,
+        elevations: Vec<f32>,
+        roughness_levels: Vec<f32>,
+        axis: Vec<f32>,
+        bands: Vec<f32>,
+        bands_b: Vec<f32>,
+        colour_a: Vec<[f32; 3]>,
+        colour_b: Vec<[f32; 3]>,
+        point_roughness: Vec<f32>,
+    },
+}
+
+/// The view-dependent terms of `material` relit at `order` (`points`: the material resolved
+/// per point when it varies over the surface), built by the same functions [`relight`] uses.
+pub(crate) fn view_dependent(
+    material: &Material,
+    points: Option<&[Material]>,
+    order: usize,
+) -> Result<ViewDependent, ReportError> {
+    let mut notes = RelightStats::default();
+    let glossy = GlossyLobe::of(material, points, &mut notes, "");
+    let fitted = glossy.as_ref().map(|g| {
+        let tables: Vec<_> = g.levels.iter().map(|m| fitted_cached(m, order)).collect();
+        FittedF32::stacked(&tables)
+    });
+    let diffuse_fresnel = match (&fitted, material) {
+        (Some(f), Material::Pbr { .. }) => Some((f.elevations.clone(), f.diffuse_fresnel.clone())),
+        _ => None,
+    };
+    let specular = match (material, glossy, fitted) {
+        (
+            Material::Phong {
+                specular, exponent, ..
+            },
+            _,
+            _,
+        ) => Some(ExportLobe::Phong {
+            exponent: *exponent,
+            specular: *specular,
+            bands: prt_sh::zonal::phong_lobe_bands(f64::from(*exponent), order)
+                .map_err(|e| ReportError::Invalid(e.to_string()))?
+                .into_iter()
+                .map(|a| a as f32)
+                .collect(),
+        }),
+        (_, Some(g), Some(f)) => Some(ExportLobe::Fitted {
+            table_order: f.order,
+            lobes: f.lobes,
+            elevations: f.elevations,
+            roughness_levels: g.level_roughness,
+            axis: f.axis,
+            bands: f.bands,
+            bands_b: f.bands_b,
+            colour_a: g.colour_a,
+            colour_b: g.colour_b,
+            point_roughness: g.point_roughness,
+        }),
+        _ => None,
+    };
+    Ok(ViewDependent {
+        diffuse_fresnel,
+        specular,
+    })
+}
+
 /// The fitted table of a lobe shape at an order, built once per process (a report relights
 /// the same objects at many orders and settings; a table takes ~0.5 s to fit).
 fn fitted_cached(shape: &Material, order: usize) -> std::sync::Arc<FittedF32> {

@@ -173,3 +173,22 @@ bounces = 0
     .unwrap();
     s
 }
+
+/// Python 3 with numpy for the independent tools in `tools/` (`PRT_PYTHON`, else `python3`),
+/// or `None` (the test is skipped, with a line) when there is none and CI does not insist on
+/// it (`PRT_REQUIRE_PY_READER=1`, set after installing tools/requirements-reader.txt).
+pub fn python_or_skip() -> Option<String> {
+    let py = std::env::var("PRT_PYTHON").unwrap_or_else(|_| "python3".into());
+    let ok = Command::new(&py)
+        .args(["-c", "import numpy"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        assert!(
+            std::env::var("PRT_REQUIRE_PY_READER").as_deref() != Ok("1"),
+            "PRT_REQUIRE_PY_READER=1 but no Python 3 with numpy (install tools/requirements-reader.txt)"
+        );
+        eprintln!("skipped: no Python 3 with numpy for the tools/ scripts (python3 -m pip install -r tools/requirements-reader.txt)");
+    }
+    ok.then_some(py)
+}
