@@ -21,10 +21,12 @@ the poles). All arithmetic is float64. Lightmapped meshes are skipped (note on s
 
 Usage:
     python3 tools/gltf_relight.py ASSET.glb --colours OUT.csv [--eye X,Y,Z]
-            [--compare REF.csv] [--no-specular] [--no-fresnel]
+            [--compare REF.csv] [--magnitudes MAG.csv] [--no-specular] [--no-fresnel]
     python3 tools/gltf_relight.py --self-test
 OUT.csv has prt's layout: `object,point,r,g,b`, one row per vertex (floats as repr()).
-`--compare` prints, per object, the max |ours − ref| relative to the max of ref per channel
+`--magnitudes` writes, in the same layout, each sum with every factor replaced by its absolute
+value: a float32 evaluation of the formula is within γ_N = N·2⁻²⁴ of those (N the longest chain
+of roundings), which is how a test bounds the difference from prt. `--compare` prints, per object, the max |ours − ref| relative to the max of ref per channel
 and the worst vertices; `--no-specular` / `--no-fresnel` drop S_c / k_d (for diagnosis).
 Exit status 1 on a malformed file (one line naming the file), 2 when `--compare` finds a
 relative difference >= 1e-3, 0 otherwise.
@@ -231,7 +233,11 @@ def floats(value, shape, what):
 # ----------------------------------------------------------------------------------------------
 # Relighting (§10, §10.1)
 # ----------------------------------------------------------------------------------------------
-def relight_primitive(glb, mesh_name, prim, eye, specular=True, fresnel=True):
+def relight_primitive(glb, mesh_name, prim, eye, specular=True, fresnel=True, mag_out=None):
+    """(nv, 3) radiance of a per-vertex primitive. With a list `mag_out`, also appends the
+    (nv, 3) magnitudes of the terms summed — the same sums with every factor replaced by its
+    absolute value — on which a float32 evaluation of the formula rounds (error analysis
+    of a sum of products: |fl(Σ) − Σ| ≤ γ_N Σ|terms|)."""
     where = f"mesh '{mesh_name}'"
     ext = need(need(prim, "extras", where), "prt", where + " extras")
     n, nch = need(ext, "order", where + " extras.prt"), need(ext, "channels", where)
@@ -274,6 +280,11 @@ def relight_primitive(glb, mesh_name, prim, eye, specular=True, fresnel=True):
         kd = 1.0 - np.interp(theta, el, va)       # clamps to the end values outside
     rad = np.stack([albedo[:, c] * kd / math.pi * (t[c if nch == 3 else 0] @ light[:, c])
                     for c in range(3)], axis=1)
+    mag = np.stack([np.abs(albedo[:, c] * kd) / math.pi
+                    * (np.abs(t[c if nch == 3 else 0]) @ np.abs(light[:, c]))
+                    for c in range(3)], axis=1)
+    if mag_out is not None:
+        mag_out.append(mag)
 
     spec = ext.get("specular")
     if spec is None or not specular:
@@ -284,7 +295,8 @@ def relight_primitive(glb, mesh_name, prim, eye, specular=True, fresnel=True):
         raise GlbError(f"{ws}: visibility_attributes must name {groups} attributes")
     vis = np.concatenate([attribute(glb, prim, nm, "VEC4", nv, where) for nm in vnames],
                          axis=1)[:, :nn]
-    lv = np.einsum("cik,vk->cvi", product_matrices(light, n), vis)       # (3, nv, n²)
+    pm = product_matrices(light, n)
+    lv = np.einsum("cik,vk->cvi", pm, vis)                               # (3, nv, n²)
     rvec = 2.0 * co[:, None] * nh - wo
     bands = band_of(n)
     model = need(spec, "model", ws)
@@ -295,12 +307,17 @@ def relight_primitive(glb, mesh_name, prim, eye, specular=True, fresnel=True):
         if len(a_l) < n:
             raise GlbError(f"{ws}: {len(a_l)} bands for order {n}")
         w = a_l[bands][None, :] * sh_eval(rvec, n)                        # (nv, n²)
+        w_abs = np.abs(w)
         scale = ks[None, :] * ((e + 2) / (e + 1) * np.minimum(co, 1.0))[:, None]
     elif model == "fitted":
-        w, scale = fitted_lobes(glb, prim, spec, nh, rvec, theta, n, nv, ws)
+        w, scale, w_abs = fitted_lobes(glb, prim, spec, nh, rvec, theta, n, nv, ws)
     else:
         raise GlbError(f"{ws}: unknown model {model!r}")
     s = scale * np.einsum("vi,cvi->vc", w, lv)
+    if mag_out is not None:
+        s_abs = np.abs(scale) * np.einsum("vi,cvi->vc", w_abs,
+                                          np.einsum("cik,vk->cvi", np.abs(pm), np.abs(vis)))
+        mag_out[-1] = mag + np.where(co[:, None] > 0.0, s_abs, 0.0)
     return rad + np.where(co[:, None] > 0.0, s, 0.0)
 
 
@@ -341,9 +358,13 @@ def fitted_lobes(glb, prim, spec, nh, rvec, theta, n, nv, ws):
     alpha = lum(ca) if two else np.ones(nv)
     beta = lum(cb) if two else np.zeros(nv)
     ahat, thk, ea, eb = np.zeros((nv, k, n)), np.zeros((nv, k)), np.zeros(nv), np.zeros(nv)
+    ahat_abs = np.zeros((nv, k, n))
     for r_i, e_i, wgt in rows:
         ahat += wgt[:, None, None] * (alpha[:, None, None] * ta[r_i, e_i, :, :n]
                                       + beta[:, None, None] * tb[r_i, e_i, :, :n])
+        ahat_abs += np.abs(wgt[:, None, None]) * (
+            np.abs(alpha[:, None, None] * ta[r_i, e_i, :, :n])
+            + np.abs(beta[:, None, None] * tb[r_i, e_i, :, :n]))
         thk += wgt[:, None] * axis[r_i, e_i]
         ea += wgt * ta[r_i, e_i, :, 0].sum(axis=1)
         eb += wgt * tb[r_i, e_i, :, 0].sum(axis=1)
@@ -357,18 +378,21 @@ def fitted_lobes(glb, prim, spec, nh, rvec, theta, n, nv, ws):
     tv = np.where(short, duff, tv)
     that = tv / np.linalg.norm(tv, axis=1, keepdims=True)
     ax = (np.cos(thk)[:, :, None] * nh[:, None, :] + np.sin(thk)[:, :, None] * that[:, None, :])
-    w = np.einsum("vki,vki->vi", ahat[:, :, band_of(n)], sh_eval(ax, n))
+    y_ax = sh_eval(ax, n)
+    w = np.einsum("vki,vki->vi", ahat[:, :, band_of(n)], y_ax)
+    w_abs = np.einsum("vki,vki->vi", ahat_abs[:, :, band_of(n)], np.abs(y_ax))
     if two:
         den = (alpha * ea + beta * eb)[:, None]
         num = ca * ea[:, None] + cb * eb[:, None]
         scale = np.where(den == 0.0, 0.0, num / np.where(den == 0.0, 1.0, den))
     else:
         scale = np.array(ca, dtype=np.float64)
-    return w, scale
+    return w, scale, w_abs
 
 
-def relight_file(path, eye=None, specular=True, fresnel=True, log=sys.stderr):
-    """[(mesh name, (nv, 3) radiance)] for every per-vertex mesh of a .glb."""
+def relight_file(path, eye=None, specular=True, fresnel=True, log=sys.stderr, mags=None):
+    """[(mesh name, (nv, 3) radiance)] for every per-vertex mesh of a .glb (with a list
+    `mags`, also appends [(mesh name, (nv, 3) magnitudes)]: see relight_primitive)."""
     try:
         with open(path, "rb") as fh:
             data = fh.read()
@@ -396,7 +420,10 @@ def relight_file(path, eye=None, specular=True, fresnel=True, log=sys.stderr):
             continue
         if storage != "vertex":
             raise GlbError(f"mesh '{name}': unknown storage {storage!r}")
-        out.append((name, relight_primitive(glb, name, prims[0], eye, specular, fresnel)))
+        m = [] if mags is not None else None
+        out.append((name, relight_primitive(glb, name, prims[0], eye, specular, fresnel, m)))
+        if mags is not None:
+            mags.append((name, m[0]))
     return out
 
 
@@ -621,6 +648,8 @@ def main(argv=None):
     ap.add_argument("--colours", help="write per-vertex radiance CSV here")
     ap.add_argument("--eye", help="X,Y,Z (default: root extras.prt.camera.eye)")
     ap.add_argument("--compare", help="prt's CSV to compare with")
+    ap.add_argument("--magnitudes", help="write per-vertex term magnitudes (same CSV layout): "
+                    "the sums with every factor's absolute value, for float32 error bounds")
     ap.add_argument("--no-specular", action="store_true")
     ap.add_argument("--no-fresnel", action="store_true")
     ap.add_argument("--self-test", action="store_true")
@@ -637,7 +666,9 @@ def main(argv=None):
         except (ValueError, AssertionError):
             ap.error("--eye takes X,Y,Z")
     try:
-        res = relight_file(args.glb, eye, not args.no_specular, not args.no_fresnel)
+        mags = [] if args.magnitudes else None
+        res = relight_file(args.glb, eye, not args.no_specular, not args.no_fresnel,
+                           mags=mags)
     except GlbError as exc:
         print(f"gltf_relight: {args.glb}: {exc}", file=sys.stderr)
         return 1
@@ -647,6 +678,8 @@ def main(argv=None):
         return 1
     if args.colours:
         write_csv(args.colours, res)
+    if args.magnitudes:
+        write_csv(args.magnitudes, mags)
     if args.compare:
         print(f"{args.glb} vs {args.compare}:")
         worst = compare(res, args.compare)
