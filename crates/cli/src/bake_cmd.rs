@@ -663,7 +663,7 @@ pub fn run_compress(args: &CompressArgs) -> Result<()> {
 pub struct ExportArgs {
     /// The scene file the bake was made from.
     pub scene: PathBuf,
-    /// The per-vertex bake (.prtb).
+    /// The per-vertex or per-texel bake (.prtb).
     #[arg(long)]
     pub bake: PathBuf,
     /// Output binary glTF (.glb).

@@ -51,7 +51,9 @@ enum Command {
     Merge(bake_cmd::MergeArgs),
     /// Compress a bake's diffuse transfer by clustered PCA (Sloan et al. 2003).
     Compress(bake_cmd::CompressArgs),
-    /// Write a per-vertex bake as binary glTF 2.0: meshes with their transfer as vertex attributes.
+    /// Write a per-vertex or per-texel bake as binary glTF 2.0: the meshes with their own
+    /// materials, the transfer as vertex attributes (or lightmap textures) and the
+    /// view-dependent terms prt relight shades with (SPEC §10).
     Export(bake_cmd::ExportArgs),
     /// Relight a bake under the (rotated) environment: full-order or locally adaptive SH, or a
     /// reflectance field (from `prt reflectance`) reconstructed on a fine grid.
