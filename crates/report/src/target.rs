@@ -27,7 +27,7 @@
 //! of every try plus that of the probe's full-order vertices.
 
 use crate::error::ReportError;
-use crate::imaging::{background_radiance, RgbImage, SUBPIXELS};
+use crate::imaging::{background_radiance, pixel_samples, RgbImage};
 use crate::relit::{relight, RelightOptions};
 use glam::Vec3;
 use prt_bakefile::Bake;
@@ -132,8 +132,10 @@ pub struct TargetStudy {
 struct ProbePixel {
     /// `(object, vertex, weight)`.
     terms: Vec<(usize, usize, f32)>,
-    /// Directions of its sub-pixel rays that miss, each of weight `1 / SUBPIXELS²`.
+    /// Directions of its sub-pixel rays that miss.
     background: Vec<Vec3>,
+    /// The weight of each sub-pixel ray (`1 / rays`: [`crate::imaging::pixel_samples`]).
+    weight: f32,
 }
 
 /// The probe of a run: its pixels and, per object, the vertices they need.
@@ -169,31 +171,26 @@ fn build_probe(
 ) -> Result<Probe, ReportError> {
     let cam = PinholeCamera::new(&scene.camera)?;
     let (w, h) = (cam.width(), cam.height());
-    let eye = cam.eye();
-    let k = SUBPIXELS;
-    let weight = 1.0 / (k * k) as f32;
+    // The pixel as image formation forms it: the same sub-pixel rays.
     let trace = |i: u32| -> ProbePixel {
-        let (x, y) = (i % w, i / w);
+        let samples = pixel_samples(&cam, accel, i % w, i / w);
+        let weight = 1.0 / samples.len() as f32;
         let mut p = ProbePixel {
             terms: Vec::new(),
             background: Vec::new(),
+            weight,
         };
-        for sy in 0..k {
-            for sx in 0..k {
-                let fx = f64::from(x) + (f64::from(sx) + 0.5) / f64::from(k);
-                let fy = f64::from(y) + (f64::from(sy) + 0.5) / f64::from(k);
-                let dir = cam.direction(fx, fy);
-                match accel.closest_hit(eye, dir, f32::INFINITY) {
-                    Some(hit) => {
-                        let o = hit.mesh as usize;
-                        let tri = scene.meshes[o].indices[hit.tri as usize];
-                        let wts = [1.0 - hit.u - hit.v, hit.u, hit.v];
-                        for (v, b) in tri.iter().zip(wts) {
-                            p.terms.push((o, *v as usize, b * weight));
-                        }
+        for (dir, hit) in samples {
+            match hit {
+                Some(hit) => {
+                    let o = hit.mesh as usize;
+                    let tri = scene.meshes[o].indices[hit.tri as usize];
+                    let wts = [1.0 - hit.u - hit.v, hit.u, hit.v];
+                    for (v, b) in tri.iter().zip(wts) {
+                        p.terms.push((o, *v as usize, b * weight));
                     }
-                    None => p.background.push(dir),
                 }
+                None => p.background.push(dir),
             }
         }
         p
@@ -243,7 +240,6 @@ fn estimate(
     f: &[Vec<[f32; 3]>],
     rotate_y_deg: f64,
 ) -> (f64, f64) {
-    let weight = 1.0 / (SUBPIXELS * SUBPIXELS) as f32;
     let errors: Vec<f64> = probe
         .pixels
         .iter()
@@ -251,7 +247,7 @@ fn estimate(
             let mut bg = [0.0f32; 3];
             for d in &p.background {
                 let b = background_radiance(scene, *d, rotate_y_deg);
-                (0..3).for_each(|c| bg[c] += weight * b[c]);
+                (0..3).for_each(|c| bg[c] += p.weight * b[c]);
             }
             let (mut va, mut vf) = (bg, bg);
             for &(o, v, w) in &p.terms {
