@@ -195,6 +195,41 @@ fn the_reflectance_section_is_complete_and_reproduced_by_hand() {
         0.0,
         "the report's image is prt relight's"
     );
+    // --rf-error-pixels: the error over a subsample, the same coefficients and image.
+    let sub = dir.path().join("cdf97_16_sub.exr");
+    let js = json(&run(prt()
+        .arg("relight")
+        .arg(&scene)
+        .args(["--bake", field, "--reconstruct", "linear", "--fine", FINE])
+        .args(["--wavelet", "cdf97", "--coefficients", "16"])
+        .args(["--rf-error-pixels", "5", "--json", "--out"])
+        .arg(&sub)));
+    let (measured, all) = (
+        js["rf_error_pixels"].as_u64().unwrap(),
+        j["rf_error_pixels"].as_u64().unwrap(),
+    );
+    assert!(measured <= 5 && measured < all, "{measured} of {all}");
+    assert!(js["rf_rel_l2"].as_f64().unwrap() > 0.0);
+    assert_eq!(
+        max_abs(&sub, &by_hand),
+        0.0,
+        "the subsample changes only the measurement"
+    );
+    common::refused(
+        prt()
+            .arg("relight")
+            .arg(&scene)
+            .args([
+                "--bake",
+                field,
+                "--wavelet",
+                "cdf97",
+                "--coefficients",
+                "16",
+            ])
+            .args(["--rf-error-pixels", "0"]),
+        "--rf-error-pixels 0",
+    );
 
     // A second run: the field from the cache, the same figures.
     let second = report(&scene, &out);

@@ -249,6 +249,7 @@ fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error(
         let (all, stats) = run(Some(Compression {
             wavelet,
             budget: Budget::Coefficients(n),
+            error_pixels: None,
         }));
         assert!(stats.rf_rel_l2.unwrap() < 1e-12, "{wavelet:?}");
         assert!(stats.rf_rel_h1.unwrap() < 1e-12, "{wavelet:?}");
@@ -266,6 +267,7 @@ fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error(
         let (some, stats) = run(Some(Compression {
             wavelet,
             budget: Budget::Coefficients(24),
+            error_pixels: None,
         }));
         let e = stats.rf_rel_l2.unwrap();
         assert!(e > 0.0 && e < 1.0, "{wavelet:?}: {e}");
@@ -273,6 +275,26 @@ fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error(
         let h1 = stats.rf_rel_h1.unwrap();
         assert!(h1 > 0.0 && h1.is_finite(), "{wavelet:?}: H¹ {h1}");
         assert_eq!(stats.mean_coefficients, Some(24.0));
+        // The error measured over a subsample of 7 pixels: the same functions kept (the same
+        // image, bit for bit) and, as every pixel holds the same function, the same error.
+        let (sub, sub_stats) = run(Some(Compression {
+            wavelet,
+            budget: Budget::Coefficients(24),
+            error_pixels: Some(7),
+        }));
+        assert!(sub.pixels == some.pixels, "{wavelet:?}");
+        let (measured, all_pixels) = (
+            sub_stats.rf_error_pixels.unwrap(),
+            stats.rf_error_pixels.unwrap(),
+        );
+        assert!(
+            measured <= 7 && measured < all_pixels,
+            "{measured} of {all_pixels}"
+        );
+        assert!(
+            (sub_stats.rf_rel_l2.unwrap() - e).abs() <= 1e-9 * e,
+            "{wavelet:?}"
+        );
         let bound = e * f_norm * l_norm * 1.0001 + 1e-6;
         for (a, b) in some.pixels.iter().zip(&full.pixels) {
             assert!(
@@ -286,6 +308,7 @@ fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error(
         let (_, stats) = run(Some(Compression {
             wavelet,
             budget: Budget::RelativeError(0.01),
+            error_pixels: None,
         }));
         assert!(stats.rf_rel_l2.unwrap() <= 0.01, "{wavelet:?}");
         assert!(stats.mean_coefficients.unwrap() < n as f64);
