@@ -91,7 +91,8 @@ pub fn plan(scene: &Scene, settings: &BakeSettings) -> (Vec<ObjectPlan>, Vec<Dec
                     .map(|k| k + 1);
                 match o {
                     Some(o) => (o.max(diffuse_order), true),
-                    None => (settings.max_order + 1, true),
+                    // Beyond the table, which stops at the maximum order.
+                    None => (usize::MAX, true),
                 }
             }
             Material::Mirror { .. } => {
@@ -109,10 +110,15 @@ pub fn plan(scene: &Scene, settings: &BakeSettings) -> (Vec<ObjectPlan>, Vec<Dec
                 o
             }
             None if wanted > settings.max_order => {
+                let needs = if wanted == usize::MAX {
+                    format!("more than order {}", settings.max_order)
+                } else {
+                    format!("order {wanted}")
+                };
                 say(
                     format!("order {}", settings.max_order),
                     format!(
-                        "the material needs order {wanted} to lose at most {} of its lobe energy; capped at the maximum {}",
+                        "the material needs {needs} to lose at most {} of its lobe energy; capped at the maximum {} (--max-order)",
                         settings.error_target, settings.max_order
                     ),
                 );
