@@ -79,12 +79,30 @@ fn assert_validates(glb: &std::path::Path) {
     }
 }
 
+/// A `.glb`'s JSON document and its binary chunk.
+fn glb_parts(glb: &Path) -> (serde_json::Value, Vec<u8>) {
+    let bytes = std::fs::read(glb).unwrap();
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
+    (doc, bytes[20 + len + 8..].to_vec())
+}
+
+/// `prt_report::relight` of `bake` in this process (default options), with the BVH for
+/// image formation.
+fn relit_here(
+    scene: &prt_scene::Scene,
+    bake: &prt_bakefile::Bake,
+) -> (prt_tracer::Accel, prt_report::Relit) {
+    let accel = prt_tracer::Accel::build(scene).unwrap();
+    let relit =
+        prt_report::relight(scene, &accel, bake, &prt_report::RelightOptions::default()).unwrap();
+    (accel, relit)
+}
+
 /// Mesh `mesh` of the export `glb`: its `extras.prt.environment` (`[coefficient][r, g, b]`)
 /// and its uniform diffuse albedo `extras.prt.albedo`.
 fn lighting_and_albedo(glb: &Path, mesh: usize) -> (Vec<[f64; 3]>, Vec<f64>) {
-    let bytes = std::fs::read(glb).unwrap();
-    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + len]).unwrap();
+    let (doc, _) = glb_parts(glb);
     let prim = &doc["meshes"][mesh]["primitives"][0];
     let env = serde_json::from_value(prim["extras"]["prt"]["environment"].clone()).unwrap();
     let albedo = serde_json::from_value(prim["extras"]["prt"]["albedo"].clone()).unwrap();
@@ -360,10 +378,7 @@ fn textured_asset_export_relights_like_prt() {
         panic!("the box's material is a textured pbr");
     };
     let source = &scene.textures[t.index];
-    let bytes = std::fs::read(&glb).unwrap();
-    let jlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + jlen]).unwrap();
-    let bin = &bytes[20 + jlen + 8..];
+    let (doc, bin) = glb_parts(&glb);
     let at = |v: &serde_json::Value| v.as_u64().unwrap() as usize;
     let view_bytes = |view: usize| -> &[u8] {
         let v = &doc["bufferViews"][view];
@@ -429,14 +444,7 @@ fn textured_asset_export_relights_like_prt() {
         return;
     };
     assert_eq!(theirs.len(), back.len());
-    let accel = prt_tracer::Accel::build(&scene).unwrap();
-    let mut relit = prt_report::relight(
-        &scene,
-        &accel,
-        &bake,
-        &prt_report::RelightOptions::default(),
-    )
-    .unwrap();
+    let (accel, mut relit) = relit_here(&scene, &bake);
     let prt_colours = read_colours(&prt_csv);
     let prt_img = prt_report::form_image(&scene, &accel, &relit, 0.0).unwrap();
     let (mut vertex_peak, mut worst) = (0.0f64, 0.0f64);
@@ -593,14 +601,7 @@ fn lightmap_export_validates_and_relights_like_prt() {
     assert_eq!(checked, covered.len());
 
     // An engine: plain bilinear over every texel of the exported (dilated) maps.
-    let accel = prt_tracer::Accel::build(&scene).unwrap();
-    let mut relit = prt_report::relight(
-        &scene,
-        &accel,
-        &bake,
-        &prt_report::RelightOptions::default(),
-    )
-    .unwrap();
+    let (accel, mut relit) = relit_here(&scene, &bake);
     let any = *ours.texels.iter().flatten().next().unwrap();
     let mut all = ours.clone();
     all.texels = vec![Some(any); all.texels.len()];
@@ -741,9 +742,7 @@ bounces = 0
         &["--rays", "32", "--order", "5", "--bounces", "0"],
     );
     assert_validates(&glb);
-    let bytes = std::fs::read(&glb).unwrap();
-    let jlen = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
-    let doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + jlen]).unwrap();
+    let (doc, _) = glb_parts(&glb);
     let prim = &doc["meshes"][0]["primitives"][0];
     let spec = &prim["extras"]["prt"]["specular"];
     assert_eq!(spec["model"], "fitted");
