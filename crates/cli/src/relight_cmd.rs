@@ -74,9 +74,15 @@ pub struct RelightArgs {
     /// How glossy lobes without a zonal form (Blinn–Phong, Ward, Cook–Torrance, glTF `pbr`)
     /// are relit: `fitted`, a zonal fit of the lobe per view elevation shaded at Phong's cost
     /// (full order and adaptive); `exact`, the bake's per-elevation BRDF projections rotated
-    /// per point (O(order⁵) per point, full order; the reference for `fitted`).
+    /// per point (O(order⁵) per point, full order; the reference for `fitted`); `hybrid`, the
+    /// fit, and the exact path at the points whose view elevation puts the fit's relative L2
+    /// error against the lobe at --fit-error or more (sharp lobes at grazing views).
     #[arg(long, value_enum, default_value_t = GlossyArg::Fitted)]
     pub glossy: GlossyArg,
+    /// With --glossy hybrid: the fit error (relative L2, against the lobe) from which a point
+    /// is shaded by the exact path; 0 shades every point exactly.
+    #[arg(long, default_value_t = 0.1)]
+    pub fit_error: f32,
     /// Reflectance fields (`prt reflectance`): how each pixel's sampled function is
     /// reconstructed on the fine grid (`nearest`: zero-order hold; `linear`: bilinear,
     /// periodic in azimuth; `legall53` / `cdf97`: wavelet interpolation, periodic in azimuth
@@ -132,6 +138,8 @@ pub enum GlossyArg {
     Fitted,
     /// Per-elevation BRDF projections from the bake (reference).
     Exact,
+    /// The fit, and the exact path where the fit's error reaches --fit-error.
+    Hybrid,
 }
 
 /// `--stop` values (see [`StopRule`]).
@@ -228,6 +236,17 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         glossy: match args.glossy {
             GlossyArg::Fitted => prt_report::GlossyPath::Fitted,
             GlossyArg::Exact => prt_report::GlossyPath::Exact,
+            GlossyArg::Hybrid => {
+                if !(args.fit_error >= 0.0 && args.fit_error.is_finite()) {
+                    bail!(
+                        "--fit-error {}: give a relative error of 0 or more",
+                        args.fit_error
+                    );
+                }
+                prt_report::GlossyPath::Hybrid {
+                    fit_error: args.fit_error,
+                }
+            }
         },
     };
     let relit = prt_report::relight(&scene, &accel, &bake, &opt)?;

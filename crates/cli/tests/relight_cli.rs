@@ -184,6 +184,11 @@ fn relight_json_bake_check_exactness_roi_and_frames() {
     let text = String::from_utf8_lossy(&text.stdout);
     assert!(text.contains("frames/s"), "{text}");
 
+    // --glossy hybrid runs; a negative --fit-error is refused.
+    run(relight(&scene, &b).args(["--glossy", "hybrid", "--fit-error", "0.2"]));
+    let err = fail(relight(&scene, &b).args(["--glossy", "hybrid", "--fit-error=-1"]));
+    assert!(err.contains("--fit-error -1"), "{err}");
+
     // A bake of another mesh is refused, naming the bake file.
     let other_dir = dir.path().join("other");
     std::fs::create_dir(&other_dir).unwrap();

@@ -44,7 +44,7 @@ pub struct RelightOptions {
 }
 
 /// The relighting path of glossy lobes without a zonal form.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum GlossyPath {
     /// A zonal fit of the lobe per view elevation about its mean direction
@@ -56,6 +56,16 @@ pub enum GlossyPath {
     /// `L ⊛ V` (Kautz, Sloan & Snyder 2002): exact up to the order, `O(order⁵)` per point —
     /// the reference the fitted path is measured against.
     Exact,
+    /// The fitted path, except at the points whose view elevation (and roughness) puts the
+    /// fit's relative L2 error against the lobe at `fit_error` or more
+    /// (`prt_bake::brdf::FittedTable::error`, interpolated as the lobe rows are): those are
+    /// shaded by the exact path. A sharp lobe is far from zonal at grazing views, where the fit
+    /// falls behind; the hybrid spends the exact path's cost only there. `fit_error = 0`
+    /// shades every point exactly, a value above every error none.
+    Hybrid {
+        /// The fit error from which a point is shaded exactly.
+        fit_error: f32,
+    },
 }
 
 impl Default for RelightOptions {
@@ -551,7 +561,7 @@ pub fn relight(
         let glossy = GlossyLobe::of(material, point_materials.as_deref(), &mut stats, &obj.name);
         // The fitted lobe's table (built once per object, outside the timed frames).
         let fitted = match (&glossy, opt.glossy) {
-            (Some(g), GlossyPath::Fitted) => {
+            (Some(g), GlossyPath::Fitted | GlossyPath::Hybrid { .. }) => {
                 let tables: Vec<_> = g.levels.iter().map(|m| fitted_cached(m, order)).collect();
                 Some(FittedF32::stacked(&tables))
             }
@@ -565,7 +575,7 @@ pub fn relight(
             .unwrap_or_default();
         let exact_tables: Option<Vec<&prt_bakefile::GlossyBrdfTable>> = match (&glossy, opt.glossy)
         {
-            (Some(_), GlossyPath::Exact) => {
+            (Some(_), GlossyPath::Exact | GlossyPath::Hybrid { .. }) => {
                 let names: Vec<String> = if is_pbr {
                     prt_bake::brdf::PbrComponent::ALL
                         .iter()
@@ -637,6 +647,41 @@ pub fn relight(
         };
         let points = diffuse_view.point_count();
         stats.points += points;
+        // The hybrid path's points shaded exactly: where the fit's error at the point's view
+        // elevation and roughness reaches the threshold.
+        let exact_points: Option<Vec<bool>> = match (opt.glossy, &fitted, &glossy, &exact_tables) {
+            (GlossyPath::Hybrid { fit_error }, Some(f), Some(g), Some(_)) => {
+                let chosen: Vec<bool> = (0..points)
+                    .map(|p| {
+                        let n = Vec3::from_array(normals[p]);
+                        let wo = (Vec3::from_array(eye) - Vec3::from_array(positions[p]))
+                            .normalize_or_zero();
+                        let rough = if g.point_roughness.len() == 1 {
+                            g.point_roughness[0]
+                        } else {
+                            g.point_roughness[p]
+                        };
+                        f.error_at(n.dot(wo), rough, &g.level_roughness) >= fit_error
+                    })
+                    .collect();
+                // Counted over the points facing the viewer (the others have no specular).
+                let facing: Vec<bool> = (0..points)
+                    .map(|p| {
+                        let n = Vec3::from_array(normals[p]);
+                        n.dot(Vec3::from_array(eye) - Vec3::from_array(positions[p])) > 0.0
+                    })
+                    .collect();
+                let front = facing.iter().filter(|&&f| f).count();
+                let k = chosen.iter().zip(&facing).filter(|(&c, &f)| c && f).count();
+                stats.notes.push(format!(
+                    "{}: hybrid glossy path: {k} of the {front} points facing the viewer ({:.1} %), where the fit's error reaches {fit_error}, shaded exactly",
+                    obj.name,
+                    100.0 * k as f64 / front.max(1) as f64
+                ));
+                Some(chosen)
+            }
+            _ => None,
+        };
         // Per-point diffuse albedo (relit with unit albedo above): the resolved material's,
         // and for `pbr` on the fitted path times `1 − s̄_d(θ_o)`, the cosine-weighted mean of
         // the `(1 − F)` factor's Schlick part (the exact path has it as a table).
@@ -644,8 +689,9 @@ pub fn relight(
             (0..points)
                 .map(|p| {
                     let a = point_materials.as_ref().map_or(albedo, |m| m[p].albedo());
+                    let exact_here = exact_points.as_ref().is_some_and(|e| e[p]);
                     let keep = match (&fitted, is_pbr) {
-                        (Some(f), true) => {
+                        (Some(f), true) if !exact_here => {
                             let n = Vec3::from_array(normals[p]);
                             let wo = (Vec3::from_array(eye) - Vec3::from_array(positions[p]))
                                 .normalize_or_zero();
@@ -667,7 +713,8 @@ pub fn relight(
                     .collect(),
             }
         };
-        let result: Vec<[f32; 3]>;
+        // The diffuse term (scaled) and the fitted or Phong specular, summed below.
+        let (diffuse_part, specular_part): (Vec<[f32; 3]>, Vec<[f32; 3]>);
         let mut in_roi = vec![false; points];
         match (&opt.adaptive, per_pixel) {
             (Some(params), false) => {
@@ -710,7 +757,7 @@ pub fn relight(
                     *r = f.roi[0].get(i).copied().unwrap_or(false)
                         || f.roi[1].get(i).copied().unwrap_or(false);
                 }
-                result = sum_terms(&scaled(&f.diffuse), &f.specular, points);
+                (diffuse_part, specular_part) = (scaled(&f.diffuse), f.specular);
             }
             (Some(_), true) => return Err(ReportError::Invalid(
                 "adaptive relighting walks the mesh's vertex adjacency: it needs a per-vertex bake"
@@ -739,7 +786,7 @@ pub fn relight(
                         first = (d, s);
                     }
                 }
-                result = sum_terms(&scaled(&first.0), &first.1, points);
+                (diffuse_part, specular_part) = (scaled(&first.0), first.1);
             }
         }
         let result = match (&exact_tables, &vis_data, &glossy) {
@@ -751,35 +798,47 @@ pub fn relight(
                     ));
                 }
                 let start = Instant::now();
+                // The points shaded exactly: all of them, or the hybrid path's choice.
+                let chosen: Vec<usize> = match &exact_points {
+                    Some(e) => (0..points).filter(|&p| e[p]).collect(),
+                    None => (0..points).collect(),
+                };
+                let n2 = order * order;
+                let gather3 =
+                    |a: &[[f32; 3]]| -> Vec<[f32; 3]> { chosen.iter().map(|&p| a[p]).collect() };
+                let vis: Vec<f32> = chosen
+                    .iter()
+                    .flat_map(|&p| v[p * n2..(p + 1) * n2].iter().copied())
+                    .collect();
                 let parts = crate::glossy::glossy_components(
                     tables,
                     order,
                     &env_rotated,
-                    v,
-                    &positions,
-                    &normals,
+                    &vis,
+                    &gather3(&positions),
+                    &gather3(&normals),
                     eye,
                 )?;
                 let pick = |w: &[[f32; 3]], p: usize| if w.len() == 1 { w[0] } else { w[p] };
                 let weights = [&g.colour_a, &g.colour_b, &g.colour_c];
-                let s: Vec<[f32; 3]> = (0..points)
-                    .map(|p| {
-                        std::array::from_fn(|c| {
-                            let sum: f64 = parts
-                                .iter()
-                                .zip(weights)
-                                .map(|(part, w)| f64::from(pick(w, p)[c]) * part[p][c])
-                                .sum();
-                            sum.max(0.0) as f32
-                        })
-                    })
-                    .collect();
+                let mut s = specular_part;
+                s.resize(points, [0.0; 3]);
+                for (k, &p) in chosen.iter().enumerate() {
+                    s[p] = std::array::from_fn(|c| {
+                        let sum: f64 = parts
+                            .iter()
+                            .zip(weights)
+                            .map(|(part, w)| f64::from(pick(w, p)[c]) * part[k][c])
+                            .sum();
+                        sum.max(0.0) as f32
+                    });
+                }
                 let dt = start.elapsed().as_secs_f64();
                 times.iter_mut().for_each(|t| *t += dt);
                 frame_seconds += dt * times.len() as f64;
-                sum_terms(&result, &s, points)
+                sum_terms(&diffuse_part, &s, points)
             }
-            _ => result,
+            _ => sum_terms(&diffuse_part, &specular_part, points),
         };
         let result = match subset {
             Some(sub) => {
@@ -1126,6 +1185,8 @@ struct FittedF32 {
     bands: Vec<f32>,
     bands_b: Vec<f32>,
     diffuse_fresnel: Vec<f32>,
+    /// `[level][elevation]` relative L2 error of the fit against the lobe.
+    error: Vec<f32>,
 }
 
 impl FittedF32 {
@@ -1139,6 +1200,7 @@ impl FittedF32 {
             bands: f(&t.bands),
             bands_b: f(&t.bands_b),
             diffuse_fresnel: f(&t.diffuse_fresnel),
+            error: f(&t.error),
         }
     }
 
@@ -1156,7 +1218,34 @@ impl FittedF32 {
             bands: cat(|t| &t.bands),
             bands_b: cat(|t| &t.bands_b),
             diffuse_fresnel: first.diffuse_fresnel.clone(),
+            error: cat(|t| &t.error),
         }
+    }
+
+    /// The fit's relative L2 error at `cos θ_o` and roughness `rough` (levels
+    /// `level_roughness`): bilinear between rows as the lobe rows are, clamped to the grid.
+    fn error_at(&self, cos_o: f32, rough: f32, level_roughness: &[f32]) -> f32 {
+        let theta = cos_o
+            .clamp(-1.0, 1.0)
+            .acos()
+            .min(std::f32::consts::FRAC_PI_2);
+        let locate = |grid: &[f32], x: f32| -> (usize, f32) {
+            if grid.len() < 2 || x <= grid[0] {
+                (0, 0.0)
+            } else if x >= grid[grid.len() - 1] {
+                (grid.len() - 2, 1.0)
+            } else {
+                let i = grid.partition_point(|&g| g <= x) - 1;
+                (i, (x - grid[i]) / (grid[i + 1] - grid[i]))
+            }
+        };
+        let ne = self.elevations.len();
+        let (ie, te) = locate(&self.elevations, theta);
+        let (ir, tr) = locate(level_roughness, rough);
+        let next = usize::from(level_roughness.len() > 1);
+        let row =
+            |r: usize| self.error[r * ne + ie] * (1.0 - te) + self.error[r * ne + ie + 1] * te;
+        row(ir) * (1.0 - tr) + row(ir + next) * tr
     }
 
     /// `s̄_d` at `cos θ_o` (linear between rows, clamped to the ends).

@@ -150,6 +150,7 @@ fn check(material: Material, path: prt_report::GlossyPath) {
                     (albedo_and_norm(&ward, el[i - 1]).0 - albedo_and_norm(&ward, el[i]).0).abs();
                 dv * b_norm + (2.0 * std::f64::consts::PI).sqrt() * e_n * f_norm + interp
             }
+            prt_report::GlossyPath::Hybrid { .. } => unreachable!("checked by its own test"),
             prt_report::GlossyPath::Fitted => {
                 let el = &fitted.elevations;
                 let i = el.partition_point(|&t| t <= theta_o).clamp(1, el.len() - 1);
@@ -191,4 +192,132 @@ fn check(material: Material, path: prt_report::GlossyPath) {
     }
     assert!(checked > 10, "only {checked} vertices checked");
     eprintln!("{} {path:?}, order {order}: worst relative error {worst:.4} over {checked} vertices (table error e_n = {e_n:.4})", ward.type_name());
+}
+
+/// The hybrid glossy path is the fitted path where the fit is good and the exact path where it
+/// is not, point by point: at `fit_error = 0` every point is shaded exactly (the image is the
+/// exact path's, bit for bit, `pbr` diffuse factor included), above every fit error it is the
+/// fitted path's, and in between each point's radiance is one of the two, exact where the
+/// fit's error at its view elevation reaches the threshold. A grey metal at roughness 0.4 on a
+/// sphere under a two-tone sky, seen from the side so that every view elevation occurs.
+#[test]
+fn hybrid_glossy_path_is_exact_where_the_fit_is_poor_and_fitted_elsewhere() {
+    let metal = Material::Pbr {
+        base_color: [0.9, 0.8, 0.6],
+        metallic: 0.7,
+        roughness: 0.4,
+        base_color_texture: None,
+        metallic_roughness_texture: None,
+    };
+    let cam = Camera::look_at(DVec3::new(0.0, 0.0, 4.0), DVec3::ZERO, 40.0, 16, 16);
+    // Lat-long, 16 × 8: the upper four rows a bright sky, the lower four a dark ground.
+    let sky = Environment {
+        image: prt_scene::EnvImage {
+            width: 16,
+            height: 8,
+            texels: (0..128)
+                .map(|i| if i < 64 { [2.0, 1.8, 1.5] } else { [0.3; 3] })
+                .collect(),
+        },
+        mapping: prt_scene::Mapping::LatLong,
+        rotation_y_deg: 0.0,
+    };
+    let mut scene = Scene::new(cam, sky);
+    let m = scene.add_material("metal", metal);
+    scene.add_mesh(icosphere(2), m);
+    let accel = prt_tracer::Accel::build(&scene).unwrap();
+    let order = 6;
+    let out = bake(
+        &scene,
+        &accel,
+        &BakeSettings {
+            order: Some(order),
+            rays: 256,
+            bounces: 0,
+            ..BakeSettings::final_quality()
+        },
+    )
+    .unwrap();
+    let run = |glossy| {
+        let opt = prt_report::RelightOptions {
+            glossy,
+            ..Default::default()
+        };
+        prt_report::relight(&scene, &accel, &out.bake, &opt).unwrap()
+    };
+    let exact = run(prt_report::GlossyPath::Exact);
+    let fitted = run(prt_report::GlossyPath::Fitted);
+    assert!(
+        exact.radiance[0] != fitted.radiance[0],
+        "the paths differ here"
+    );
+    let all = run(prt_report::GlossyPath::Hybrid { fit_error: 0.0 });
+    assert!(
+        all.radiance[0] == exact.radiance[0],
+        "fit_error 0: the exact path"
+    );
+    let none = run(prt_report::GlossyPath::Hybrid { fit_error: 10.0 });
+    assert!(
+        none.radiance[0] == fitted.radiance[0],
+        "fit_error 10: the fitted path"
+    );
+    // In between: exact exactly where the fit's error at the point's view elevation reaches the
+    // threshold (the table's errors, linear in θ_o between its elevations); the threshold is
+    // the median of the visible points' errors, so both sets are large.
+    let table = prt_bake::brdf::fitted_table(&metal, order).unwrap();
+    let eye = Vec3::new(0.0, 0.0, 4.0);
+    let mesh = &scene.meshes[0];
+    let errors: Vec<f64> = (0..mesh.positions.len())
+        .map(|p| {
+            let n = mesh.normals[p].normalize();
+            let cos_o = n.dot((eye - mesh.positions[p]).normalize());
+            let theta = f64::from(cos_o.clamp(-1.0, 1.0).acos()).min(std::f64::consts::FRAC_PI_2);
+            let el = &table.elevations;
+            if theta <= el[0] {
+                table.error[0]
+            } else if theta >= el[el.len() - 1] {
+                table.error[el.len() - 1]
+            } else {
+                let i = el.partition_point(|&x| x <= theta) - 1;
+                let w = (theta - el[i]) / (el[i + 1] - el[i]);
+                table.error[i] * (1.0 - w) + table.error[i + 1] * w
+            }
+        })
+        .collect();
+    // (Over the points facing the camera: those facing away all sit at the last elevation.)
+    let mut sorted: Vec<f64> = errors
+        .iter()
+        .zip(&mesh.positions)
+        .zip(&mesh.normals)
+        .filter(|((_, x), n)| n.normalize().dot((eye - **x).normalize()) > 0.05)
+        .map(|((e, _), _)| *e)
+        .collect();
+    sorted.sort_by(f64::total_cmp);
+    let t = sorted[sorted.len() / 2] as f32;
+    let mid = run(prt_report::GlossyPath::Hybrid { fit_error: t });
+    let (mut n_exact, mut n_fitted) = (0, 0);
+    for (p, (r, &e)) in mid.radiance[0].iter().zip(&errors).enumerate() {
+        // Away from the threshold (f32 interpolation in prt, f64 here).
+        if (e - f64::from(t)).abs() < 1e-4 {
+            continue;
+        }
+        if e >= f64::from(t) {
+            assert_eq!(
+                *r, exact.radiance[0][p],
+                "point {p}: fit error {e:.3}, exact"
+            );
+            n_exact += 1;
+        } else {
+            assert_eq!(
+                *r, fitted.radiance[0][p],
+                "point {p}: fit error {e:.3}, fitted"
+            );
+            n_fitted += 1;
+        }
+    }
+    eprintln!("hybrid at {t}: {n_exact} points exact, {n_fitted} fitted");
+    assert!(
+        n_exact > 10 && n_fitted > 10,
+        "{n_exact} exact, {n_fitted} fitted"
+    );
 }
