@@ -152,6 +152,37 @@ fn texture_png(t: &prt_scene::Texture, srgb: bool) -> Result<Vec<u8>, ReportErro
     Ok(png)
 }
 
+/// Adds `n2` coefficients per vertex (`rows`: vertex `p`'s at `rows[p · stride + offset..]`)
+/// as `⌈n2/4⌉` `FLOAT VEC4` attributes named `name(g)` (the last group zero-padded); returns
+/// their names.
+#[allow(clippy::too_many_arguments)]
+fn add_coefficient_groups(
+    bin: &mut Bin,
+    attrs: &mut serde_json::Map<String, Value>,
+    rows: &[f32],
+    stride: usize,
+    offset: usize,
+    n2: usize,
+    v: usize,
+    name: impl Fn(usize) -> String,
+) -> Vec<String> {
+    (0..n2.div_ceil(4))
+        .map(|g| {
+            let values = (0..v).flat_map(|p| {
+                let row = &rows[p * stride + offset..p * stride + offset + n2];
+                (0..4).map(move |k| row.get(4 * g + k).copied().unwrap_or(0.0))
+            });
+            let a = bin.add(
+                &f32_bytes(values),
+                ARRAY_BUFFER,
+                json!({"componentType": FLOAT, "count": v, "type": "VEC4"}),
+            );
+            attrs.insert(name(g), json!(a));
+            name(g)
+        })
+        .collect()
+}
+
 /// The attribute name of coefficient group `g` of channel `c`.
 #[must_use]
 pub fn attribute_name(channel: usize, group: usize) -> String {
@@ -343,7 +374,6 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
         }
         let (n, c) = (obj.order as usize, obj.channels as usize);
         let n2 = n * n;
-        let groups = n2.div_ceil(4);
         let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
         for p in &geometry.positions {
             for k in 0..3 {
@@ -410,20 +440,16 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
             });
         }
         for ch in (0..c).filter(|_| lightmap.is_none()) {
-            for g in 0..groups {
-                let values = (0..v).flat_map(|p| {
-                    let row = &block.data[(p * c + ch) * n2..(p * c + ch + 1) * n2];
-                    (0..4).map(move |k| row.get(4 * g + k).copied().unwrap_or(0.0))
-                });
-                let a = bin.add(
-                    &f32_bytes(values),
-                    ARRAY_BUFFER,
-                    json!({"componentType": FLOAT, "count": v, "type": "VEC4"}),
-                );
-                let name = attribute_name(ch, g);
-                attrs.insert(name.clone(), json!(a));
-                names.push(name);
-            }
+            names.extend(add_coefficient_groups(
+                &mut bin,
+                &mut attrs,
+                &block.data,
+                c * n2,
+                ch * n2,
+                n2,
+                v,
+                |g| attribute_name(ch, g),
+            ));
         }
         attributes = attributes.max(names.len());
         vertices += v;
@@ -668,6 +694,13 @@ fn view_extras(
         .diffuse_fresnel
         .as_ref()
         .map_or(Value::Null, |(e, s)| json!({"elevations": e, "values": s}));
+    // The visibility transfer, when there is a lobe to shade with it.
+    let vis_names = match (&vd.specular, vis) {
+        (Some(_), Some(vis)) => {
+            add_coefficient_groups(bin, attrs, vis, n2, 0, n2, v, |g| format!("_PRT_V_{g}"))
+        }
+        _ => Vec::new(),
+    };
     let mut add = |name: &str, values: Vec<f32>, kind: &str, attrs: &mut serde_json::Map<_, _>| {
         let a = bin.add(
             &f32_bytes(values),
@@ -682,17 +715,7 @@ fn view_extras(
             Value::Null,
             "the bake holds no visibility transfer: no specular (as prt relight)".to_owned(),
         ),
-        (Some(lobe), Some(vis)) => {
-            let mut names = Vec::new();
-            for g in 0..n2.div_ceil(4) {
-                let values = (0..v).flat_map(|p| {
-                    let row = &vis[p * n2..(p + 1) * n2];
-                    (0..4).map(move |k| row.get(4 * g + k).copied().unwrap_or(0.0))
-                });
-                let name = format!("_PRT_V_{g}");
-                add(&name, values.collect(), "VEC4", attrs);
-                names.push(name);
-            }
+        (Some(lobe), Some(_)) => {
             let mut value = match lobe {
                 crate::relit::ExportLobe::Phong {
                     exponent,
@@ -754,7 +777,7 @@ fn view_extras(
                     })
                 }
             };
-            value["visibility_attributes"] = json!(names);
+            value["visibility_attributes"] = json!(vis_names);
             (
                 value,
                 "as prt relight at full order, --glossy fitted (SPEC §10.1)".to_owned(),
@@ -860,41 +883,11 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
             )?),
             None => None,
         };
-        let mut transfer = vec![
-            0.0f32;
-            if lightmap.is_some() {
-                0
-            } else {
-                v * channels * n2
-            }
-        ];
-        for ch in (0..channels).filter(|_| lightmap.is_none()) {
+        // `n2` coefficients per vertex from the VEC4 attributes `name(g)`, `[vertex][coeff]`.
+        let groups = |name: &dyn Fn(usize) -> String| -> Result<Vec<f32>, ReportError> {
+            let mut out = vec![0.0f32; v * n2];
             for g in 0..n2.div_ceil(4) {
-                let name = attribute_name(ch, g);
-                let acc = attrs
-                    .get(&name)
-                    .ok_or_else(|| bad(format!("no attribute {name}")))?;
-                let vals = floats(acc)?;
-                if vals.len() != 4 * v {
-                    return Err(bad(format!(
-                        "attribute {name}: {} values for {v} vertices",
-                        vals.len() / 4
-                    )));
-                }
-                for p in 0..v {
-                    for k in 0..4 {
-                        let i = 4 * g + k;
-                        if i < n2 {
-                            transfer[(p * channels + ch) * n2 + i] = vals[4 * p + k];
-                        }
-                    }
-                }
-            }
-        }
-        let visibility = if attrs.contains_key("_PRT_V_0") {
-            let mut vis = vec![0.0f32; v * n2];
-            for g in 0..n2.div_ceil(4) {
-                let name = format!("_PRT_V_{g}");
+                let name = name(g);
                 let acc = attrs
                     .get(&name)
                     .ok_or_else(|| bad(format!("no attribute {name}")))?;
@@ -907,11 +900,27 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
                 }
                 for p in 0..v {
                     for k in (0..4).filter(|k| 4 * g + k < n2) {
-                        vis[p * n2 + 4 * g + k] = vals[4 * p + k];
+                        out[p * n2 + 4 * g + k] = vals[4 * p + k];
                     }
                 }
             }
-            Some(vis)
+            Ok(out)
+        };
+        let mut transfer = Vec::new();
+        if lightmap.is_none() {
+            let per_channel: Vec<Vec<f32>> = (0..channels)
+                .map(|ch| groups(&|g| attribute_name(ch, g)))
+                .collect::<Result<_, _>>()?;
+            transfer = vec![0.0f32; v * channels * n2];
+            for (ch, rows) in per_channel.iter().enumerate() {
+                for p in 0..v {
+                    transfer[(p * channels + ch) * n2..][..n2]
+                        .copy_from_slice(&rows[p * n2..(p + 1) * n2]);
+                }
+            }
+        }
+        let visibility = if attrs.contains_key("_PRT_V_0") {
+            Some(groups(&|g| format!("_PRT_V_{g}"))?)
         } else {
             None
         };
