@@ -110,4 +110,4 @@ pub use input::{
     Surface, TransferView, Viewer, LOW_ORDER, MAX_FITTED_LOBES,
 };
 pub use kernel::BASE_ORDER;
-pub use relighter::{FrameLighting, Relighter};
+pub use relighter::{grid_locate, FrameLighting, Relighter};

@@ -483,26 +483,14 @@ pub(crate) fn specular_point<'a>(
         }
         SpecularLobe::Fitted(f) => {
             let theta_o = cos_o.min(1.0).acos();
-            // Interval and weight of `x` in increasing `grid` (clamped to its ends; a grid of
-            // one value is that value).
-            let locate = |grid: &[f32], x: f32| -> (usize, f32) {
-                if grid.len() < 2 || x <= grid[0] {
-                    (0, 0.0)
-                } else if x >= grid[grid.len() - 1] {
-                    (grid.len() - 2, 1.0)
-                } else {
-                    let i = grid.partition_point(|&g| g <= x) - 1;
-                    (i, (x - grid[i]) / (grid[i + 1] - grid[i]))
-                }
-            };
             let ne = f.elevations.len();
-            let (ie, te) = locate(f.elevations, theta_o);
+            let (ie, te) = grid_locate(f.elevations, theta_o);
             let rough = if f.point_roughness.len() == 1 {
                 f.point_roughness[0]
             } else {
                 f.point_roughness.get(p).copied().unwrap_or(0.0)
             };
-            let (ir, tr) = locate(f.roughness, rough);
+            let (ir, tr) = grid_locate(f.roughness, rough);
             // The table rows and bilinear weights of (roughness, θ_o).
             let r_next = usize::from(f.roughness.len() > 1);
             let rows = [
@@ -578,6 +566,22 @@ pub(crate) fn specular_point<'a>(
                 count: k,
             }
         }
+    }
+}
+
+/// The interval of `x` in the increasing `grid` and its linear weight there, as a
+/// [`FittedLobe`]'s rows are interpolated: `(i, t)` for the value `(1 − t)·v[i] + t·v[i+1]`,
+/// clamped to the grid's ends (`(0, 0)` below, `(len − 2, 1)` above; a grid of one value is
+/// `(0, 0)`, that value).
+#[must_use]
+pub fn grid_locate(grid: &[f32], x: f32) -> (usize, f32) {
+    if grid.len() < 2 || x <= grid[0] {
+        (0, 0.0)
+    } else if x >= grid[grid.len() - 1] {
+        (grid.len() - 2, 1.0)
+    } else {
+        let i = grid.partition_point(|&g| g <= x) - 1;
+        (i, (x - grid[i]) / (grid[i + 1] - grid[i]))
     }
 }
 

@@ -651,7 +651,9 @@ pub fn relight(
         // elevation and roughness reaches the threshold.
         let exact_points: Option<Vec<bool>> = match (opt.glossy, &fitted, &glossy, &exact_tables) {
             (GlossyPath::Hybrid { fit_error }, Some(f), Some(g), Some(_)) => {
-                let chosen: Vec<bool> = (0..points)
+                // Per point: shaded exactly, and facing the viewer (the others have no
+                // specular; the share is counted over those that do).
+                let (chosen, facing): (Vec<bool>, Vec<bool>) = (0..points)
                     .map(|p| {
                         let n = Vec3::from_array(normals[p]);
                         let wo = (Vec3::from_array(eye) - Vec3::from_array(positions[p]))
@@ -661,16 +663,13 @@ pub fn relight(
                         } else {
                             g.point_roughness[p]
                         };
-                        f.error_at(n.dot(wo), rough, &g.level_roughness) >= fit_error
+                        let cos_o = n.dot(wo);
+                        (
+                            f.error_at(cos_o, rough, &g.level_roughness) >= fit_error,
+                            cos_o > 0.0,
+                        )
                     })
-                    .collect();
-                // Counted over the points facing the viewer (the others have no specular).
-                let facing: Vec<bool> = (0..points)
-                    .map(|p| {
-                        let n = Vec3::from_array(normals[p]);
-                        n.dot(Vec3::from_array(eye) - Vec3::from_array(positions[p])) > 0.0
-                    })
-                    .collect();
+                    .unzip();
                 let front = facing.iter().filter(|&&f| f).count();
                 let k = chosen.iter().zip(&facing).filter(|(&c, &f)| c && f).count();
                 stats.notes.push(format!(
@@ -1225,23 +1224,9 @@ impl FittedF32 {
     /// The fit's relative L2 error at `cos θ_o` and roughness `rough` (levels
     /// `level_roughness`): bilinear between rows as the lobe rows are, clamped to the grid.
     fn error_at(&self, cos_o: f32, rough: f32, level_roughness: &[f32]) -> f32 {
-        let theta = cos_o
-            .clamp(-1.0, 1.0)
-            .acos()
-            .min(std::f32::consts::FRAC_PI_2);
-        let locate = |grid: &[f32], x: f32| -> (usize, f32) {
-            if grid.len() < 2 || x <= grid[0] {
-                (0, 0.0)
-            } else if x >= grid[grid.len() - 1] {
-                (grid.len() - 2, 1.0)
-            } else {
-                let i = grid.partition_point(|&g| g <= x) - 1;
-                (i, (x - grid[i]) / (grid[i + 1] - grid[i]))
-            }
-        };
         let ne = self.elevations.len();
-        let (ie, te) = locate(&self.elevations, theta);
-        let (ir, tr) = locate(level_roughness, rough);
+        let (ie, te) = prt_relight::grid_locate(&self.elevations, view_elevation(cos_o));
+        let (ir, tr) = prt_relight::grid_locate(level_roughness, rough);
         let next = usize::from(level_roughness.len() > 1);
         let row =
             |r: usize| self.error[r * ne + ie] * (1.0 - te) + self.error[r * ne + ie + 1] * te;
@@ -1250,20 +1235,22 @@ impl FittedF32 {
 
     /// `s̄_d` at `cos θ_o` (linear between rows, clamped to the ends).
     fn diffuse_fresnel_at(&self, cos_o: f32) -> f32 {
-        let theta = cos_o
-            .clamp(-1.0, 1.0)
-            .acos()
-            .min(std::f32::consts::FRAC_PI_2);
-        let e = &self.elevations;
+        let (i, t) = prt_relight::grid_locate(&self.elevations, view_elevation(cos_o));
         let v = &self.diffuse_fresnel;
-        if theta <= e[0] {
-            return v[0];
+        // The last row itself beyond it (not `a + (b − a)`, which may round off `b`).
+        if t == 1.0 {
+            v[i + 1]
+        } else {
+            v[i] + t * (v[i + 1] - v[i])
         }
-        if theta >= e[e.len() - 1] {
-            return v[v.len() - 1];
-        }
-        let i = e.partition_point(|&x| x <= theta) - 1;
-        let t = (theta - e[i]) / (e[i + 1] - e[i]);
-        v[i] + t * (v[i + 1] - v[i])
     }
+}
+
+/// The view elevation `θ_o` of `cos θ_o`, capped at the horizon (points facing away read the
+/// tables' last row).
+fn view_elevation(cos_o: f32) -> f32 {
+    cos_o
+        .clamp(-1.0, 1.0)
+        .acos()
+        .min(std::f32::consts::FRAC_PI_2)
 }
