@@ -772,3 +772,79 @@ bounces = 0
     let theirs = gltf_relight_agrees(&glb, &prt_csv, 5, dir.path());
     assert!(theirs.is_none_or(|t| t.len() == 2));
 }
+
+/// Bounced bakes (issue 30): with one or more bounces every object has three channels, and so
+/// do its visibility blocks (every channel the same, SPEC §3.4). The export's `_PRT_V_*` must
+/// be the visibility of each vertex's own point (channel 0), not the 3-channel block read with
+/// a 1-channel stride (which gave vertex `v` the visibility of point `⌊v/3⌋`). On the Phong
+/// wall and the Lambert floor of the tiny scene at 1 and 2 bounces, and on the textured `pbr`
+/// asset at 1 bounce: the visibility reads back bit for bit, and `tools/gltf_relight.py`
+/// relights the file alone to `prt relight --vertex-colours` within the f32 bound at every
+/// vertex.
+#[test]
+fn bounced_exports_relight_like_prt() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = write_scene(dir.path(), 6);
+    let box_textured = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/box_textured.toml");
+    for (scene, bounces, order) in [(&tiny, "1", 4), (&tiny, "2", 4), (&box_textured, "1", 4)] {
+        let name = format!(
+            "b{bounces}_{}",
+            scene.file_stem().unwrap().to_string_lossy()
+        );
+        let (bake_path, glb) = bake_and_export(
+            scene,
+            dir.path(),
+            &name,
+            &[
+                "--rays",
+                "32",
+                "--order",
+                &order.to_string(),
+                "--bounces",
+                bounces,
+            ],
+        );
+        assert_validates(&glb);
+        let bake = prt_bakefile::read_bake(&bake_path).unwrap();
+        let back = prt_report::export::read_export(&glb).unwrap();
+        let mut with_specular = 0;
+        for (e, o) in back.iter().zip(&bake.objects) {
+            assert_eq!(o.channels, 3, "{name} {}: a bounced object is RGB", o.name);
+            let n2 = (o.order * o.order) as usize;
+            let Some(vis) = o
+                .blocks
+                .iter()
+                .find(|b| b.kind == prt_bakefile::TransferKind::Visibility)
+            else {
+                assert!(e.visibility.is_none());
+                continue;
+            };
+            // Channel 0 of each point: the block repeats it in every channel.
+            let channel0: Vec<f32> = vis
+                .data
+                .chunks(3 * n2)
+                .flat_map(|p| {
+                    assert!(p[..n2] == p[n2..2 * n2] && p[..n2] == p[2 * n2..]);
+                    p[..n2].to_vec()
+                })
+                .collect();
+            if let Some(v) = &e.visibility {
+                assert!(v == &channel0, "{name} {}: visibility differs", o.name);
+                with_specular += 1;
+            }
+        }
+        assert!(
+            with_specular > 0,
+            "{name}: no object exported a specular lobe"
+        );
+        let prt_csv = dir.path().join(format!("{name}.csv"));
+        run(prt()
+            .arg("relight")
+            .arg(scene)
+            .arg("--bake")
+            .arg(&bake_path)
+            .arg("--vertex-colours")
+            .arg(&prt_csv));
+        gltf_relight_agrees(&glb, &prt_csv, order, dir.path());
+    }
+}

@@ -575,6 +575,7 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
                 &vd,
                 vis.map(|b| b.data.as_slice()),
                 v,
+                c,
                 n2,
                 &mut bin,
                 &mut attrs,
@@ -681,11 +682,13 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
 
 /// `extras.prt`'s `diffuse_fresnel`, `specular` and `view_dependent` of a per-vertex object
 /// (SPEC §10.1), adding the attributes they name (`vis`: the visibility block's rows, one per
-/// vertex, `n2` coefficients each).
+/// vertex, `channels × n2` coefficients each, `[channel][coefficient]` as the object has
+/// `channels`; the export writes channel 0, which every channel repeats: SPEC §3.4).
 fn view_extras(
     vd: &crate::relit::ViewDependent,
     vis: Option<&[f32]>,
     v: usize,
+    channels: usize,
     n2: usize,
     bin: &mut Bin,
     attrs: &mut serde_json::Map<String, Value>,
@@ -697,7 +700,9 @@ fn view_extras(
     // The visibility transfer, when there is a lobe to shade with it.
     let vis_names = match (&vd.specular, vis) {
         (Some(_), Some(vis)) => {
-            add_coefficient_groups(bin, attrs, vis, n2, 0, n2, v, |g| format!("_PRT_V_{g}"))
+            add_coefficient_groups(bin, attrs, vis, channels * n2, 0, n2, v, |g| {
+                format!("_PRT_V_{g}")
+            })
         }
         _ => Vec::new(),
     };
