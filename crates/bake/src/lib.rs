@@ -31,6 +31,7 @@
 pub mod brdf;
 pub mod compress;
 mod error;
+mod material;
 pub mod passes;
 pub mod plan;
 pub mod points;
@@ -42,6 +43,7 @@ pub mod texels;
 pub mod transfer;
 
 pub use error::BakeError;
+pub use material::material_binding;
 pub use passes::PassInput;
 pub use settings::{BakeSettings, PointKind, DEFAULT_PIXEL_SAMPLES, MAX_PIXEL_SAMPLES};
 
@@ -547,6 +549,7 @@ pub fn bake_pass(
                     plan,
                     mesh,
                     lightmap: lm,
+                    material: material_binding(scene, plan.mesh),
                     settings,
                     chain: &chain,
                     gs: &gs,
@@ -657,6 +660,7 @@ pub fn bake_pass(
                 blocks,
                 mesh: Some(mesh_geometry(mesh)),
                 coverage: None,
+                material: Some(material_binding(scene, plan.mesh)),
                 pass: None,
             });
         }
@@ -805,6 +809,7 @@ pub fn bake_pass(
                         })
                         .collect(),
                 }),
+                material: Some(material_binding(scene, plan.mesh)),
                 pass: None,
             });
         }
@@ -1154,6 +1159,8 @@ struct TexelBake<'a> {
     plan: &'a plan::ObjectPlan,
     mesh: &'a Mesh,
     lightmap: &'a texels::Lightmap,
+    /// What the object's material is (SPEC §3.9.1).
+    material: prt_bakefile::MaterialBinding,
     settings: &'a BakeSettings,
     chain: &'a [Vec<MeshTransfer>],
     gs: &'a GatherScene<'a>,
@@ -1283,6 +1290,7 @@ impl TexelBake<'_> {
                 pixel_samples: 1,
                 hits: rows.iter().map(|r| u32::from(r.is_some())).collect(),
             }),
+            material: Some(self.material.clone()),
             pass: None,
         };
         (object, report, stats, rays)

@@ -502,6 +502,7 @@ impl Step<'_> {
                 blocks,
                 mesh: Some(crate::mesh_geometry(mesh)),
                 coverage: None,
+                material: Some(crate::material_binding(self.scene, plan.mesh)),
                 pass: Some(prt_bakefile::PassState {
                     levels: levels.iter().map(|l| l[o].data.clone()).collect(),
                     partial: Some(level),

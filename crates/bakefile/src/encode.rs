@@ -255,6 +255,7 @@ fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
             blocks: blocks_json,
             mesh: mesh_json,
             coverage: coverage_json,
+            material: o.material.clone(),
         });
     }
 

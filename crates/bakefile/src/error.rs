@@ -148,6 +148,16 @@ pub enum BakeFileError {
     /// Shards cannot be merged.
     #[error("cannot merge shards: {0}")]
     Merge(String),
+    /// A file broke rule `rule` of SPEC.md §4 ("What a reader must check"): the error, with
+    /// the rule named after it.
+    #[error("{source} (SPEC §4 rule {rule})")]
+    Rule {
+        /// The rule's number in SPEC.md §4, 1 to 11.
+        rule: u8,
+        /// What was wrong.
+        #[source]
+        source: Box<BakeFileError>,
+    },
 }
 
 impl BakeFileError {
@@ -163,12 +173,53 @@ impl BakeFileError {
         }
     }
 
-    /// The error without its file context: `File { source, .. }` unwraps to `source`.
+    /// The error without its file context and rule: `File { source, .. }` and
+    /// `Rule { source, .. }` unwrap to `source`.
     #[must_use]
     pub fn root(&self) -> &BakeFileError {
         match self {
-            BakeFileError::File { source, .. } => source.root(),
+            BakeFileError::File { source, .. } | BakeFileError::Rule { source, .. } => {
+                source.root()
+            }
             e => e,
+        }
+    }
+
+    /// [`BakeFileError::root`] by value.
+    #[must_use]
+    pub fn into_root(self) -> BakeFileError {
+        match self {
+            BakeFileError::File { source, .. } | BakeFileError::Rule { source, .. } => {
+                source.into_root()
+            }
+            e => e,
+        }
+    }
+
+    /// The SPEC.md §4 rule the error breaks, when it is a refusal of a file's contents.
+    #[must_use]
+    pub fn rule(&self) -> Option<u8> {
+        match self {
+            BakeFileError::File { source, .. } => source.rule(),
+            BakeFileError::Rule { rule, .. } => Some(*rule),
+            _ => None,
+        }
+    }
+
+    /// Names rule `rule` of SPEC.md §4 after the error, unless it already names one (the
+    /// innermost, most specific, rule wins; a file context stays outermost).
+    #[must_use]
+    pub fn in_rule(self, rule: u8) -> Self {
+        match self {
+            e @ BakeFileError::Rule { .. } => e,
+            BakeFileError::File { path, source } => BakeFileError::File {
+                path,
+                source: Box::new(source.in_rule(rule)),
+            },
+            e => BakeFileError::Rule {
+                rule,
+                source: Box::new(e),
+            },
         }
     }
 }

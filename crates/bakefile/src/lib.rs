@@ -53,6 +53,7 @@ mod field;
 mod hash;
 mod io;
 mod layout;
+mod material;
 mod merge;
 mod meta;
 mod model;
@@ -67,6 +68,10 @@ pub use io::{read_bake, write_bake};
 pub use layout::{
     Tag, HEADER_SIZE, MAGIC, MUST_UNDERSTAND_FLAGS, PAYLOAD_ALIGNMENT, SECTION_ENTRY_SIZE,
     SECTION_FLAG_REQUIRED, VERSION_MAJOR, VERSION_MINOR,
+};
+pub use material::{
+    material_line, CookTorranceParams, LambertParams, LobeParams, MaterialBinding, MaterialModel,
+    MaterialSource, MirrorParams, PbrParams, RoughParams, Variation,
 };
 pub use merge::{merge, split};
 pub use meta::ShConvention;

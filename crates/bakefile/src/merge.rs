@@ -171,6 +171,7 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
             blocks,
             mesh: o0.mesh.clone(),
             coverage,
+            material: o0.material.clone(),
             pass: o0.pass.as_ref().map(|p0| merge_pass(p0, &parts)),
         });
     }
@@ -318,6 +319,7 @@ impl ObjectBake {
             blocks: Vec::new(),
             mesh: self.mesh.clone(),
             coverage: None,
+            material: self.material.clone(),
             pass: None,
         }
     }

@@ -65,6 +65,9 @@ pub(crate) struct ObjectJson {
     /// 1.1; absent in 1.0 files (read as `None`), always written.
     #[serde(default)]
     pub coverage: Option<CoverageJson>,
+    /// 1.2; absent in older files (read as `None`), always written.
+    #[serde(default)]
+    pub material: Option<crate::MaterialBinding>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -200,8 +203,9 @@ pub(crate) const MANDATORY_OBJECT_FIELDS: [&str; 8] = [
     "blocks",
 ];
 
-/// Checks that the metadata has every mandatory field (types are checked by parsing it).
-pub(crate) fn check_mandatory(value: &serde_json::Value) -> Result<(), BakeFileError> {
+/// Checks that the metadata of a file of minor version `minor` has every mandatory field
+/// (types are checked by parsing it): since 1.2 every object's `material` too.
+pub(crate) fn check_mandatory(value: &serde_json::Value, minor: u32) -> Result<(), BakeFileError> {
     let missing = |what: String| BakeFileError::Metadata(format!("missing mandatory field {what}"));
     let obj = value
         .as_object()
@@ -217,6 +221,11 @@ pub(crate) fn check_mandatory(value: &serde_json::Value) -> Result<(), BakeFileE
                 if o.get(f).is_none() {
                     return Err(missing(format!("`objects[{i}].{f}`")));
                 }
+            }
+            if minor >= 2 && o.get("material").is_none() {
+                return Err(missing(format!(
+                    "`objects[{i}].material` (format 1.2; null when unknown)"
+                )));
             }
         }
     }
@@ -239,5 +248,68 @@ pub(crate) fn agree<T: PartialEq + std::fmt::Debug>(
         Err(BakeFileError::Metadata(format!(
             "{field} is {json:?} in the JSON but {binary:?} in the binary tables"
         )))
+    }
+}
+
+/// Refuses metadata in which some JSON object has two members with the same key (SPEC.md §4
+/// rule 11): RFC 8259 leaves such a document's meaning to the parser (most keep the last,
+/// some the first), so two readers could read two different bakes from one file.
+pub(crate) fn check_unique_keys(bytes: &[u8]) -> Result<(), BakeFileError> {
+    use serde::de::DeserializeSeed;
+    let mut de = serde_json::Deserializer::from_slice(bytes);
+    UniqueKeys
+        .deserialize(&mut de)
+        .and_then(|()| de.end())
+        .map_err(|e| BakeFileError::Metadata(format!("not valid metadata JSON: {e}")))
+}
+
+/// A walk over any JSON value that fails on a repeated key.
+struct UniqueKeys;
+
+impl<'de> serde::de::DeserializeSeed<'de> for UniqueKeys {
+    type Value = ();
+    fn deserialize<D: serde::Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for UniqueKeys {
+    type Value = ();
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("a JSON value")
+    }
+    fn visit_bool<E>(self, _: bool) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_i64<E>(self, _: i64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_u64<E>(self, _: u64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_f64<E>(self, _: f64) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_str<E>(self, _: &str) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_unit<E>(self) -> Result<(), E> {
+        Ok(())
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        while seq.next_element_seed(UniqueKeys)?.is_some() {}
+        Ok(())
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        let mut seen = std::collections::BTreeSet::new();
+        while let Some(key) = map.next_key::<String>()? {
+            if !seen.insert(key.clone()) {
+                return Err(serde::de::Error::custom(format!(
+                    "the key {key:?} appears twice in one JSON object"
+                )));
+            }
+            map.next_value_seed(UniqueKeys)?;
+        }
+        Ok(())
     }
 }

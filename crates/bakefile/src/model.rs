@@ -536,6 +536,9 @@ pub struct ObjectBake {
     /// Per-pixel bakes: the object's coverage of each pixel held here (format 1.1; `None` in
     /// 1.0 files, never in per-vertex bakes).
     pub coverage: Option<Coverage>,
+    /// The material the object was baked for (format 1.2, SPEC.md §3.9.1; `None` in older
+    /// files, or when the writer did not know it).
+    pub material: Option<crate::MaterialBinding>,
     /// Intermediate files of a distributed bounced bake: what the next pass needs.
     pub pass: Option<PassState>,
 }
@@ -726,6 +729,15 @@ impl ReflectanceField {
     }
 }
 
+/// `"0x"` and 16 lower-case hexadecimal digits: how the metadata writes a geometry hash.
+fn is_hash_string(h: &str) -> bool {
+    h.len() == 18
+        && h.starts_with("0x")
+        && h[2..]
+            .bytes()
+            .all(|c| c.is_ascii_digit() || (b'a'..=b'f').contains(&c))
+}
+
 fn bad(msg: impl Into<String>) -> BakeFileError {
     BakeFileError::InvalidBake(msg.into())
 }
@@ -852,6 +864,47 @@ fn check_pass(
     Ok(())
 }
 
+/// The rules of an object's coverage (SPEC.md §3.11): per-pixel bakes, or per-texel with
+/// `K = 1`; one count per point held, each at most `K`.
+fn check_object_coverage(
+    o: &ObjectBake,
+    kind: SampleKind,
+    what: &str,
+) -> Result<(), BakeFileError> {
+    if let Some(c) = &o.coverage {
+        match kind {
+            SampleKind::Pixel { .. } => {}
+            SampleKind::Texel { .. } if c.pixel_samples == 1 => {}
+            SampleKind::Texel { .. } => {
+                return Err(bad(format!(
+                    "{what}: texel coverage with K = {} (texels have one sample)",
+                    c.pixel_samples
+                )))
+            }
+            SampleKind::Vertex => {
+                return Err(bad(format!("{what}: coverage in a per-vertex bake")))
+            }
+        }
+        if c.pixel_samples == 0 || c.hits.len() as u64 != o.points_in_file {
+            return Err(bad(format!(
+                "{what}: coverage of {} points with K = {} ({} points held)",
+                c.hits.len(),
+                c.pixel_samples,
+                o.points_in_file
+            )));
+        }
+        if let Some(p) = c.hits.iter().position(|&h| h > c.pixel_samples) {
+            return Err(bad(format!(
+                "{what}: point {} is hit by {} of {} footprint samples",
+                o.point_first + p as u64,
+                c.hits[p],
+                c.pixel_samples
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// The rules of an object's mesh (SPEC.md §3.10).
 fn check_mesh(o: &ObjectBake, kind: SampleKind, what: &str) -> Result<(), BakeFileError> {
     let Some(mesh) = &o.mesh else { return Ok(()) };
@@ -878,7 +931,7 @@ fn check_mesh(o: &ObjectBake, kind: SampleKind, what: &str) -> Result<(), BakeFi
     }
     let finite = |a: &[[f32; 3]]| a.iter().position(|p| !p.iter().all(|x| x.is_finite()));
     if let Some(i) = finite(&mesh.positions).or(finite(&mesh.normals)) {
-        return Err(bad(format!("{what}: mesh vertex {i} is not finite")));
+        return Err(bad(format!("{what}: mesh vertex {i} is not finite")).in_rule(10));
     }
     let length = |n: &[f32; 3]| n.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>().sqrt();
     if let Some(i) = mesh
@@ -905,7 +958,8 @@ fn check_mesh(o: &ObjectBake, kind: SampleKind, what: &str) -> Result<(), BakeFi
         return Err(bad(format!(
             "{what}: the mesh hashes to {h:#018x}, the object says {:#018x}",
             o.geometry_hash
-        )));
+        ))
+        .in_rule(10));
     }
     Ok(())
 }
@@ -954,6 +1008,100 @@ impl Bake {
             return Err(bad(
                 "camera values not finite, or fov_y outside (0, 180) degrees",
             ));
+        }
+        Ok(())
+    }
+
+    /// The `settings` fields a reader checks besides `lightmaps` and `reflectance` (SPEC.md
+    /// §3.9, §4 rule 11): `albedo_in_transfer` a boolean; `pixel_samples` absent from
+    /// per-vertex files, absent or 1 in per-texel ones, absent or an integer in
+    /// `1..=2³²−1` in per-pixel ones; `subdivide` and `subdivided_from` together, in
+    /// per-vertex files, naming the file's objects; a `pass` field only in a per-vertex file
+    /// without a reflectance field.
+    fn check_settings(&self) -> Result<(), BakeFileError> {
+        let m = &self.meta;
+        let s = &m.settings;
+        if s.get("albedo_in_transfer").is_some_and(|v| !v.is_boolean()) {
+            return Err(bad(format!(
+                "settings.albedo_in_transfer must be a boolean, not {}",
+                s["albedo_in_transfer"]
+            )));
+        }
+        let k = s.get("pixel_samples");
+        let k_ok = match (m.sample_kind, k) {
+            (_, None) => true,
+            (SampleKind::Vertex, Some(_)) => false,
+            (SampleKind::Texel { .. }, Some(v)) => v.as_u64() == Some(1),
+            (SampleKind::Pixel { .. }, Some(v)) => v
+                .as_u64()
+                .is_some_and(|k| (1..=u64::from(u32::MAX)).contains(&k)),
+        };
+        if !k_ok {
+            return Err(bad(format!(
+                "settings.pixel_samples {} in a {} bake (per-vertex: none; per-texel: 1; per-pixel: an integer 1 to 2^32-1)",
+                k.map_or_else(String::new, ToString::to_string),
+                match m.sample_kind {
+                    SampleKind::Vertex => "per-vertex",
+                    SampleKind::Pixel { .. } => "per-pixel",
+                    SampleKind::Texel { .. } => "per-texel",
+                }
+            )));
+        }
+        self.check_subdivide_settings()?;
+        if m.pass.is_some() && (m.sample_kind != SampleKind::Vertex || self.reflectance.is_some()) {
+            return Err(bad(
+                "a `pass` field outside a per-vertex intermediate file (it marks files with PASS sections)",
+            ));
+        }
+        Ok(())
+    }
+
+    /// `settings.subdivide` (`{"error": number > 0, "max_levels": integer}`) and
+    /// `settings.subdivided_from` (per object name of the file: `{"geometry_hash": "0x…",
+    /// "vertices", "triangles"}`, u32 integers) come together, in per-vertex bakes.
+    fn check_subdivide_settings(&self) -> Result<(), BakeFileError> {
+        let s = &self.meta.settings;
+        let (sub, from) = (s.get("subdivide"), s.get("subdivided_from"));
+        let (Some(sub), Some(from)) = (sub, from) else {
+            return if sub.is_some() || from.is_some() {
+                Err(bad(
+                    "settings.subdivide and settings.subdivided_from come together (one is missing)",
+                ))
+            } else {
+                Ok(())
+            };
+        };
+        let u32_of = |v: &serde_json::Value, k: &str| {
+            v.get(k)
+                .and_then(serde_json::Value::as_u64)
+                .is_some_and(|x| x <= u64::from(u32::MAX))
+        };
+        let error_ok = sub
+            .get("error")
+            .and_then(serde_json::Value::as_f64)
+            .is_some_and(|e| e > 0.0);
+        if self.meta.sample_kind != SampleKind::Vertex || !error_ok || !u32_of(sub, "max_levels") {
+            return Err(bad(format!(
+                "settings.subdivide {sub} must be {{\"error\": number > 0, \"max_levels\": integer}} in a per-vertex bake"
+            )));
+        }
+        let Some(from) = from.as_object() else {
+            return Err(bad("settings.subdivided_from must be an object"));
+        };
+        for (name, v) in from {
+            let hash_ok = v
+                .get("geometry_hash")
+                .and_then(serde_json::Value::as_str)
+                .is_some_and(is_hash_string);
+            if !self.objects.iter().any(|o| &o.name == name)
+                || !hash_ok
+                || !u32_of(v, "vertices")
+                || !u32_of(v, "triangles")
+            {
+                return Err(bad(format!(
+                    "settings.subdivided_from[{name:?}] = {v}: must name an object of the file, with a geometry hash \"0x\" + 16 hex digits and u32 vertices and triangles"
+                )));
+            }
         }
         Ok(())
     }
@@ -1043,13 +1191,7 @@ impl Bake {
         for (i, g) in geometry.iter().enumerate() {
             let name = g.get("object").and_then(serde_json::Value::as_str);
             let hash = g.get("geometry_hash").and_then(serde_json::Value::as_str);
-            let hash_ok = hash.is_some_and(|h| {
-                h.len() == 18
-                    && h.starts_with("0x")
-                    && h[2..]
-                        .bytes()
-                        .all(|c| c.is_ascii_digit() || (b'a'..=b'f').contains(&c))
-            });
+            let hash_ok = hash.is_some_and(is_hash_string);
             if !name.is_some_and(|n| !n.is_empty() && names.insert(n)) || !hash_ok {
                 return Err(bad(format!(
                     "settings.reflectance.geometry[{i}] must be {{\"object\": a unique name, \"geometry_hash\": \"0x\" + 16 lower-case hex digits}}: {g}"
@@ -1167,7 +1309,8 @@ impl Bake {
         self.check_camera()?;
         if let Some(r) = &self.reflectance {
             // (A view's skeleton carries the field's structure without its values.)
-            r.check(m.sample_kind, with_data)?;
+            r.check(m.sample_kind, with_data)
+                .map_err(|e| e.in_rule(9))?;
             if with_data {
                 // On the stored bits: no f32 copy of an f16 field.
                 if let Some(i) = r.values.first_breaking(Rule::Finite) {
@@ -1232,38 +1375,12 @@ impl Bake {
             if m.shard.count == 1 && (o.point_first != 0 || o.points_in_file != o.point_count) {
                 return Err(bad(format!("{what}: unsharded bake holds a partial range")));
             }
-            check_mesh(o, m.sample_kind, &what)?;
-            check_pass(o, m, &what, with_data)?;
-            if let Some(c) = &o.coverage {
-                match m.sample_kind {
-                    SampleKind::Pixel { .. } => {}
-                    SampleKind::Texel { .. } if c.pixel_samples == 1 => {}
-                    SampleKind::Texel { .. } => {
-                        return Err(bad(format!(
-                            "{what}: texel coverage with K = {} (texels have one sample)",
-                            c.pixel_samples
-                        )))
-                    }
-                    SampleKind::Vertex => {
-                        return Err(bad(format!("{what}: coverage in a per-vertex bake")))
-                    }
-                }
-                if c.pixel_samples == 0 || c.hits.len() as u64 != o.points_in_file {
-                    return Err(bad(format!(
-                        "{what}: coverage of {} points with K = {} ({} points held)",
-                        c.hits.len(),
-                        c.pixel_samples,
-                        o.points_in_file
-                    )));
-                }
-                if let Some(p) = c.hits.iter().position(|&h| h > c.pixel_samples) {
-                    return Err(bad(format!(
-                        "{what}: point {} is hit by {} of {} footprint samples",
-                        o.point_first + p as u64,
-                        c.hits[p],
-                        c.pixel_samples
-                    )));
-                }
+            // Cross-references and counts (SPEC.md §4 rule 9; values: rule 10).
+            check_mesh(o, m.sample_kind, &what).map_err(|e| e.in_rule(9))?;
+            check_pass(o, m, &what, with_data).map_err(|e| e.in_rule(9))?;
+            check_object_coverage(o, m.sample_kind, &what).map_err(|e| e.in_rule(9))?;
+            if let Some(material) = &o.material {
+                material.check(&o.name)?;
             }
             let expected_len = o.points_in_file.checked_mul(o.scalars_per_point());
             let mut kinds = BTreeSet::new();
@@ -1284,7 +1401,8 @@ impl Bake {
                         o.points_in_file,
                         o.scalars_per_point(),
                         &format!("{what} block {bi}"),
-                    )?;
+                    )
+                    .map_err(|e| e.in_rule(9))?;
                 }
                 if !with_data {
                     continue;
@@ -1319,13 +1437,15 @@ impl Bake {
                 if let Some((bi, p)) = found {
                     return Err(bad(format!(
                         "{what} block {bi}: transfer at point {p}, which its coverage says no sample hit"
-                    )));
+                    ))
+                    .in_rule(10));
                 }
             }
         }
-        self.check_coverage_sums()?;
-        self.check_lightmaps()?;
+        self.check_coverage_sums().map_err(|e| e.in_rule(9))?;
+        self.check_lightmaps().map_err(|e| e.in_rule(9))?;
         self.check_reflectance_settings()?;
+        self.check_settings()?;
         if let Some(env) = &self.environment {
             if env.order == 0 || env.order > u32::from(u16::MAX) {
                 return Err(bad(format!("environment order {}", env.order)));

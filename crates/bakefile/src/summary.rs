@@ -49,6 +49,31 @@ pub struct BlockSummary {
     pub nan_count: u64,
     /// Number of infinities (always 0 in a file).
     pub inf_count: u64,
+    /// How the block is stored: `None` as plain coefficients (the file's scalar type), else
+    /// its clustered PCA (SPEC.md §3.13); the statistics are of its reconstruction.
+    pub cpca: Option<CpcaSummary>,
+}
+
+/// A block stored as clustered PCA.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CpcaSummary {
+    /// Clusters `K`.
+    pub clusters: u32,
+    /// Basis vectors per cluster `M`.
+    pub components: u32,
+    /// Relative L2 error of the approximation, as the compressor measured it.
+    pub rel_error: f64,
+}
+
+/// A reflectance field (SPEC.md §3.14).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FieldSummary {
+    /// Lat-long directions `[W, H]` per pixel.
+    pub directions: [u32; 2],
+    /// Pixels held (those a surface covers).
+    pub pixels: u64,
+    /// Scalars stored (`3 · W · H · pixels`).
+    pub scalars: u64,
 }
 
 /// One object.
@@ -76,6 +101,8 @@ pub struct ObjectSummary {
     pub mesh: Option<MeshSummary>,
     /// Its per-pixel coverage (format 1.1 per-pixel bakes).
     pub coverage: Option<CoverageSummary>,
+    /// The material it was baked for (format 1.2), when the file says.
+    pub material: Option<crate::MaterialBinding>,
 }
 
 /// An object's mesh, in counts.
@@ -109,7 +136,8 @@ pub struct Summary {
     pub rays_per_point: u32,
     /// Bounces.
     pub bounces: u32,
-    /// Seed.
+    /// Seed; in JSON a decimal string, as in the file (exact where JSON numbers are doubles).
+    #[serde(serialize_with = "seed_string")]
     pub seed: u64,
     /// Shard.
     pub shard: ShardInfo,
@@ -129,6 +157,12 @@ pub struct Summary {
     pub camera: Option<CameraInfo>,
     /// Intermediate files of a distributed bake: which pass.
     pub pass: Option<crate::model::PassInfo>,
+    /// The reflectance field, when the file holds one.
+    pub reflectance: Option<FieldSummary>,
+}
+
+fn seed_string<S: serde::Serializer>(seed: &u64, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(&seed.to_string())
 }
 
 fn block_stats(values: impl Iterator<Item = f32>) -> (u64, Option<f32>, Option<f32>, u64, u64) {
@@ -203,6 +237,11 @@ fn summarise(
                             max,
                             nan_count,
                             inf_count,
+                            cpca: b.cpca.as_ref().map(|c| CpcaSummary {
+                                clusters: c.clusters,
+                                components: c.components,
+                                rel_error: c.rel_error,
+                            }),
                         }
                     })
                     .collect(),
@@ -217,6 +256,7 @@ fn summarise(
                     mean_coverage: c.hits.iter().map(|&h| f64::from(h)).sum::<f64>()
                         / (f64::from(c.pixel_samples) * c.hits.len().max(1) as f64),
                 }),
+                material: o.material.clone(),
             })
             .collect(),
         environment: bake.environment.as_ref().map(|e| (e.order, e.precision)),
@@ -232,6 +272,14 @@ fn summarise(
             .collect(),
         camera: m.camera.clone(),
         pass: m.pass.clone(),
+        reflectance: bake.reflectance.as_ref().map(|r| FieldSummary {
+            directions: r.directions,
+            pixels: r.pixels.len() as u64,
+            scalars: 3
+                * u64::from(r.directions[0])
+                * u64::from(r.directions[1])
+                * r.pixels.len() as u64,
+        }),
     }
 }
 

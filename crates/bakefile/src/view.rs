@@ -138,6 +138,8 @@ pub struct BakeView<'a> {
     coverages: Vec<Option<Coverage>>,
     passes: Vec<Option<PassState>>,
     cpcas: std::collections::BTreeMap<(usize, usize), Cpca>,
+    /// Per object, its material binding (1.2), from the metadata.
+    materials: Vec<Option<crate::MaterialBinding>>,
     environment: Option<EnvCoefficients>,
     brdfs: Vec<BrdfProjection>,
     glossy: Vec<GlossyBrdfTable>,
@@ -411,14 +413,14 @@ fn read_pass(p: &[u8], o: &ObjectInfo, name: &str) -> Result<PassState, BakeFile
             .map(|c| f32::from_bits(rd_u32(c, 0)))
             .collect()
     };
-    let totals = has_totals.then(|| {
+    let totals: Option<Vec<f64>> = has_totals.then(|| {
         take(totals_len)
             .chunks_exact(8)
             .map(|c| rd_f64(c, 0))
             .collect()
     });
     let level_len = n(vertices, 4);
-    let levels = (0..levels).map(|_| f32s(take(level_len))).collect();
+    let levels: Vec<Vec<f32>> = (0..levels).map(|_| f32s(take(level_len))).collect();
     let partial = has_partial.then(|| f32s(take(partial_len)));
     let hit_counts = has_hits.then(|| {
         take(counts_len)
@@ -440,6 +442,22 @@ fn read_pass(p: &[u8], o: &ObjectInfo, name: &str) -> Result<PassState, BakeFile
             format!("{name} flags"),
             "hit records without the records flag (bit 3)",
         ));
+    }
+    // Every number finite (SPEC.md §4 rule 10): totals, levels, the partial level, hits.
+    if let Some(t) = &totals {
+        crate::model::check_finite64(&format!("{name} totals"), t)?;
+    }
+    for l in levels.iter().chain(&partial) {
+        crate::model::check_finite32(&format!("{name} levels"), l)?;
+    }
+    if let Some(h) = hits
+        .iter()
+        .position(|h| !(h.u.is_finite() && h.v.is_finite()))
+    {
+        return Err(BakeFileError::NonFinite {
+            section: format!("{name} hits"),
+            index: h as u64,
+        });
     }
     Ok(PassState {
         levels,
@@ -550,13 +568,39 @@ fn sample_kind(code: u32, width: u32, height: u32) -> Result<SampleKind, BakeFil
     }
 }
 
+/// The rule of SPEC.md §4 that error `e`, raised while the checks of rule `phase` ran,
+/// breaks: a non-finite value is always rule 10, a length or truncation found while the
+/// tables and payloads are read (rule 9's phase) rule 8; otherwise the phase's rule.
+fn rule_of(e: &BakeFileError, phase: u8) -> u8 {
+    match e.root() {
+        BakeFileError::NonFinite { .. } => 10,
+        BakeFileError::Truncated { .. } if phase == 9 => 8,
+        BakeFileError::InconsistentCounts { what, .. } if phase == 9 && what.contains("length") => {
+            8
+        }
+        _ => phase,
+    }
+}
+
 impl<'a> BakeView<'a> {
     /// Validates `bytes` as a bake file (everything [`decode`] checks) without copying the
     /// coefficient arrays.
     ///
     /// # Errors
-    /// A typed [`BakeFileError`] for every way the bytes can be malformed.
+    /// A typed [`BakeFileError`] for every way the bytes can be malformed, wrapped in
+    /// [`BakeFileError::Rule`]: the rule of SPEC.md §4 it breaks.
     pub fn new(bytes: &'a [u8]) -> Result<Self, BakeFileError> {
+        let mut rule = 1;
+        Self::read(bytes, &mut rule).map_err(|e| {
+            let r = rule_of(&e, rule);
+            e.in_rule(r)
+        })
+    }
+
+    /// [`BakeView::new`], checking in the order of SPEC.md §4 and keeping in `rule` the rule
+    /// whose checks are running (each error names the rule it breaks: [`rule_of`]).
+    #[allow(clippy::too_many_lines)] // One pass down §4's list; each step is commented.
+    fn read(bytes: &'a [u8], rule: &mut u8) -> Result<Self, BakeFileError> {
         let len = bytes.len() as u64;
         // Magic, version, size: in this order, so that every prefix of a valid file is
         // reported as Truncated and every future major version as UnsupportedVersion.
@@ -566,6 +610,7 @@ impl<'a> BakeView<'a> {
                 found: head.to_vec(),
             });
         }
+        *rule = 2;
         if bytes.len() < HEADER_SIZE {
             return Err(BakeFileError::Truncated {
                 needed: HEADER_SIZE as u64,
@@ -580,6 +625,7 @@ impl<'a> BakeView<'a> {
                 supported: VERSION_MAJOR,
             });
         }
+        *rule = 3;
         let file_size = rd_u64(bytes, 24);
         if len < file_size {
             return Err(BakeFileError::Truncated {
@@ -590,6 +636,7 @@ impl<'a> BakeView<'a> {
         if len > file_size {
             return Err(inconsistent("file size (trailing bytes)", file_size, len));
         }
+        *rule = 4;
         let table_off = rd_u64(bytes, 32);
         let section_count = rd_u32(bytes, 40) as u64;
         let table_end = section_count
@@ -613,6 +660,7 @@ impl<'a> BakeView<'a> {
             });
         }
         // The header is now known to be what the writer wrote.
+        *rule = 5;
         let header_size = rd_u32(bytes, 16);
         if header_size as usize != HEADER_SIZE {
             return Err(inconsistent(
@@ -647,7 +695,8 @@ impl<'a> BakeView<'a> {
         let scalar = ScalarType::from_code(scalar_code)
             .ok_or_else(|| invalid("scalar type", format!("unknown code {scalar_code}")))?;
 
-        // Section table: bounds, alignment, flags, overlap, padding, checksums.
+        // Section table: tags, flags, alignment, bounds, overlap, padding, checksums.
+        *rule = 6;
         let mut sections = Vec::with_capacity(section_count as usize);
         for (i, e) in table_bytes.chunks_exact(SECTION_ENTRY_SIZE).enumerate() {
             let s = SectionEntry {
@@ -658,6 +707,17 @@ impl<'a> BakeView<'a> {
                 crc32: rd_u32(e, 24),
             };
             let name = section_name(s.tag, i);
+            // Printable ASCII, no space: a zeroed entry (a `section_count` one too many, over
+            // the padding) is not read as an empty optional section.
+            if !s.tag.0.iter().all(|b| (0x21..=0x7e).contains(b)) {
+                return Err(invalid(
+                    format!("section table entry {i}"),
+                    format!(
+                        "tag bytes {:02x?} are not four printable ASCII characters",
+                        s.tag.0
+                    ),
+                ));
+            }
             let unknown = s.flags & MUST_UNDERSTAND_FLAGS & !SECTION_FLAG_REQUIRED;
             if unknown != 0 {
                 return Err(BakeFileError::UnsupportedFlags {
@@ -729,6 +789,7 @@ impl<'a> BakeView<'a> {
         }
 
         // Find the sections by tag.
+        *rule = 7;
         let mut single: [(Tag, Option<usize>, bool); 9] = [
             (Tag::BINF, None, true),
             (Tag::STRS, None, true),
@@ -759,13 +820,18 @@ impl<'a> BakeView<'a> {
                 return Err(BakeFileError::MissingSection(tag.to_string()));
             }
         }
-        // A field must be marked REQUIRED (§3's table): a reader that skipped it unmarked
-        // would relight nothing and not know it.
-        if let Some(&(_, Some(i), _)) = single.iter().find(|(t, _, _)| *t == Tag::RFLD) {
-            if sections[i].flags & SECTION_FLAG_REQUIRED == 0 {
+        // Every section of §3's table but MESH and CVRG is REQUIRED: a reader that skipped
+        // an unmarked PASS, CPCA or RFLD would misread the file and not know it.
+        for (i, s) in sections.iter().enumerate() {
+            let known = single.iter().any(|(t, _, _)| *t == s.tag)
+                || [Tag::XFER, Tag::PASS, Tag::CPCA].contains(&s.tag);
+            if known && s.flags & SECTION_FLAG_REQUIRED == 0 {
                 return Err(invalid(
-                    "RFLD",
-                    "a reflectance field without the REQUIRED flag (SPEC §3)",
+                    section_name(s.tag, i),
+                    format!(
+                        "a {} section without the REQUIRED flag (every section of SPEC §3's table but MESH and CVRG carries it)",
+                        s.tag
+                    ),
                 ));
             }
         }
@@ -782,6 +848,9 @@ impl<'a> BakeView<'a> {
             get(4).unwrap_or_default(),
         );
 
+        // Each table and payload: lengths before use (rule 8), then cross-references and
+        // counts (rule 9); values' finiteness is rule 10 wherever it is checked.
+        *rule = 9;
         // BINF
         if binf.len() < BINF_SIZE {
             return Err(inconsistent(
@@ -1206,6 +1275,7 @@ impl<'a> BakeView<'a> {
         }
 
         // The coverage is the object's mask: no transfer where no sample hit it.
+        *rule = 10;
         for (oi, (o, coverage)) in objects.iter().zip(&coverages).enumerate() {
             let Some(c) = coverage else { continue };
             let per = usize::try_from(u64::from(o.channels) * u64::from(o.order).pow(2))
@@ -1237,9 +1307,11 @@ impl<'a> BakeView<'a> {
         }
 
         // META, and its agreement with everything above.
+        *rule = 11;
         let value: serde_json::Value = serde_json::from_slice(meta_bytes)
             .map_err(|e| BakeFileError::Metadata(format!("not valid JSON: {e}")))?;
-        check_mandatory(&value)?;
+        crate::meta::check_unique_keys(meta_bytes)?;
+        check_mandatory(&value, minor)?;
         let json: MetaJson = serde_json::from_value(value)
             .map_err(|e| BakeFileError::Metadata(format!("not valid metadata JSON: {e}")))?;
         agree("format", &json.format.as_str(), &FORMAT_NAME)?;
@@ -1374,6 +1446,7 @@ impl<'a> BakeView<'a> {
             brdfs,
             glossy,
             reflectance,
+            materials: json.objects.iter().map(|o| o.material.clone()).collect(),
         };
         // The semantic rules (unique names, shard ranges, ...), checked on a skeleton
         // without the coefficient data.
@@ -1417,6 +1490,7 @@ impl<'a> BakeView<'a> {
                         .collect(),
                     mesh: mesh.clone(),
                     coverage: coverage.clone(),
+                    material: self.materials[oi].clone(),
                     pass: pass.clone(),
                 })
                 .collect(),
@@ -1424,6 +1498,13 @@ impl<'a> BakeView<'a> {
             brdfs: self.brdfs.clone(),
             glossy: self.glossy.clone(),
         }
+    }
+
+    /// Object `i`'s material binding (format 1.2, SPEC.md §3.9.1): `None` when the file
+    /// does not say (older files, or a writer that did not know it).
+    #[must_use]
+    pub fn material(&self, i: usize) -> Option<&crate::MaterialBinding> {
+        self.materials.get(i).and_then(Option::as_ref)
     }
 
     /// The reflectance field (section `RFLD`), if the file holds one: a copy of its values in

@@ -16,7 +16,9 @@ fn err(bytes: &[u8]) -> BakeFileError {
     // The view must refuse exactly as decode does.
     let v = BakeView::new(bytes).expect_err("view accepted a corrupt file");
     assert_eq!(v.to_string(), e.to_string());
-    e
+    // Every refusal names the SPEC §4 rule it breaks.
+    assert!(e.rule().is_some(), "{e}");
+    e.into_root()
 }
 
 #[test]
@@ -125,7 +127,7 @@ fn test03_magic_and_version() {
         match err(&b) {
             BakeFileError::UnsupportedVersion {
                 major: m,
-                minor: 1,
+                minor: VERSION_MINOR,
                 supported: 1,
             } => assert_eq!(m, major),
             e => panic!("{e}"),
@@ -139,10 +141,10 @@ fn test03_magic_and_version() {
     let mut b = bytes.clone();
     let (off, len) = find(&b, b"META");
     let text = std::str::from_utf8(&b[off..off + len]).unwrap().to_owned();
-    let needle = "\"format_version\": [\n    1,\n    1\n  ]";
+    let needle = "\"format_version\": [\n    1,\n    2\n  ]";
     let at = off + text.find(needle).expect("pretty-printed version");
     let zero = at + needle.len() - 5;
-    assert_eq!(b[zero], b'1');
+    assert_eq!(b[zero], b'2');
     b[zero] = b'3';
     put_u32(&mut b, 12, 3);
     fix_crcs(&mut b);

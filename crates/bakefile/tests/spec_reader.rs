@@ -199,6 +199,7 @@ fn spec_read(bytes: &[u8]) -> Bake {
                 blocks,
                 mesh,
                 coverage,
+                material: None,
                 pass: None,
             }
         })

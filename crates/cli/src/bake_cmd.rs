@@ -462,6 +462,12 @@ fn print_summary(path: &std::path::Path, s: &Summary) -> Result<()> {
                 b.nan_count,
                 b.inf_count
             );
+            if let Some(c) = &b.cpca {
+                outln!(
+                    "      stored as clustered PCA: {} clusters × {} components, relative L2 error {:.3e}",
+                    c.clusters, c.components, c.rel_error
+                );
+            }
         }
         if let Some(r) = &o.ray_stats {
             outln!("    {r}");
@@ -472,9 +478,21 @@ fn print_summary(path: &std::path::Path, s: &Summary) -> Result<()> {
         if let Some(c) = &o.coverage {
             outln!("    {c}");
         }
+        if let Some(m) = &o.material {
+            outln!("    {}", prt_bakefile::material_line(m));
+        }
     }
     if let Some(c) = &s.camera {
         outln!("  {}", prt_bakefile::camera_line(c));
+    }
+    if let Some(r) = &s.reflectance {
+        outln!(
+            "  reflectance field: {} pixels × {}×{} directions ({} scalars)",
+            r.pixels,
+            r.directions[0],
+            r.directions[1],
+            r.scalars
+        );
     }
     if let Some(p) = &s.pass {
         outln!(

@@ -178,6 +178,7 @@ pub fn load_gltf(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErr
     order.sort_by_key(|(k, _)| *k);
     Ok(LoadedMeshes {
         meshes: order.into_iter().map(|(_, m)| m).collect(),
+        material_indices: out.materials.iter().map(|(i, _, _)| *i).collect(),
         materials: out.materials.into_iter().map(|(_, n, m)| (n, m)).collect(),
         textures: out.textures,
         warnings,

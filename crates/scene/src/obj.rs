@@ -92,6 +92,7 @@ pub fn load_obj(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErro
     Ok(LoadedMeshes {
         meshes: vec![mesh],
         materials: Vec::new(),
+        material_indices: Vec::new(),
         textures: Vec::new(),
         warnings: repairs.warnings(path),
     })

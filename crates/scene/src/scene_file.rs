@@ -269,7 +269,8 @@ pub fn parse_scene_str(text: &str, path: &Path) -> Result<LoadedScene, SceneErro
                     })
                 })
                 .collect();
-            for (name, mut m) in loaded.materials {
+            let indices = loaded.material_indices;
+            for (k, (name, mut m)) in loaded.materials.into_iter().enumerate() {
                 if let Material::Pbr {
                     base_color_texture,
                     metallic_roughness_texture,
@@ -288,7 +289,19 @@ pub fn parse_scene_str(text: &str, path: &Path) -> Result<LoadedScene, SceneErro
                     .iter()
                     .zip(&scene.materials)
                     .position(|(n, s)| *n == name && *s == m);
-                file_to_scene.push(found.unwrap_or_else(|| scene.add_material(&name, m)));
+                file_to_scene.push(found.unwrap_or_else(|| {
+                    let index = scene.add_material(&name, m);
+                    scene.material_sources[index] =
+                        indices
+                            .get(k)
+                            .copied()
+                            .flatten()
+                            .map(|material| crate::MaterialSource {
+                                asset: o.mesh.display().to_string(),
+                                material,
+                            });
+                    index
+                }));
             }
         }
         for mesh in loaded.meshes {

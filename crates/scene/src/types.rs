@@ -148,6 +148,16 @@ pub enum Material {
     },
 }
 
+/// The glTF asset a material came from (a bake records it, SPEC §3.9.1, so that an engine can
+/// find the asset's own textures and vertex colours).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MaterialSource {
+    /// The asset's path as the scene file names it (`[[objects]] mesh`).
+    pub asset: String,
+    /// Index of the material in the asset's `materials`.
+    pub material: usize,
+}
+
 /// A triangle mesh in world space (transform already applied).
 #[derive(Clone, Debug, Default)]
 pub struct Mesh {
@@ -219,6 +229,9 @@ pub struct Scene {
     pub textures: Vec<Texture>,
     /// Material names, parallel to `materials`.
     pub material_names: Vec<String>,
+    /// Where each material was defined, parallel to `materials`: `None` for the scene file's
+    /// own `[materials.*]`, else the glTF asset that brought it.
+    pub material_sources: Vec<Option<MaterialSource>>,
     /// Meshes in world space, one per `[[objects]]` entry (glTF files may add several).
     pub meshes: Vec<Mesh>,
     /// `[render]` defaults.
@@ -233,6 +246,9 @@ pub struct LoadedMeshes {
     /// Materials defined by the file (glTF only), `(name, material)`; their texture
     /// references index `textures`.
     pub materials: Vec<(String, Material)>,
+    /// Parallel to `materials`: each one's index in the glTF file's `materials` (`None` for
+    /// glTF's default material, used by primitives that name none).
+    pub material_indices: Vec<Option<usize>>,
     /// Textures of the file's materials (glTF only).
     pub textures: Vec<Texture>,
     /// Things a user should know; each names the file.

@@ -227,6 +227,7 @@ impl Scene {
             environment,
             materials: Vec::new(),
             material_names: Vec::new(),
+            material_sources: Vec::new(),
             textures: Vec::new(),
             meshes: Vec::new(),
             render: RenderSettings::default(),
@@ -237,6 +238,7 @@ impl Scene {
     pub fn add_material(&mut self, name: &str, material: Material) -> usize {
         self.materials.push(material);
         self.material_names.push(name.to_owned());
+        self.material_sources.push(None);
         self.materials.len() - 1
     }
 
@@ -307,10 +309,13 @@ impl Scene {
         if let Err(m) = check_environment(&self.environment) {
             return fail(format!("environment: {m}"));
         }
-        if self.material_names.len() != self.materials.len() {
+        if self.material_names.len() != self.materials.len()
+            || self.material_sources.len() != self.materials.len()
+        {
             return fail(format!(
-                "{} material names for {} materials",
+                "{} material names and {} sources for {} materials",
                 self.material_names.len(),
+                self.material_sources.len(),
                 self.materials.len()
             ));
         }

@@ -181,6 +181,7 @@ pub fn scene(
     Scene {
         camera,
         environment,
+        material_sources: vec![None; materials.len()],
         materials,
         material_names,
         meshes,

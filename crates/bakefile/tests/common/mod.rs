@@ -71,6 +71,7 @@ pub fn sample_bake() -> Bake {
                 .collect(),
             mesh: Some(mesh),
             coverage: None,
+            material: None,
             pass: None,
         }
     };
@@ -231,6 +232,7 @@ pub fn random_bake(r: &mut Pcg64) -> Bake {
                 blocks,
                 mesh: with_mesh.then_some(mesh),
                 coverage,
+                material: None,
                 pass: None,
             }
         })
