@@ -1028,8 +1028,11 @@ impl Bake {
             )));
         }
         let k = s.get("pixel_samples");
+        // Intermediate files of a distributed per-pixel bake are per-vertex but carry the
+        // final bake's settings.
         let k_ok = match (m.sample_kind, k) {
             (_, None) => true,
+            (SampleKind::Vertex, Some(_)) if m.pass.is_some() => true,
             (SampleKind::Vertex, Some(_)) => false,
             (SampleKind::Texel { .. }, Some(v)) => v.as_u64() == Some(1),
             (SampleKind::Pixel { .. }, Some(v)) => v

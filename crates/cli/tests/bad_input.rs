@@ -1734,7 +1734,7 @@ fn bake_file_rows() {
         inspect(
             "bake_future_major_version",
             "future_major_version.prtb",
-            &["unsupported format version 99.1"],
+            &["unsupported format version 99.2"],
         ),
         inspect("bake_missing_file", "missing.prtb", &["cannot read"]),
     ];
