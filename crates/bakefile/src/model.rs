@@ -1059,7 +1059,7 @@ impl Bake {
         Ok(())
     }
 
-    /// `settings.subdivide` (`{"error": number > 0, "max_levels": integer}`) and
+    /// `settings.subdivide` (`{"error": number ≥ 0, "max_levels": integer}`) and
     /// `settings.subdivided_from` (per object name of the file: `{"geometry_hash": "0x…",
     /// "vertices", "triangles"}`, u32 integers) come together, in per-vertex bakes.
     fn check_subdivide_settings(&self) -> Result<(), BakeFileError> {
@@ -1082,10 +1082,10 @@ impl Bake {
         let error_ok = sub
             .get("error")
             .and_then(serde_json::Value::as_f64)
-            .is_some_and(|e| e > 0.0);
+            .is_some_and(|e| e >= 0.0);
         if self.meta.sample_kind != SampleKind::Vertex || !error_ok || !u32_of(sub, "max_levels") {
             return Err(bad(format!(
-                "settings.subdivide {sub} must be {{\"error\": number > 0, \"max_levels\": integer}} in a per-vertex bake"
+                "settings.subdivide {sub} must be {{\"error\": number >= 0, \"max_levels\": integer}} in a per-vertex bake"
             )));
         }
         let Some(from) = from.as_object() else {
