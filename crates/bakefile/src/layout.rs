@@ -1,4 +1,4 @@
-//! Byte-level constants of format version 1.1: every number here is in SPEC.md.
+//! Byte-level constants of format version 1.2 (the binary layout of 1.1): every number here is in SPEC.md.
 
 /// The 8 magic bytes that open every bake file.
 pub const MAGIC: [u8; 8] = *b"PRTBAKE\0";

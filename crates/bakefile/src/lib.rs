@@ -1,4 +1,4 @@
-//! The binary file format of PRT bakes (`.prtb`), format version 1.1.
+//! The binary file format of PRT bakes (`.prtb`), format version 1.2 (SPEC.md).
 //!
 //! A bake file holds, per object of a scene, blocks of spherical-harmonic transfer
 //! coefficients (unshadowed, shadowed, visibility, interreflected), plus the environment

@@ -13,7 +13,7 @@
 
 mod common;
 
-use common::{prt, python_or_skip, run, write_scene};
+use common::{prt, python_or_skip, reflectance_file, run, write_scene};
 use prt_bakefile::{Bake, SampleKind};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -399,24 +399,6 @@ fn independent_reader_agrees_with_prt_on_every_bake_kind() {
         err.contains("damaged.prtb") && !err.contains("Traceback"),
         "{err}"
     );
-}
-
-/// `prt reflectance` on the tiny scene: an 8×4 grid of directions, one footprint sample, no
-/// bounces (SPEC §3.14).
-fn reflectance_file(scene: &Path, out: &Path, f16: bool) {
-    let mut cmd = prt();
-    cmd.arg("reflectance").arg(scene).args([
-        "--directions",
-        "8x4",
-        "--pixel-samples",
-        "1",
-        "--bounces",
-        "0",
-    ]);
-    if f16 {
-        cmd.arg("--f16");
-    }
-    run(cmd.arg("--out").arg(out));
 }
 
 fn le_u32(b: &[u8], at: usize) -> u32 {

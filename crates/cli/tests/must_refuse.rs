@@ -10,7 +10,7 @@
 
 mod common;
 
-use common::{prt, python_or_skip, run, write_scene};
+use common::{prt, python_or_skip, reflectance_file, run, write_scene};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -145,31 +145,13 @@ fn sources(dir: &Path) -> Sources {
         .arg(out("vertex.prtb"))
         .args(["--clusters", "2", "--out"])
         .arg(out("compressed.prtb")));
-    run(prt()
-        .arg("reflectance")
-        .arg(&scene)
-        .args([
-            "--directions",
-            "8x4",
-            "--pixel-samples",
-            "1",
-            "--bounces",
-            "0",
-            "--out",
-        ])
-        .arg(out("field.prtb")));
+    reflectance_file(&scene, &out("field.prtb"), false);
     Sources {
         vertex,
         pass0,
         compressed: std::fs::read(out("compressed.prtb")).unwrap(),
         field: std::fs::read(out("field.prtb")).unwrap(),
     }
-}
-
-/// Offset of the first f64 of the PASS section's totals, or of its first level's f32 when
-/// the section holds no totals (flags bit 1), and whether it is an f64.
-fn first_pass_value(pass: &[u8]) -> (usize, bool) {
-    (48, u32_at(pass, 12) & 2 != 0)
 }
 
 /// The issue's cases: what the independent reader refused and prt accepted. Each: name, the
@@ -196,12 +178,13 @@ fn issue_cases(s: &Sources) -> Vec<(&'static str, u8, Vec<u8>)> {
         (
             "pass_nan",
             10,
+            // The first value after the 48-byte header: an f64 total when flags bit 1 says
+            // the section holds totals, else the first f32 of level 0.
             edit_section(&s.pass0, b"PASS", |x| {
-                let (at, f64) = first_pass_value(&x.payload);
-                if f64 {
-                    x.payload[at..at + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+                if u32_at(&x.payload, 12) & 2 != 0 {
+                    x.payload[48..56].copy_from_slice(&f64::NAN.to_le_bytes());
                 } else {
-                    x.payload[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+                    x.payload[48..52].copy_from_slice(&f32::NAN.to_le_bytes());
                 }
             }),
         ),

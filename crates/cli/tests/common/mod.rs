@@ -192,3 +192,21 @@ pub fn python_or_skip() -> Option<String> {
     }
     ok.then_some(py)
 }
+
+/// `prt reflectance` on the tiny scene: an 8×4 grid of directions, one footprint sample, no
+/// bounces (SPEC §3.14).
+pub fn reflectance_file(scene: &Path, out: &Path, f16: bool) {
+    let mut cmd = prt();
+    cmd.arg("reflectance").arg(scene).args([
+        "--directions",
+        "8x4",
+        "--pixel-samples",
+        "1",
+        "--bounces",
+        "0",
+    ]);
+    if f16 {
+        cmd.arg("--f16");
+    }
+    run(cmd.arg("--out").arg(out));
+}
