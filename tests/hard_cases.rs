@@ -36,7 +36,7 @@ fn render_settings(scene: &Scene, spp: u32, bounces: i32, seed: u64) -> Vec<Vec3
 /// Pixels whose centre ray hits a mesh.
 fn object_pixels(scene: &Scene) -> Vec<bool> {
     let accel = Accel::build(scene).unwrap();
-    prt_report::object_mask(scene, &accel).unwrap()
+    prt_scene_relight::object_mask(scene, &accel).unwrap()
 }
 
 /// Per-vertex relit diffuse radiance (albedo/π) L·T of object `o`, first channel.
@@ -194,14 +194,14 @@ fn order_30_bakes_and_relights_finitely_and_agrees_with_order_20_on_a_smooth_sky
         }
     }
     let bake30 = out.bake.clone();
-    let opt = |order| prt_report::RelightOptions {
+    let opt = |order| prt_scene_relight::RelightOptions {
         order: Some(order),
         timing_frames: 1,
         warmup_frames: 0,
         ..Default::default()
     };
-    let r30 = prt_report::relight(&scene, &accel, &bake30, &opt(30)).unwrap();
-    let r20 = prt_report::relight(&scene, &accel, &bake30, &opt(20)).unwrap();
+    let r30 = prt_scene_relight::relight(&scene, &accel, &bake30, &opt(30)).unwrap();
+    let r20 = prt_scene_relight::relight(&scene, &accel, &bake30, &opt(20)).unwrap();
     let mut worst = 0.0f32;
     let mut mean = 0.0f32;
     let mut n = 0.0f32;

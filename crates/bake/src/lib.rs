@@ -28,18 +28,14 @@
 //! count and for sharded-then-merged bakes. Only what the scene needs is baked, and every
 //! such decision is written to the bake's metadata ([`plan`]).
 
-pub mod brdf;
 pub mod compress;
 mod error;
 mod material;
 pub mod passes;
 pub mod plan;
-pub mod points;
 pub mod reflectance;
-pub mod sequence;
 mod settings;
 pub mod subdivide;
-pub mod texels;
 pub mod transfer;
 
 pub use error::BakeError;
@@ -47,12 +43,12 @@ pub use material::material_binding;
 pub use passes::PassInput;
 pub use settings::{BakeSettings, PointKind, DEFAULT_PIXEL_SAMPLES, MAX_PIXEL_SAMPLES};
 
-use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use prt_bakefile::{
-    Bake, BakeMeta, CameraInfo, Coverage, Decision, EnvCoefficients, EnvPrecision, MeshGeometry,
-    ObjectBake, RayStats, SampleKind, ShardInfo, ToolInfo, TransferBlock, TransferKind,
+    Bake, BakeMeta, CameraInfo, Coverage, Decision, EnvCoefficients, EnvPrecision, ObjectBake,
+    RayStats, SampleKind, ShardInfo, ToolInfo, TransferBlock, TransferKind,
 };
+use prt_scene::binding::{geometry_hash, mesh_geometry};
 use prt_scene::{Camera, Mapping, Material, Mesh, Scene};
 use prt_sh::{Basis, EnvMapping, ImageRef};
 use prt_tracer::Accel;
@@ -263,7 +259,7 @@ pub fn bake_pass(
                     "width": width,
                     "height": height,
                     "uv_set": l.uv_set,
-                    "uv_hash": uv_hash(&scene.meshes[p.mesh].texcoords[l.uv_set]).to_string(),
+                    "uv_hash": prt_bakefile::uv_hash(&scene.meshes[p.mesh].texcoords[l.uv_set]).to_string(),
                 }),
                 None => serde_json::Value::Null,
             })
@@ -330,8 +326,8 @@ pub fn bake_pass(
     }
 
     // ---- Direct pass at vertices.
-    let vertex_points: Vec<Vec<points::SamplePoint>> = (0..scene.meshes.len())
-        .map(|m| points::vertex_points(scene, accel, m))
+    let vertex_points: Vec<Vec<prt_tracer::points::SamplePoint>> = (0..scene.meshes.len())
+        .map(|m| prt_tracer::points::vertex_points(scene, accel, m))
         .collect();
     let vertex_ranges: Vec<(u64, u64)> = vertex_points
         .iter()
@@ -671,7 +667,7 @@ pub fn bake_pass(
             height: h,
         };
         let k = settings.pixel_samples;
-        let footprints = points::pixel_footprints(scene, accel, settings.seed, k)?;
+        let footprints = prt_tracer::points::pixel_footprints(scene, accel, settings.seed, k)?;
         let (first, count) = shard_range(footprints.pixel_count() as u64, settings.shard);
         let channels = if bounces > 0 { 3 } else { 1 };
         let bar = progress(settings, count, "pixels");
@@ -836,10 +832,12 @@ pub fn bake_pass(
             .map(|p| p.order)
             .max()
             .unwrap_or(plan.order);
-        brdfs.extend(brdf::zonal_projection(&name, material, order));
+        brdfs.extend(prt_shading::projection::zonal_projection(
+            &name, material, order,
+        ));
         if let Material::Pbr { roughness, .. } = *material {
-            for c in brdf::PbrComponent::ALL {
-                let mut t = brdf::pbr_table(roughness, c, order);
+            for c in prt_shading::projection::PbrComponent::ALL {
+                let mut t = prt_shading::projection::pbr_table(roughness, c, order);
                 t.material = format!("{name}{}", c.suffix());
                 glossy.push(t);
             }
@@ -854,7 +852,7 @@ pub fn bake_pass(
             material,
             Material::BlinnPhong { .. } | Material::Ward { .. } | Material::CookTorrance { .. }
         ) {
-            let mut t = brdf::glossy_table(material, order);
+            let mut t = prt_shading::projection::glossy_table(material, order);
             t.material = name.clone();
             decisions.push(Decision {
                 object: None,
@@ -954,13 +952,6 @@ fn store(dst: &mut [f32], src: &[f64]) {
     dst.iter_mut().zip(src).for_each(|(d, s)| *d = *s as f32);
 }
 
-/// The geometry hash the bake file stores (FNV-1a of positions and indices, `prt_bakefile`).
-#[must_use]
-pub fn geometry_hash(positions: &[Vec3], indices: &[[u32; 3]]) -> u64 {
-    let p: Vec<[f32; 3]> = positions.iter().map(|v| v.to_array()).collect();
-    prt_bakefile::geometry_hash(&p, indices)
-}
-
 /// Diffuse radiance of every point of object `object` relit in f64 from the bake's own
 /// environment coefficients: `(albedo/π) Σ_{i<order²} L_i T_i` per channel, with `T` the
 /// object's interreflected (or else shadowed) diffuse transfer and `order` at most the baked
@@ -990,7 +981,8 @@ pub fn relit_diffuse(
             obj.order, env.order
         )));
     }
-    let block = diffuse_block(obj)
+    let block = obj
+        .diffuse_block()
         .ok_or_else(|| bad(format!("object {} has no diffuse transfer", obj.name)))?;
     let ch = obj.channels as usize;
     Ok((0..obj.points_in_file as usize)
@@ -1005,36 +997,6 @@ pub fn relit_diffuse(
             rgb
         })
         .collect())
-}
-
-/// The diffuse transfer block relighting uses: the interreflected one if the object has it,
-/// else the shadowed one.
-#[must_use]
-pub fn diffuse_block(obj: &ObjectBake) -> Option<&TransferBlock> {
-    obj.blocks
-        .iter()
-        .find(|b| matches!(b.kind, TransferKind::InterreflectedDiffuse { .. }))
-        .or_else(|| {
-            obj.blocks
-                .iter()
-                .find(|b| b.kind == TransferKind::ShadowedDiffuse)
-        })
-}
-
-/// The mesh section of a bake (SPEC §3.10): the world-space positions and triangles the
-/// geometry hash covers, and the unit normals the bake used at the vertices (the loader's
-/// normal, renormalised; +Y where it is degenerate, as [`points::vertex_points`] does).
-#[must_use]
-pub fn mesh_geometry(mesh: &Mesh) -> MeshGeometry {
-    MeshGeometry {
-        positions: mesh.positions.iter().map(|p| p.to_array()).collect(),
-        normals: mesh
-            .normals
-            .iter()
-            .map(|n| n.normalize_or(Vec3::Y).to_array())
-            .collect(),
-        triangles: mesh.indices.clone(),
-    }
 }
 
 /// The camera of a per-pixel bake (SPEC §3.9), as the renderer uses it.
@@ -1058,14 +1020,14 @@ fn lightmaps(
     plans: &[plan::ObjectPlan],
     settings: &BakeSettings,
     decisions: &mut Vec<Decision>,
-) -> Result<Vec<Option<texels::Lightmap>>, BakeError> {
+) -> Result<Vec<Option<prt_scene::lightmap::Lightmap>>, BakeError> {
     let PointKind::Texel { width, height } = settings.points else {
         return Ok(vec![None; plans.len()]);
     };
     let mut out = Vec::with_capacity(plans.len());
     for p in plans {
         let mesh = &scene.meshes[p.mesh];
-        match texels::lightmap(mesh, width, height) {
+        match prt_scene::lightmap::lightmap(mesh, width, height) {
             Ok(l) => {
                 let covered = l.covered();
                 if covered == 0 {
@@ -1090,7 +1052,7 @@ fn lightmaps(
                 });
                 out.push(Some(l));
             }
-            Err(texels::LightmapError::NoUvs) => {
+            Err(prt_scene::lightmap::LightmapError::NoUvs) => {
                 decisions.push(Decision {
                     object: Some(p.name.clone()),
                     decision: "per vertex".into(),
@@ -1112,18 +1074,6 @@ fn lightmaps(
         ));
     }
     Ok(out)
-}
-
-/// FNV-1a 64 of a UV set's bytes (little-endian f32 pairs): the `uv_hash` of a per-texel
-/// bake's `settings.lightmaps` (SPEC §3.9).
-#[must_use]
-pub fn uv_hash(uvs: &[[f32; 2]]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in uvs.iter().flatten().flat_map(|v| v.to_le_bytes()) {
-        h ^= u64::from(b);
-        h = h.wrapping_mul(0x0100_0000_01b3);
-    }
-    h
 }
 
 /// The blocks of a per-pixel or per-texel object, in block order: its diffuse transfer
@@ -1158,7 +1108,7 @@ struct TexelBake<'a> {
     accel: &'a Accel,
     plan: &'a plan::ObjectPlan,
     mesh: &'a Mesh,
-    lightmap: &'a texels::Lightmap,
+    lightmap: &'a prt_scene::lightmap::Lightmap,
     /// What the object's material is (SPEC §3.9.1).
     material: prt_bakefile::MaterialBinding,
     settings: &'a BakeSettings,
@@ -1193,7 +1143,7 @@ impl TexelBake<'_> {
             .map(|(k, t)| {
                 bar.inc(1);
                 let t = t.as_ref()?;
-                let point = points::SamplePoint {
+                let point = prt_tracer::points::SamplePoint {
                     position: t.position,
                     normal: t.normal,
                     offset_normal: t.geometric_normal,

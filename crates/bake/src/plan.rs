@@ -1,11 +1,11 @@
 //! What each object needs: its order and its transfer kinds, decided from its material and
 //! written down with the reason (the "model only what the scene needs" rule).
 
-use crate::brdf::glossy_table;
 use crate::settings::BakeSettings;
 use prt_bakefile::Decision;
 use prt_scene::{Material, Scene};
 use prt_sh::zonal;
+use prt_shading::projection::glossy_table;
 
 /// The baker's plan for one object (mesh).
 #[derive(Clone, Debug)]

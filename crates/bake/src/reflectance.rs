@@ -18,11 +18,11 @@
 //! lobes (mirrors) have no value at a grid direction: their reflections are not represented.
 
 use crate::error::BakeError;
-use crate::points::{pixel_footprints, SamplePoint};
 use glam::Vec3;
 use prt_bakefile::{FieldValues, ReflectanceField, ScalarType};
 use prt_scene::{Material, Scene};
 use prt_shading::{eval, sample};
+use prt_tracer::points::{pixel_footprints, SamplePoint};
 use prt_tracer::Accel;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;

@@ -61,8 +61,7 @@ pub struct BakeSettings {
 /// `crates/report/tests/per_pixel.rs`).
 pub const DEFAULT_PIXEL_SAMPLES: u32 = 16;
 
-/// Largest accepted sub-pixel sample count.
-pub const MAX_PIXEL_SAMPLES: u32 = 4096;
+pub use prt_tracer::points::MAX_PIXEL_SAMPLES;
 
 impl Default for BakeSettings {
     fn default() -> Self {
@@ -153,7 +152,7 @@ impl BakeSettings {
             }
         }
         if let PointKind::Texel { width, height } = self.points {
-            let max = crate::texels::MAX_LIGHTMAP_SIZE;
+            let max = prt_scene::lightmap::MAX_LIGHTMAP_SIZE;
             if width == 0 || height == 0 || width > max || height > max {
                 return bad(format!(
                     "lightmap of {width}×{height} texels: give a size between 1 and {max}"

@@ -18,12 +18,12 @@
 //! exactly: every new triangle lies in its parent's plane.
 
 use crate::plan::ObjectPlan;
-use crate::points::SamplePoint;
 use crate::transfer::{direct, DirectOptions};
 use crate::{BakeError, BakeSettings};
 use glam::Vec3;
 use prt_scene::{Mesh, Scene};
 use prt_sh::Basis;
+use prt_tracer::points::SamplePoint;
 use prt_tracer::{point_offset, Accel};
 use rayon::prelude::*;
 use std::collections::HashMap;

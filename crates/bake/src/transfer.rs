@@ -15,11 +15,11 @@
 //! intermediate surfaces are not represented). Rays that hit the back of a surface bring
 //! nothing (the transfer of `q` describes its front side) and are counted in the report.
 
-use crate::points::SamplePoint;
-use crate::sequence::{SequencePurpose, R2};
 use glam::Vec3;
 use prt_sh::Basis;
 use prt_shading::{sample_cosine_hemisphere, sample_uniform_hemisphere, Frame};
+use prt_tracer::points::SamplePoint;
+use prt_tracer::sequence::{SequencePurpose, R2};
 use prt_tracer::Accel;
 use std::f64::consts::PI;
 

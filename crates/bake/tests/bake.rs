@@ -434,7 +434,7 @@ fn pixel_bake_has_one_point_per_pixel_and_furnace_value() {
     };
     let out = bake(&scene, &accel, &settings).unwrap();
     assert_eq!(out.bake.meta.settings["pixel_samples"], k);
-    let fp = prt_bake::points::pixel_footprints(&scene, &accel, settings.seed, k).unwrap();
+    let fp = prt_tracer::points::pixel_footprints(&scene, &accel, settings.seed, k).unwrap();
     let radiance = relit(&out, 0, 1.0);
     let (mut partial, mut inward) = (0, 0);
     for (px, c) in radiance.iter().enumerate() {

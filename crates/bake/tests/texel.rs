@@ -107,7 +107,7 @@ fn texel_transfer_under_a_rectangle_matches_the_form_factor() {
         .iter()
         .find(|b| b.kind == TransferKind::ShadowedDiffuse)
         .unwrap();
-    let lm = prt_bake::texels::lightmap(&s.meshes[0], size, size).unwrap();
+    let lm = prt_scene::lightmap::lightmap(&s.meshes[0], size, size).unwrap();
     // Per texel: the fraction p = 1 − F of cosine-weighted rays that escape is estimated from
     // `rays` rays; as independent draws its standard error is √(p(1−p)/N) (the R2 sequence
     // does better). Allow 5 of those per texel (over 1024 texels a chance below 1e-3 for
@@ -179,7 +179,7 @@ fn lightmap_problems_are_errors_naming_the_object() {
     // An impossible size.
     let s = scene(vec![square(-1.0, 1.0, 0.0, true, true)]);
     let accel = Accel::build(&s).unwrap();
-    for size in [0, prt_bake::texels::MAX_LIGHTMAP_SIZE + 1] {
+    for size in [0, prt_scene::lightmap::MAX_LIGHTMAP_SIZE + 1] {
         let e = bake(&s, &accel, &settings(size, 16)).unwrap_err();
         assert!(e.to_string().contains("lightmap of"), "{e}");
     }

@@ -1,4 +1,5 @@
-//! The geometry hash that ties a bake to the mesh it was baked on.
+//! The hashes that tie a bake to the mesh it was baked on: the geometry hash (every object)
+//! and the UV hash of a per-texel object's lightmap UVs.
 
 const FNV_OFFSET_BASIS: u64 = 0xcbf2_9ce4_8422_2325;
 const FNV_PRIME: u64 = 0x0000_0100_0000_01b3;
@@ -29,6 +30,15 @@ pub fn geometry_hash(positions: &[[f32; 3]], indices: &[[u32; 3]]) -> u64 {
         }
     }
     hash
+}
+
+/// FNV-1a 64 of a UV set's bytes (the little-endian bytes of `u, v` of vertex 0, then vertex
+/// 1, ...): the `uv_hash` of a per-texel bake's `settings.lightmaps` (SPEC §3.9.2).
+#[must_use]
+pub fn uv_hash(uvs: &[[f32; 2]]) -> u64 {
+    uvs.iter()
+        .flatten()
+        .fold(FNV_OFFSET_BASIS, |h, v| fnv1a(h, &v.to_le_bytes()))
 }
 
 #[cfg(test)]
@@ -64,6 +74,15 @@ mod tests {
         // -0.0 is not 0.0.
         let neg = [[-0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
         assert_ne!(geometry_hash(&neg, &idx), SPEC_EXAMPLE);
+    }
+
+    #[test]
+    fn uv_hash_is_over_the_uv_bytes() {
+        let uvs = [[0.25f32, 0.5], [1.0, 0.0]];
+        let bytes: Vec<u8> = uvs.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+        assert_eq!(uv_hash(&uvs), fnv1a(FNV_OFFSET_BASIS, &bytes));
+        assert_eq!(uv_hash(&[]), FNV_OFFSET_BASIS);
+        assert_ne!(uv_hash(&[[0.5, 0.25], [1.0, 0.0]]), uv_hash(&uvs));
     }
 
     const SPEC_EXAMPLE: u64 = 0x8810_ae12_e1b0_c5a6;

@@ -63,7 +63,7 @@ mod view;
 pub use encode::encode;
 pub use error::BakeFileError;
 pub use field::FieldValues;
-pub use hash::geometry_hash;
+pub use hash::{geometry_hash, uv_hash};
 pub use io::{read_bake, write_bake};
 pub use layout::{
     Tag, HEADER_SIZE, MAGIC, MUST_UNDERSTAND_FLAGS, PAYLOAD_ALIGNMENT, SECTION_ENTRY_SIZE,

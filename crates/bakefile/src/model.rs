@@ -544,6 +544,20 @@ pub struct ObjectBake {
 }
 
 impl ObjectBake {
+    /// The diffuse transfer block relighting uses (SPEC §10): the first interreflected block
+    /// in block order if the object has one, else the shadowed one.
+    #[must_use]
+    pub fn diffuse_block(&self) -> Option<&TransferBlock> {
+        self.blocks
+            .iter()
+            .find(|b| matches!(b.kind, TransferKind::InterreflectedDiffuse { .. }))
+            .or_else(|| {
+                self.blocks
+                    .iter()
+                    .find(|b| b.kind == TransferKind::ShadowedDiffuse)
+            })
+    }
+
     /// Scalars per point of every block: `channels × order²`.
     #[must_use]
     pub fn scalars_per_point(&self) -> u64 {

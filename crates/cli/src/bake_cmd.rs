@@ -696,9 +696,9 @@ pub struct ExportArgs {
 pub fn run_export(args: &ExportArgs) -> Result<()> {
     let scene = crate::common::load_scene(&args.scene)?;
     let bake = prt_bakefile::read_bake(&args.bake)?;
-    prt_report::check_bake(&scene, &bake, &args.bake)?;
-    let scene = prt_report::baked_scene(&scene, &bake)?;
-    let summary = prt_report::export::export_glb(&scene, &bake, &args.out)
+    prt_scene_relight::check_bake(&scene, &bake, &args.bake)?;
+    let scene = prt_scene_relight::baked_scene(&scene, &bake)?;
+    let summary = prt_gltf::export_glb(&scene, &bake, &args.out)
         .with_context(|| format!("{}: cannot export", args.bake.display()))?;
     if args.json {
         outln!("{}", serde_json::to_string(&summary)?);

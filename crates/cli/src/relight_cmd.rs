@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use prt_relight::{AdaptiveParams, StopRule, Threshold, MAX_COST_EXPONENT};
-use prt_report::{RelightOptions, RelightStats};
+use prt_scene_relight::{RelightOptions, RelightStats};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -131,7 +131,7 @@ pub struct RelightArgs {
     pub verify: bool,
 }
 
-/// `--glossy` values (see [`prt_report::GlossyPath`]).
+/// `--glossy` values (see [`prt_scene_relight::GlossyPath`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum GlossyArg {
     /// Zonal fit per view elevation (fast).
@@ -191,9 +191,9 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             args.bake.display()
         );
     }
-    prt_report::check_bake(&scene, &bake, &args.bake)?;
+    prt_scene_relight::check_bake(&scene, &bake, &args.bake)?;
     // Subdivided objects relight on the bake's refined meshes.
-    let scene = prt_report::baked_scene(&scene, &bake)?;
+    let scene = prt_scene_relight::baked_scene(&scene, &bake)?;
     let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
     let adaptive = args.adaptive.then(|| AdaptiveParams {
         stop: match args.stop {
@@ -234,8 +234,8 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         rotate_y_step_deg: 0.0,
         points: None,
         glossy: match args.glossy {
-            GlossyArg::Fitted => prt_report::GlossyPath::Fitted,
-            GlossyArg::Exact => prt_report::GlossyPath::Exact,
+            GlossyArg::Fitted => prt_scene_relight::GlossyPath::Fitted,
+            GlossyArg::Exact => prt_scene_relight::GlossyPath::Exact,
             GlossyArg::Hybrid => {
                 if !(args.fit_error >= 0.0 && args.fit_error.is_finite()) {
                     bail!(
@@ -243,24 +243,24 @@ pub fn run(args: &RelightArgs) -> Result<()> {
                         args.fit_error
                     );
                 }
-                prt_report::GlossyPath::Hybrid {
+                prt_scene_relight::GlossyPath::Hybrid {
                     fit_error: args.fit_error,
                 }
             }
         },
     };
-    let relit = prt_report::relight(&scene, &accel, &bake, &opt)?;
+    let relit = prt_scene_relight::relight(&scene, &accel, &bake, &opt)?;
     let full_stats: Option<RelightStats> = if args.adaptive {
         let full = RelightOptions {
             adaptive: None,
             ..opt.clone()
         };
-        Some(prt_report::relight(&scene, &accel, &bake, &full)?.stats)
+        Some(prt_scene_relight::relight(&scene, &accel, &bake, &full)?.stats)
     } else {
         None
     };
     let t = Instant::now();
-    let image = prt_report::form_image(&scene, &accel, &relit, args.rotate_y)?;
+    let image = prt_scene_relight::form_image(&scene, &accel, &relit, args.rotate_y)?;
     let image_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut attrs = vec![
         ("kind", "relit".to_string()),
@@ -272,14 +272,14 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         attrs.push(("threshold", t.to_string()));
     }
     if let Some(p) = &args.out {
-        prt_report::io::write_exr(p, &image, &attrs)?;
+        prt_scene_relight::io::write_exr(p, &image, &attrs)?;
     }
     if let Some(p) = &args.png {
-        prt_report::io::write_png(p, &image, args.exposure)?;
+        prt_scene_relight::io::write_png(p, &image, args.exposure)?;
     }
     if let Some(p) = &args.roi_png {
-        let roi = prt_report::roi_image(&scene, &accel, &relit)?;
-        prt_report::io::write_png(p, &roi, 0.0)?;
+        let roi = prt_scene_relight::roi_image(&scene, &accel, &relit)?;
+        prt_scene_relight::io::write_png(p, &roi, 0.0)?;
     }
     if let Some(p) = &args.vertex_colours {
         write_point_colours(p, &bake, &relit.radiance)?;
@@ -291,7 +291,11 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         // work only (rotation, light product matrices, shading), not loading or setup.
         opt.timing_frames = args.frames;
         opt.rotate_y_step_deg = args.rotate_y_step;
-        fps = Some(prt_report::relight(&scene, &accel, &bake, &opt)?.stats.fps);
+        fps = Some(
+            prt_scene_relight::relight(&scene, &accel, &bake, &opt)?
+                .stats
+                .fps,
+        );
     }
     let s = &relit.stats;
     if args.json {
@@ -450,7 +454,7 @@ fn run_field(
     let (mut frames, stats) =
         prt_report::reflectance::relight_field_frames(scene, &accel, bake, field, &opt, &angles)?;
     let flicker = if frames.len() > 2 {
-        let mask = prt_report::object_mask(scene, &accel)?;
+        let mask = prt_scene_relight::object_mask(scene, &accel)?;
         prt_report::reflectance::flicker(&frames, &mask)
     } else {
         None
@@ -461,10 +465,10 @@ fn run_field(
         ("rotate_y", args.rotate_y.to_string()),
     ];
     if let Some(p) = &args.out {
-        prt_report::io::write_exr(p, &image, &attrs)?;
+        prt_scene_relight::io::write_exr(p, &image, &attrs)?;
     }
     if let Some(p) = &args.png {
-        prt_report::io::write_png(p, &image, args.exposure)?;
+        prt_scene_relight::io::write_png(p, &image, args.exposure)?;
     }
     if args.json {
         let mut v = serde_json::to_value(&stats)?;
@@ -541,7 +545,7 @@ fn run_target(
     adaptive: AdaptiveParams,
     target: f64,
 ) -> Result<()> {
-    let opt = prt_report::target::TargetOptions {
+    let opt = prt_scene_relight::target::TargetOptions {
         order: args.order,
         adaptive,
         target_psnr: target,
@@ -553,7 +557,7 @@ fn run_target(
         warmup_frames: 1,
         verify: args.verify,
     };
-    let study = prt_report::target::relight_to_target(scene, accel, bake, &opt)
+    let study = prt_scene_relight::target::relight_to_target(scene, accel, bake, &opt)
         .with_context(|| format!("{}", args.bake.display()))?;
     if args.json {
         outln!("{}", serde_json::to_string(&study)?);

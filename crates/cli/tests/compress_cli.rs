@@ -29,10 +29,7 @@ fn compress_relight_and_refusals() {
     let full = prt_bakefile::read_bake(&bake).unwrap();
     let comp = prt_bakefile::read_bake(&small).unwrap();
     for (b, (fo, co)) in blocks.iter().zip(full.objects.iter().zip(&comp.objects)) {
-        let (fb, cb) = (
-            prt_bake::diffuse_block(fo).unwrap(),
-            prt_bake::diffuse_block(co).unwrap(),
-        );
+        let (fb, cb) = (fo.diffuse_block().unwrap(), co.diffuse_block().unwrap());
         let cpca = cb.cpca.as_ref().expect("the diffuse block is compressed");
         let num: f64 = fb
             .data

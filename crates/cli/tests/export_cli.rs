@@ -87,15 +87,20 @@ fn glb_parts(glb: &Path) -> (serde_json::Value, Vec<u8>) {
     (doc, bytes[20 + len + 8..].to_vec())
 }
 
-/// `prt_report::relight` of `bake` in this process (default options), with the BVH for
+/// `prt_scene_relight::relight` of `bake` in this process (default options), with the BVH for
 /// image formation.
 fn relit_here(
     scene: &prt_scene::Scene,
     bake: &prt_bakefile::Bake,
-) -> (prt_tracer::Accel, prt_report::Relit) {
+) -> (prt_tracer::Accel, prt_scene_relight::Relit) {
     let accel = prt_tracer::Accel::build(scene).unwrap();
-    let relit =
-        prt_report::relight(scene, &accel, bake, &prt_report::RelightOptions::default()).unwrap();
+    let relit = prt_scene_relight::relight(
+        scene,
+        &accel,
+        bake,
+        &prt_scene_relight::RelightOptions::default(),
+    )
+    .unwrap();
     (accel, relit)
 }
 
@@ -122,7 +127,7 @@ fn export_validates_reads_back_and_relights() {
         );
 
         // Read back: the same positions and transfer, bit for bit.
-        let back = prt_report::export::read_export(&glb).unwrap();
+        let back = prt_gltf::read_export(&glb).unwrap();
         let b = prt_bakefile::read_bake(&bake).unwrap();
         assert_eq!(back.len(), b.objects.len());
         for (e, o) in back.iter().zip(&b.objects) {
@@ -132,7 +137,7 @@ fn export_validates_reads_back_and_relights() {
                 (o.order as usize, o.channels as usize)
             );
             assert_eq!(e.positions, o.mesh.as_ref().unwrap().positions);
-            let block = prt_bake::diffuse_block(o).unwrap();
+            let block = o.diffuse_block().unwrap();
             assert!(
                 e.transfer == block.data,
                 "{}: transfer differs after the round trip",
@@ -326,7 +331,7 @@ fn textured_asset_export_relights_like_prt() {
         &["--rays", "32", "--order", "4", "--bounces", "0"],
     );
     assert_validates(&glb);
-    let back = prt_report::export::read_export(&glb).unwrap();
+    let back = prt_gltf::read_export(&glb).unwrap();
     let bake = prt_bakefile::read_bake(&bake_path).unwrap();
     let boxed = back
         .iter()
@@ -364,7 +369,7 @@ fn textured_asset_export_relights_like_prt() {
     // The asset's own material travels too: its base-colour texture (the scene's texels after
     // the 8-bit round trip), its wrap modes and the UV set it reads, bit for bit.
     let scene = prt_scene::load_scene(&scene_path).unwrap().scene;
-    let scene = prt_report::baked_scene(&scene, &bake).unwrap();
+    let scene = prt_scene_relight::baked_scene(&scene, &bake).unwrap();
     let o = bake
         .objects
         .iter()
@@ -446,7 +451,7 @@ fn textured_asset_export_relights_like_prt() {
     assert_eq!(theirs.len(), back.len());
     let (accel, mut relit) = relit_here(&scene, &bake);
     let prt_colours = read_colours(&prt_csv);
-    let prt_img = prt_report::form_image(&scene, &accel, &relit, 0.0).unwrap();
+    let prt_img = prt_scene_relight::form_image(&scene, &accel, &relit, 0.0).unwrap();
     let (mut vertex_peak, mut worst) = (0.0f64, 0.0f64);
     for (o, obj) in bake.objects.iter().enumerate() {
         let a = &theirs[&obj.name];
@@ -461,7 +466,7 @@ fn textured_asset_export_relights_like_prt() {
     // The image: each pixel interpolates its triangle's vertex radiance with weights summing to
     // one, so the two images differ by no more than the vertices do (plus the f32 rounding of
     // the interpolation, a few u of the peak).
-    let theirs_img = prt_report::form_image(&scene, &accel, &relit, 0.0).unwrap();
+    let theirs_img = prt_scene_relight::form_image(&scene, &accel, &relit, 0.0).unwrap();
     let max_diff = theirs_img
         .pixels
         .iter()
@@ -497,21 +502,21 @@ fn lightmap_export_validates_and_relights_like_prt() {
         &["--rays", "64", "--order", "3", "--per-texel", "48"],
     );
     assert_validates(&glb);
-    let back = prt_report::export::read_export(&glb).unwrap();
+    let back = prt_gltf::read_export(&glb).unwrap();
     let bake = prt_bakefile::read_bake(&bake_path).unwrap();
     let scene = prt_scene::load_scene(&scene_path).unwrap().scene;
-    let lightmaps = prt_report::relit::lightmaps(&scene, &bake).unwrap();
+    let lightmaps = prt_scene_relight::relit::lightmaps(&scene, &bake).unwrap();
     // The bunny (no UVs) stays per vertex, bit for bit.
     let bunny = &back[0];
     assert!(bunny.lightmap.is_none());
-    assert!(bunny.transfer == prt_bake::diffuse_block(&bake.objects[0]).unwrap().data);
+    assert!(bunny.transfer == bake.objects[0].diffuse_block().unwrap().data);
     // The floor: its covered texels (bake point k is texel k) within half a step.
     let floor = &back[1];
     let lm = floor.lightmap.as_ref().expect("the floor is lightmapped");
     let ours = lightmaps[1].as_ref().unwrap();
     assert_eq!((lm.width, lm.height), (48, 48));
     assert_eq!(lm.uvs.len(), floor.positions.len());
-    let data = &prt_bake::diffuse_block(&bake.objects[1]).unwrap().data;
+    let data = &bake.objects[1].diffuse_block().unwrap().data;
     let (c, n2) = (floor.channels, floor.order * floor.order);
     let row = c * n2;
     let mut k = 0;
@@ -607,9 +612,9 @@ fn lightmap_export_validates_and_relights_like_prt() {
     all.texels = vec![Some(any); all.texels.len()];
     relit.lightmaps[1] = Some(all);
     relit.radiance[1] = texel_radiance;
-    let engine = prt_report::form_image(&scene, &accel, &relit, 0.0).unwrap();
+    let engine = prt_scene_relight::form_image(&scene, &accel, &relit, 0.0).unwrap();
     let engine_path = dir.path().join("engine.exr");
-    prt_report::io::write_exr(&engine_path, &engine, &[]).unwrap();
+    prt_scene_relight::io::write_exr(&engine_path, &engine, &[]).unwrap();
     let psnr = common::psnr_ldr(&engine_path, &image);
     eprintln!("engine-style lookup of the export against prt relight: {psnr:.2} dB");
     assert!(psnr > 40.0, "{psnr}");
@@ -806,7 +811,7 @@ fn bounced_exports_relight_like_prt() {
         );
         assert_validates(&glb);
         let bake = prt_bakefile::read_bake(&bake_path).unwrap();
-        let back = prt_report::export::read_export(&glb).unwrap();
+        let back = prt_gltf::read_export(&glb).unwrap();
         let mut with_specular = 0;
         for (e, o) in back.iter().zip(&bake.objects) {
             assert_eq!(o.channels, 3, "{name} {}: a bounced object is RGB", o.name);

@@ -251,7 +251,7 @@ fn check_relight(py: &str, scene: &Path, file: &Path, object: &str, albedo: [f32
     // u = 2⁻²⁴, scaled by Σ|t_i||L_i| of the point (the reader works in f64).
     let bake = prt_bakefile::read_bake(file).unwrap();
     let obj = bake.objects.iter().find(|o| o.name == object).unwrap();
-    let block = prt_bake::diffuse_block(obj).unwrap();
+    let block = obj.diffuse_block().unwrap();
     let env = bake.environment.as_ref().unwrap();
     let n = obj.order.min(env.order) as usize;
     let (n2, en2, on2) = (

@@ -20,7 +20,7 @@
 //!   metallic-roughness BRDF): after Ramamoorthi's reparameterisation of a microfacet lobe
 //!   about the reflection direction (thesis, ch. 5), where it is nearly zonal, but with `K`
 //!   zonal lobes about axes in the plane of the normal and the view, fitted per view elevation
-//!   by least squares above the horizon (`prt_bake::brdf::fitted_table`), so that grazing,
+//!   by least squares above the horizon (`prt_shading::projection::fitted_table`), so that grazing,
 //!   horizon-clipped lobes are held too. Shading is the Phong path's `Σ w_i (L ⊛ V)_i` with
 //!   `w = Σ_k A^k_l y(a_k)` ([`SpecularLobe::Fitted`]).
 //! - **Locally adaptive relighting** (Lee & Kim 2014, chapter 5): bands `0..3` for every

@@ -25,9 +25,12 @@ pub enum ReportError {
         /// Why.
         reason: String,
     },
-    /// From the relighter.
+    /// From the relighting kernels.
     #[error(transparent)]
     Relight(#[from] prt_relight::RelightError),
+    /// From scene-level relighting and image formation.
+    #[error(transparent)]
+    SceneRelight(#[from] prt_scene_relight::SceneRelightError),
     /// From the tracer.
     #[error(transparent)]
     Tracer(#[from] prt_tracer::TracerError),

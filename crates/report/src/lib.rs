@@ -22,23 +22,13 @@
 
 pub mod budget;
 mod error;
-pub mod export;
-pub mod glossy;
-pub mod imaging;
-pub mod io;
 pub mod plots;
 pub mod recommend;
 pub mod reflectance;
-pub mod relit;
 pub mod report;
 pub mod rf_reconstruct;
 pub mod rf_section;
-pub mod target;
 pub mod viewer;
 
 pub use error::ReportError;
-pub use imaging::{form_image, object_mask, roi_image, RgbImage};
-pub use relit::{
-    baked_scene, check_bake, relight, GlossyPath, RelightOptions, RelightStats, Relit,
-};
 pub use report::{run_report, ObjectRays, ReferenceInfo, ReportData, ReportSettings};

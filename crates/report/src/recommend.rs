@@ -9,12 +9,12 @@
 //! it), so each object's order is chosen independently.
 
 use crate::error::ReportError;
-use crate::imaging::form_image;
-use crate::io::to_compare_image;
-use crate::relit::{relight, RelightOptions};
 use prt_bakefile::{Bake, Decision};
 use prt_compare::{compare, Image, Mask};
 use prt_scene::Scene;
+use prt_scene_relight::imaging::form_image;
+use prt_scene_relight::io::to_compare_image;
+use prt_scene_relight::relit::{relight, RelightOptions};
 use prt_tracer::Accel;
 use serde::Serialize;
 
@@ -62,7 +62,7 @@ pub fn object_psnr(
         .collect()
 }
 
-pub use crate::imaging::object_ids;
+pub use prt_scene_relight::imaging::object_ids;
 
 /// Per object, the PSNR (8-bit view, its pixels) of full-order relighting of `bake` at each of
 /// `orders` against `reference`, and the lowest order that reaches `target` dB.

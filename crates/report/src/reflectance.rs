@@ -29,10 +29,10 @@
 //! and last rows' centres at the poles).
 
 use crate::error::ReportError;
-use crate::imaging::{background_radiance, RgbImage};
 use glam::Vec3;
 use prt_bakefile::{Bake, ReflectanceField};
 use prt_scene::Scene;
+use prt_scene_relight::imaging::{background_radiance, RgbImage};
 use prt_tracer::Accel;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -716,7 +716,7 @@ pub fn check_field<'b>(
     for (g, m) in geometry.iter().zip(&scene.meshes) {
         let want = format!(
             "{:#018x}",
-            prt_bake::geometry_hash(&m.positions, &m.indices)
+            prt_scene::binding::geometry_hash(&m.positions, &m.indices)
         );
         if g.get("geometry_hash").and_then(serde_json::Value::as_str) != Some(want.as_str()) {
             return Err(bad(format!(
@@ -905,8 +905,8 @@ fn shade_frames(
         .pointer("/reflectance/pixel_samples")
         .and_then(serde_json::Value::as_u64)
         .unwrap_or(1)
-        .clamp(1, u64::from(prt_bake::MAX_PIXEL_SAMPLES)) as u32;
-    let fp = prt_bake::points::pixel_footprints(scene, accel, bake.meta.seed, k)?;
+        .clamp(1, u64::from(prt_tracer::points::MAX_PIXEL_SAMPLES)) as u32;
+    let fp = prt_tracer::points::pixel_footprints(scene, accel, bake.meta.seed, k)?;
     let mut images = Vec::with_capacity(angles.len());
     for (ai, &angle) in angles.iter().enumerate() {
         let mut values = vec![[0.0f32; 3]; field.pixels.len()];

@@ -10,12 +10,7 @@ use crate::budget::{
     ldr_noise_psnr, masked_mean_square, masked_mse, summary_sentence, BudgetInputs, BudgetRow,
 };
 use crate::error::ReportError;
-use crate::imaging::{form_image, object_mask, roi_image, RgbImage};
-use crate::io::{
-    read_reference, to_compare_image, write_exr, write_png, write_reference, CachedReference,
-};
 use crate::plots::{image_grid, line_chart, stacked_shares, ChartOptions, Series, Tile};
-use crate::relit::{check_bake, relight, RelightOptions};
 use crate::viewer::ViewerImage;
 use glam::Vec3;
 use plotters::style::RGBColor;
@@ -24,6 +19,11 @@ use prt_bakefile::Bake;
 use prt_compare::{compare, ErrorImageOptions, Image, Mask};
 use prt_relight::{AdaptiveParams, Threshold};
 use prt_scene::Scene;
+use prt_scene_relight::imaging::{form_image, object_mask, roi_image, RgbImage};
+use prt_scene_relight::io::{
+    read_reference, to_compare_image, write_exr, write_png, write_reference, CachedReference,
+};
+use prt_scene_relight::relit::{check_bake, relight, RelightOptions};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -408,7 +408,7 @@ pub(crate) fn scene_key(scene: &Scene) -> u64 {
     );
     for m in &scene.meshes {
         h = fnv(
-            &prt_bake::geometry_hash(&m.positions, &m.indices).to_le_bytes(),
+            &prt_scene::binding::geometry_hash(&m.positions, &m.indices).to_le_bytes(),
             h,
         );
         h = fnv(&(m.material as u64).to_le_bytes(), h);
@@ -807,11 +807,11 @@ pub fn run_report(
         let target = match s.target_psnr {
             Some(p) => {
                 let params = ad_opt.adaptive.expect("adaptive options");
-                let study = crate::target::relight_to_target(
+                let study = prt_scene_relight::target::relight_to_target(
                     scene,
                     &accel,
                     &bake,
-                    &crate::target::TargetOptions {
+                    &prt_scene_relight::target::TargetOptions {
                         order: Some(order),
                         adaptive: params,
                         target_psnr: p,

@@ -18,20 +18,20 @@
 //! image grid with one tile per method, and adds every relit image to the page's viewer.
 
 use crate::error::ReportError;
-use crate::imaging::RgbImage;
-use crate::io::{to_compare_image, write_exr, write_png};
 use crate::plots::{image_grid, line_chart, ChartOptions, Series};
 use crate::reflectance::{
     check_field, fine_lighting, flicker, relight_field_frames, relight_field_series, wavelet_name,
     FieldOptions, Reconstruction,
 };
-use crate::relit::{relight, RelightOptions};
 use crate::viewer::ViewerImage;
 use plotters::style::RGBColor;
 use prt_bake::reflectance::ReflectanceSettings;
 use prt_bake::{BakeSettings, PointKind};
 use prt_compare::{compare, Image, Mask};
 use prt_scene::Scene;
+use prt_scene_relight::imaging::RgbImage;
+use prt_scene_relight::io::{to_compare_image, write_exr, write_png};
+use prt_scene_relight::relit::{relight, RelightOptions};
 use prt_tracer::Accel;
 use prt_wavelet::Wavelet;
 use serde::Serialize;
@@ -435,7 +435,11 @@ pub fn run_section(
             img,
             &[("kind", kind.to_string())],
         )?;
-        write_png(&out_dir.join(format!("images/{name}.png")), img, 0.0)
+        Ok(write_png(
+            &out_dir.join(format!("images/{name}.png")),
+            img,
+            0.0,
+        )?)
     };
     let mut tiles = vec![crate::report::srgb_tile(
         cx.reference,
@@ -602,7 +606,7 @@ pub fn run_section(
                 ..Default::default()
             },
         )?;
-        let img = crate::imaging::form_image(scene, accel, &r, 0.0)?;
+        let img = prt_scene_relight::imaging::form_image(scene, accel, &r, 0.0)?;
         let (psnr_ldr, rel_l2, _) = measure(&img)?;
         save(&format!("rf_sh_{order:02}"), &img, "per-pixel SH")?;
         viewer_images.push(ViewerImage {

@@ -1,5 +1,7 @@
 //! Scene loading for `prt`: TOML scene files, OBJ and glTF 2.0 meshes, OpenEXR and Radiance
 //! HDR environment maps, and the in-memory [`Scene`] every later stage reads.
+//! [`lightmap`] rasterises an object's lightmap UVs into texels (per-texel bakes and their
+//! relighting); [`binding`] is how a scene mesh binds to a bake file (geometry hash, `MESH`).
 //!
 //! Entry points: [`load_scene`] (a whole scene), [`load_mesh`] / [`load_obj`] / [`load_gltf`]
 //! (one mesh file), [`load_env_image`] / [`load_environment`] (one map). Each returns the
@@ -76,10 +78,12 @@
 //! as warnings instead; anything that would change the picture silently (NaN texels, NaN
 //! positions, bad indices, unsupported required glTF extensions, sparse accessors) is an error.
 
+pub mod binding;
 pub mod envmap;
 mod envmap_io;
 mod error;
 mod gltf_io;
+pub mod lightmap;
 mod mesh;
 mod obj;
 mod scene_file;

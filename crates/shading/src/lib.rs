@@ -1,6 +1,9 @@
 //! Light at a surface and where light comes from: the BRDFs of `CONVENTIONS.md` with
 //! importance sampling, sampling of distant environment maps, and a chi-square harness that
 //! tests any direction sampler against its pdf.
+//! [`projection`] projects BRDFs into SH for bakes and relighting: zonal lobes, the
+//! per-view-elevation tables of Kautz, Sloan & Snyder 2002, and the fitted zonal lobes the
+//! relighter shades glossy materials with.
 //!
 //! # Materials
 //! [`eval`], [`pdf`] and [`sample`] implement the formulas of `CONVENTIONS.md` ("Materials
@@ -52,6 +55,7 @@ mod microfacet;
 mod mirror;
 mod pbr;
 mod phong;
+pub mod projection;
 mod warp;
 
 pub use bsdf::{eval, has_delta, pdf, sample, specular_selection_probability, BsdfSample};

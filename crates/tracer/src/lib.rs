@@ -20,14 +20,19 @@
 //!   any thread count.
 //! - Output ([`output`]): EXR (linear f32, metadata attributes, optional AOV channels) and a PNG
 //!   view, both written atomically.
+//! - The points a bake or a relight samples ([`points`]): mesh vertices, and the sub-pixel
+//!   footprints of the scene camera's pixels (per-pixel bakes, their relighting and image
+//!   formation), whose positions come from the shifted R2 sequences of [`sequence`].
 
 mod accel;
 mod camera;
 mod error;
 mod integrator;
 pub mod output;
+pub mod points;
 mod render;
 pub mod rng;
+pub mod sequence;
 mod settings;
 pub mod test_util;
 

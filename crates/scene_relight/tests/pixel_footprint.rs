@@ -44,9 +44,9 @@
 
 use glam::{DMat4, DVec3, Vec3};
 use prt_bake::{BakeSettings, PointKind};
-use prt_report::{form_image, relight, RelightOptions};
 use prt_scene::test_util::icosphere;
 use prt_scene::{Camera, EnvImage, Environment, Mapping, Material, Scene};
+use prt_scene_relight::{form_image, relight, RelightOptions};
 use prt_tracer::{Accel, PinholeCamera};
 use std::f64::consts::PI;
 use std::path::Path;
@@ -155,7 +155,7 @@ fn relit_image(scene: &Scene, accel: &Accel, bounces: u32, seed: u64, k: u32) ->
 /// Pixels fully covered by surfaces: a 4×4 grid of rays and every footprint sample hit.
 fn covered(scene: &Scene, accel: &Accel) -> Vec<bool> {
     let cam = PinholeCamera::new(&scene.camera).unwrap();
-    let fp = prt_bake::points::pixel_footprints(scene, accel, 0, 16).unwrap();
+    let fp = prt_tracer::points::pixel_footprints(scene, accel, 0, 16).unwrap();
     (0..W * H)
         .map(|i| {
             let (x, y) = (f64::from(i % W), f64::from(i / W));
@@ -236,7 +236,7 @@ fn check(case: &Case) {
     // Specks are looked for on every pixel whose centre sees a surface, silhouettes included:
     // that is where the centre-sampled bake has them (a grazing point in front of a bright
     // background fills the whole pixel).
-    let seen = prt_report::object_mask(scene, &accel).unwrap();
+    let seen = prt_scene_relight::object_mask(scene, &accel).unwrap();
     let specks_fp = specks(&a, &reference, var, &seen);
     let specks_centre = specks(&centre, &reference, var, &seen);
     eprintln!(

@@ -2,10 +2,13 @@
 //! samples of the scene camera's pixels.
 
 use crate::sequence::{SequencePurpose, R2};
+use crate::{point_offset, Accel, PinholeCamera};
 use glam::Vec3;
 use prt_scene::Scene;
-use prt_tracer::{point_offset, Accel, PinholeCamera};
 use rayon::prelude::*;
+
+/// Largest accepted sub-pixel sample count of a pixel footprint.
+pub const MAX_PIXEL_SAMPLES: u32 = 4096;
 
 /// A surface point to bake.
 #[derive(Clone, Copy, Debug)]
@@ -25,7 +28,7 @@ impl SamplePoint {
     /// Ray origin for direction `dir` (the tracer's offset rule).
     #[must_use]
     pub fn origin(&self, dir: Vec3) -> Vec3 {
-        prt_tracer::offset_origin(self.position, self.offset_normal, self.offset, dir)
+        crate::offset_origin(self.position, self.offset_normal, self.offset, dir)
     }
 }
 
@@ -119,7 +122,7 @@ pub fn pixel_footprints(
     accel: &Accel,
     seed: u64,
     samples_per_pixel: u32,
-) -> Result<PixelFootprints, prt_tracer::TracerError> {
+) -> Result<PixelFootprints, crate::TracerError> {
     let cam = PinholeCamera::new(&scene.camera)?;
     let (w, h) = (cam.width(), cam.height());
     let k = samples_per_pixel.max(1);

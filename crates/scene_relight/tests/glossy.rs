@@ -33,7 +33,7 @@ fn ward_specular_from_the_brdf_table_matches_the_integral() {
         specular: [1.0; 3],
         roughness: 0.3,
     };
-    check(ward, prt_report::GlossyPath::Exact);
+    check(ward, prt_scene_relight::GlossyPath::Exact);
 }
 
 #[test]
@@ -43,7 +43,7 @@ fn fitted_lobes_match_the_integral_within_their_fit_error() {
         specular: [1.0; 3],
         roughness: 0.3,
     };
-    check(ward, prt_report::GlossyPath::Fitted);
+    check(ward, prt_scene_relight::GlossyPath::Fitted);
     // A white metal: f = D·V exactly (Schlick's term vanishes with base colour 1).
     let metal = Material::Pbr {
         base_color: [1.0; 3],
@@ -52,14 +52,14 @@ fn fitted_lobes_match_the_integral_within_their_fit_error() {
         base_color_texture: None,
         metallic_roughness_texture: None,
     };
-    check(metal, prt_report::GlossyPath::Fitted);
-    check(metal, prt_report::GlossyPath::Exact);
+    check(metal, prt_scene_relight::GlossyPath::Fitted);
+    check(metal, prt_scene_relight::GlossyPath::Exact);
 }
 
 /// Relights a sphere under a uniform environment by `path` and checks every vertex against
 /// the lobe's directional albedo with a bound derived from the bake's and the table's own
 /// error figures.
-fn check(material: Material, path: prt_report::GlossyPath) {
+fn check(material: Material, path: prt_scene_relight::GlossyPath) {
     // Albedo 0, specular 1: the image is the specular lobe alone. A convex sphere under a
     // uniform environment of radiance 1: R = L ⊛ V = V exactly (a product with a constant),
     // and the true radiance is the lobe's directional albedo ρ(θ_o) = ∫ V f_s cos, with V the
@@ -94,12 +94,12 @@ fn check(material: Material, path: prt_report::GlossyPath) {
     .unwrap();
     let table = &out.bake.glossy[0];
     let e_n = table.projection_error[order - 1];
-    let fitted = prt_bake::brdf::fitted_table(&ward, order).unwrap();
-    let relit = prt_report::relight(
+    let fitted = prt_shading::projection::fitted_table(&ward, order).unwrap();
+    let relit = prt_scene_relight::relight(
         &scene,
         &accel,
         &out.bake,
-        &prt_report::RelightOptions {
+        &prt_scene_relight::RelightOptions {
             order: Some(order),
             timing_frames: 1,
             warmup_frames: 0,
@@ -141,8 +141,8 @@ fn check(material: Material, path: prt_report::GlossyPath) {
             .sqrt();
         let (rho, f_norm) = albedo_and_norm(&ward, theta_o);
         let bound = match path {
-            prt_report::GlossyPath::Exact => {
-                let b = prt_report::glossy::table_row(table, order, theta_o);
+            prt_scene_relight::GlossyPath::Exact => {
+                let b = prt_scene_relight::glossy::table_row(table, order, theta_o);
                 let b_norm = b.iter().map(|x| x * x).sum::<f64>().sqrt();
                 let el = &table.elevations;
                 let i = el.partition_point(|&t| t <= theta_o).clamp(1, el.len() - 1);
@@ -150,8 +150,8 @@ fn check(material: Material, path: prt_report::GlossyPath) {
                     (albedo_and_norm(&ward, el[i - 1]).0 - albedo_and_norm(&ward, el[i]).0).abs();
                 dv * b_norm + (2.0 * std::f64::consts::PI).sqrt() * e_n * f_norm + interp
             }
-            prt_report::GlossyPath::Hybrid { .. } => unreachable!("checked by its own test"),
-            prt_report::GlossyPath::Fitted => {
+            prt_scene_relight::GlossyPath::Hybrid { .. } => unreachable!("checked by its own test"),
+            prt_scene_relight::GlossyPath::Fitted => {
                 let el = &fitted.elevations;
                 let i = el.partition_point(|&t| t <= theta_o).clamp(1, el.len() - 1);
                 let e_fit = fitted.error[i - 1].max(fitted.error[i]);
@@ -239,24 +239,24 @@ fn hybrid_glossy_path_is_exact_where_the_fit_is_poor_and_fitted_elsewhere() {
     )
     .unwrap();
     let run = |glossy| {
-        let opt = prt_report::RelightOptions {
+        let opt = prt_scene_relight::RelightOptions {
             glossy,
             ..Default::default()
         };
-        prt_report::relight(&scene, &accel, &out.bake, &opt).unwrap()
+        prt_scene_relight::relight(&scene, &accel, &out.bake, &opt).unwrap()
     };
-    let exact = run(prt_report::GlossyPath::Exact);
-    let fitted = run(prt_report::GlossyPath::Fitted);
+    let exact = run(prt_scene_relight::GlossyPath::Exact);
+    let fitted = run(prt_scene_relight::GlossyPath::Fitted);
     assert!(
         exact.radiance[0] != fitted.radiance[0],
         "the paths differ here"
     );
-    let all = run(prt_report::GlossyPath::Hybrid { fit_error: 0.0 });
+    let all = run(prt_scene_relight::GlossyPath::Hybrid { fit_error: 0.0 });
     assert!(
         all.radiance[0] == exact.radiance[0],
         "fit_error 0: the exact path"
     );
-    let none = run(prt_report::GlossyPath::Hybrid { fit_error: 10.0 });
+    let none = run(prt_scene_relight::GlossyPath::Hybrid { fit_error: 10.0 });
     assert!(
         none.radiance[0] == fitted.radiance[0],
         "fit_error 10: the fitted path"
@@ -264,7 +264,7 @@ fn hybrid_glossy_path_is_exact_where_the_fit_is_poor_and_fitted_elsewhere() {
     // In between: exact exactly where the fit's error at the point's view elevation reaches the
     // threshold (the table's errors, linear in θ_o between its elevations); the threshold is
     // the median of the visible points' errors, so both sets are large.
-    let table = prt_bake::brdf::fitted_table(&metal, order).unwrap();
+    let table = prt_shading::projection::fitted_table(&metal, order).unwrap();
     let eye = Vec3::new(0.0, 0.0, 4.0);
     let mesh = &scene.meshes[0];
     let errors: Vec<f64> = (0..mesh.positions.len())
@@ -294,7 +294,7 @@ fn hybrid_glossy_path_is_exact_where_the_fit_is_poor_and_fitted_elsewhere() {
         .collect();
     sorted.sort_by(f64::total_cmp);
     let t = sorted[sorted.len() / 2] as f32;
-    let mid = run(prt_report::GlossyPath::Hybrid { fit_error: t });
+    let mid = run(prt_scene_relight::GlossyPath::Hybrid { fit_error: t });
     let (mut n_exact, mut n_fitted) = (0, 0);
     for (p, (r, &e)) in mid.radiance[0].iter().zip(&errors).enumerate() {
         // Away from the threshold (f32 interpolation in prt, f64 here).

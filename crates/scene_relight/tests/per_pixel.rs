@@ -34,9 +34,9 @@
 
 use glam::DVec3;
 use prt_bake::{BakeSettings, PointKind};
-use prt_report::{form_image, relight, RelightOptions, RgbImage};
 use prt_scene::test_util::{floor_quad, icosphere};
 use prt_scene::{Camera, EnvImage, Environment, Mapping, Material, Scene};
+use prt_scene_relight::{form_image, relight, RelightOptions, RgbImage};
 use prt_tracer::{Accel, PinholeCamera};
 use std::f64::consts::PI;
 

@@ -1,14 +1,14 @@
 //! Writing relit images: EXR (linear RGB f32 with attributes) and the PNG view of
 //! CONVENTIONS.md, both atomically (the tracer's temporary-file-and-rename writer).
 
-use crate::error::ReportError;
+use crate::error::SceneRelightError;
 use crate::imaging::RgbImage;
 use exr::prelude::*;
 use glam::Vec3;
 use std::path::Path;
 
-fn write_err(path: &Path, e: impl std::fmt::Display) -> ReportError {
-    ReportError::Write {
+fn write_err(path: &Path, e: impl std::fmt::Display) -> SceneRelightError {
+    SceneRelightError::Write {
         path: path.to_path_buf(),
         reason: e.to_string(),
     }
@@ -19,7 +19,7 @@ pub fn write_exr(
     path: &Path,
     img: &RgbImage,
     attributes: &[(&str, String)],
-) -> std::result::Result<(), ReportError> {
+) -> std::result::Result<(), SceneRelightError> {
     let (w, h) = (img.width as usize, img.height as usize);
     let channel = |c: usize, name: &str| {
         AnyChannel::new(
@@ -54,7 +54,7 @@ pub fn write_png(
     path: &Path,
     img: &RgbImage,
     exposure_ev: f32,
-) -> std::result::Result<(), ReportError> {
+) -> std::result::Result<(), SceneRelightError> {
     let lin: Vec<Vec3> = img.pixels.iter().map(|p| Vec3::from_array(*p)).collect();
     let bytes = prt_tracer::output::to_srgb8(&lin, exposure_ev);
     let png = image::RgbImage::from_raw(img.width, img.height, bytes)
@@ -101,7 +101,10 @@ const REFERENCE_MAGIC: &[u8; 8] = b"PRTREF01";
 ///
 /// # Errors
 /// When the file cannot be written.
-pub fn write_reference(path: &Path, r: &CachedReference) -> std::result::Result<(), ReportError> {
+pub fn write_reference(
+    path: &Path,
+    r: &CachedReference,
+) -> std::result::Result<(), SceneRelightError> {
     let mut bytes = Vec::with_capacity(32 + 24 * r.radiance.len());
     bytes.extend_from_slice(REFERENCE_MAGIC);
     for v in [r.width, r.height, r.spp] {

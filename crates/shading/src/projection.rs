@@ -76,13 +76,13 @@ pub fn glossy_table(material: &Material, order: usize) -> GlossyBrdfTable {
     }
     let spec = specular_only(material);
     table_of(
-        |wo, wi| f64::from(prt_shading::eval(&spec, Vec3::Z, wo, wi).x),
+        |wo, wi| f64::from(crate::eval(&spec, Vec3::Z, wo, wi).x),
         order,
     )
 }
 
 /// The colour-independent parts of the `pbr` BRDF's view-dependent term (see
-/// [`prt_shading::pbr_terms`]), each tabulated like a glossy BRDF; relighting weights them per
+/// [`crate::pbr_terms`]), each tabulated like a glossy BRDF; relighting weights them per
 /// channel by `A = 0.04(1 − m) + m·c`, `B = 0.96(1 − m) + m(1 − c)` and
 /// `C = −0.96(1 − m)·c`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -125,7 +125,7 @@ impl PbrComponent {
 pub fn pbr_table(roughness: f32, component: PbrComponent, order: usize) -> GlossyBrdfTable {
     table_of(
         |wo, wi| {
-            let (dv, s) = prt_shading::pbr_terms(roughness, wo, wi);
+            let (dv, s) = crate::pbr_terms(roughness, wo, wi);
             f64::from(match component {
                 PbrComponent::Dv => dv,
                 PbrComponent::SchlickDv => s * dv,
@@ -293,7 +293,7 @@ pub fn fitted_table_with(material: &Material, order: usize, lobes: usize) -> Opt
             (f64::from(roughness), false)
         }
         Material::Pbr { roughness, .. } => (
-            f64::from(roughness * roughness).max(f64::from(prt_shading::MIN_ALPHA)),
+            f64::from(roughness * roughness).max(f64::from(crate::MIN_ALPHA)),
             true,
         ),
         _ => return None,
@@ -306,10 +306,10 @@ pub fn fitted_table_with(material: &Material, order: usize, lobes: usize) -> Opt
     // g and s at local directions.
     let lobe = |wo: Vec3, wi: Vec3| -> (f64, f64) {
         if is_pbr {
-            let (dv, s) = prt_shading::pbr_terms(roughness, wo, wi);
+            let (dv, s) = crate::pbr_terms(roughness, wo, wi);
             (f64::from(dv), f64::from(s))
         } else {
-            (f64::from(prt_shading::eval(&spec, Vec3::Z, wo, wi).x), 0.0)
+            (f64::from(crate::eval(&spec, Vec3::Z, wo, wi).x), 0.0)
         }
     };
     const ASYM: usize = 48;
@@ -587,8 +587,8 @@ mod fitted_tests {
                         let phi = (b as f64 + 0.5) / nphi as f64 * std::f64::consts::TAU;
                         let d = DVec3::new(st * phi.cos(), st * phi.sin(), z);
                         let v = match m {
-                            Material::Pbr { .. } => prt_shading::pbr_terms(0.6, wo, d.as_vec3()).0,
-                            _ => prt_shading::eval(&spec, Vec3::Z, wo, d.as_vec3()).x,
+                            Material::Pbr { .. } => crate::pbr_terms(0.6, wo, d.as_vec3()).0,
+                            _ => crate::eval(&spec, Vec3::Z, wo, d.as_vec3()).x,
                         };
                         let g = f64::from(v) * z;
                         let mut gh = 0.0;

@@ -1,4 +1,4 @@
-//! glTF 2.0 export of a per-vertex bake (`prt export`): the scene's meshes exactly as baked
+//! glTF 2.0 export of a per-vertex or per-texel bake (`prt export`): the scene's meshes exactly as baked
 //! (the bake's `MESH` sections: world-space positions, the normals the bake used, triangles)
 //! with each vertex's diffuse transfer vector as custom vertex attributes, one binary `.glb`
 //! an engine loads with its ordinary glTF importer.
@@ -27,10 +27,10 @@
 //! `scale / 510`). Texels no triangle touches are dilated from their covered neighbours (two
 //! rings), so that an engine's plain bilinear filtering does not pull chart borders toward 0.
 
-use crate::error::ReportError;
 use image::ImageEncoder as _;
 use prt_bakefile::{Bake, SampleKind};
 use prt_scene::Scene;
+use prt_scene_relight::SceneRelightError;
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -47,8 +47,8 @@ pub struct ExportSummary {
     pub bytes: usize,
 }
 
-fn invalid(msg: impl Into<String>) -> ReportError {
-    ReportError::Invalid(msg.into())
+fn invalid(msg: impl Into<String>) -> SceneRelightError {
+    SceneRelightError::Invalid(msg.into())
 }
 
 /// A growing binary chunk with glTF buffer views.
@@ -124,7 +124,7 @@ fn sampler_index(samplers: &mut Vec<Value>, sampler: Value) -> usize {
 
 /// A scene texture as an RGBA8 PNG: RGB sRGB-encoded when `srgb` (a base colour: the loader
 /// decoded it), else linear; alpha linear. An 8-bit source image reads back unchanged.
-fn texture_png(t: &prt_scene::Texture, srgb: bool) -> Result<Vec<u8>, ReportError> {
+fn texture_png(t: &prt_scene::Texture, srgb: bool) -> Result<Vec<u8>, SceneRelightError> {
     let code = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
     let rgba: Vec<u8> = t
         .texels
@@ -204,7 +204,7 @@ struct QuantisedLightmap {
 /// beyond.
 #[must_use]
 pub fn dilated_lightmap(
-    lm: &prt_bake::texels::Lightmap,
+    lm: &prt_scene::lightmap::Lightmap,
     data: &[f32],
     row: usize,
 ) -> Vec<Option<Vec<f32>>> {
@@ -253,7 +253,7 @@ pub fn dilated_lightmap(
 }
 
 fn quantise_lightmap(
-    lm: &prt_bake::texels::Lightmap,
+    lm: &prt_scene::lightmap::Lightmap,
     data: &[f32],
     channels: usize,
     n2: usize,
@@ -320,12 +320,16 @@ fn quantise_lightmap(
 }
 
 /// Writes `bake` (per vertex, made for `scene`, already checked with
-/// [`crate::check_bake`]) as a binary glTF 2.0 file at `path`, atomically.
+/// [`prt_scene_relight::check_bake`]) as a binary glTF 2.0 file at `path`, atomically.
 ///
 /// # Errors
 /// A per-pixel or per-texel bake or an intermediate file, an object without mesh or diffuse
 /// transfer, and write errors.
-pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSummary, ReportError> {
+pub fn export_glb(
+    scene: &Scene,
+    bake: &Bake,
+    path: &Path,
+) -> Result<ExportSummary, SceneRelightError> {
     match bake.meta.sample_kind {
         SampleKind::Vertex => {}
         SampleKind::Pixel { .. } => {
@@ -335,7 +339,7 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
         }
         SampleKind::Texel { .. } => {}
     }
-    let lightmaps = crate::relit::lightmaps(scene, bake)?;
+    let lightmaps = prt_scene_relight::relit::lightmaps(scene, bake)?;
     let env = bake
         .environment
         .as_ref()
@@ -352,13 +356,14 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
     let (mut meshes, mut nodes, mut materials) = (Vec::new(), Vec::new(), Vec::new());
     let (mut vertices, mut attributes) = (0usize, 0usize);
     for (o, obj) in bake.objects.iter().enumerate() {
-        let block = prt_bake::diffuse_block(obj)
+        let block = obj
+            .diffuse_block()
             .ok_or_else(|| invalid(format!("object {} has no diffuse transfer", obj.name)))?;
         let scene_mesh = &scene.meshes[o];
         let geometry = obj
             .mesh
             .clone()
-            .unwrap_or_else(|| prt_bake::mesh_geometry(scene_mesh));
+            .unwrap_or_else(|| prt_scene::binding::mesh_geometry(scene_mesh));
         let v = geometry.positions.len();
         let lightmap = lightmaps[o].as_ref();
         // A lightmapped object's points are its texels, covered or not (SPEC §3.1).
@@ -481,7 +486,7 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
                                 srgb: bool,
                                 attrs: &mut serde_json::Map<String, Value>,
                                 bin: &mut Bin|
-         -> Result<Option<Value>, ReportError> {
+         -> Result<Option<Value>, SceneRelightError> {
             let Some(t) = t.filter(|t| same_vertices && t.texcoord < scene_mesh.texcoords.len())
             else {
                 return Ok(None);
@@ -566,7 +571,7 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
                     .collect()
             });
             let order = n.min(env.order as usize);
-            let vd = crate::relit::view_dependent(material, points.as_deref(), order)?;
+            let vd = prt_scene_relight::relit::view_dependent(material, points.as_deref(), order)?;
             let vis = obj
                 .blocks
                 .iter()
@@ -668,7 +673,7 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
     prt_tracer::output::write_atomically(path, |w| {
         std::io::Write::write_all(w, &glb).map_err(|e| e.to_string())
     })
-    .map_err(|e| ReportError::Write {
+    .map_err(|e| SceneRelightError::Write {
         path: path.to_path_buf(),
         reason: e.to_string(),
     })?;
@@ -685,7 +690,7 @@ pub fn export_glb(scene: &Scene, bake: &Bake, path: &Path) -> Result<ExportSumma
 /// vertex, `channels × n2` coefficients each, `[channel][coefficient]` as the object has
 /// `channels`; the export writes channel 0, which every channel repeats: SPEC §3.4).
 fn view_extras(
-    vd: &crate::relit::ViewDependent,
+    vd: &prt_scene_relight::relit::ViewDependent,
     vis: Option<&[f32]>,
     v: usize,
     channels: usize,
@@ -722,14 +727,14 @@ fn view_extras(
         ),
         (Some(lobe), Some(_)) => {
             let mut value = match lobe {
-                crate::relit::ExportLobe::Phong {
+                prt_scene_relight::relit::ExportLobe::Phong {
                     exponent,
                     specular,
                     bands,
                 } => {
                     json!({"model": "phong", "exponent": exponent, "specular": specular, "bands": bands})
                 }
-                crate::relit::ExportLobe::Fitted {
+                prt_scene_relight::relit::ExportLobe::Fitted {
                     table_order,
                     lobes,
                     elevations,
@@ -835,10 +840,10 @@ pub struct ExportedLightmap {
 ///
 /// # Errors
 /// When the file is not a readable glTF or lacks the prt attributes.
-pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
+pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, SceneRelightError> {
     let bad = |m: String| invalid(format!("{}: {m}", path.display()));
     let (doc, buffers, images) = gltf::import(path).map_err(|e| bad(e.to_string()))?;
-    let floats = |acc: &gltf::Accessor| -> Result<Vec<f32>, ReportError> {
+    let floats = |acc: &gltf::Accessor| -> Result<Vec<f32>, SceneRelightError> {
         let view = acc
             .view()
             .ok_or_else(|| bad("accessor without buffer view".into()))?;
@@ -889,7 +894,7 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, ReportError> {
             None => None,
         };
         // `n2` coefficients per vertex from the VEC4 attributes `name(g)`, `[vertex][coeff]`.
-        let groups = |name: &dyn Fn(usize) -> String| -> Result<Vec<f32>, ReportError> {
+        let groups = |name: &dyn Fn(usize) -> String| -> Result<Vec<f32>, SceneRelightError> {
             let mut out = vec![0.0f32; v * n2];
             for g in 0..n2.div_ceil(4) {
                 let name = name(g);
@@ -967,15 +972,15 @@ fn read_lightmap(
     n2: usize,
     images: &[gltf::image::Data],
     attrs: &std::collections::HashMap<String, gltf::Accessor>,
-    floats: &dyn Fn(&gltf::Accessor) -> Result<Vec<f32>, ReportError>,
-    bad: &dyn Fn(String) -> ReportError,
-) -> Result<ExportedLightmap, ReportError> {
+    floats: &dyn Fn(&gltf::Accessor) -> Result<Vec<f32>, SceneRelightError>,
+    bad: &dyn Fn(String) -> SceneRelightError,
+) -> Result<ExportedLightmap, SceneRelightError> {
     let num = |k: &str| {
         l[k].as_u64()
             .ok_or_else(|| bad(format!("lightmap.{k} is missing")))
     };
     let (w, h) = (num("width")? as u32, num("height")? as u32);
-    let table = |k: &str| -> Result<Vec<Vec<f64>>, ReportError> {
+    let table = |k: &str| -> Result<Vec<Vec<f64>>, SceneRelightError> {
         serde_json::from_value(l[k].clone()).map_err(|e| bad(format!("lightmap.{k}: {e}")))
     };
     let (offset, scale) = (table("offset")?, table("scale")?);

@@ -3,7 +3,7 @@
 //! shift from a PCG stream keyed by (seed, purpose, object, point) — deterministic, and
 //! well stratified for any ray count (not only squares).
 
-use prt_tracer::rng::mix64;
+use crate::rng::mix64;
 
 /// What a point's sequence is for; part of the key so purposes never share shifts.
 #[derive(Clone, Copy, Debug)]

@@ -4,7 +4,7 @@
 //! edge through a border strip of the pixel is not seen at all), which on a gold bunny under
 //! the courtyard map held the relit image at 39 dB against the path tracer while its inside
 //! matched to 45 dB; pixels that may hold an edge are now traced on a 16 × 16 grid
-//! (`prt_report::imaging::pixel_samples`).
+//! (`prt_scene_relight::imaging::pixel_samples`).
 //!
 //! The test: a square of constant radiance `q` (set directly as the relit vertex radiance;
 //! only image formation is under test) seen from above at a slant, rotated so its projected
@@ -20,7 +20,7 @@
 //! 0.7 % of the contrast; skipping the neighbours' test (an edge seen by no ray of the pixel)
 //! fails at 5.6 % coverage, and tracing no pixel on the fine grid fails too.
 
-use prt_report::relit::{RelightStats, Relit};
+use prt_scene_relight::relit::{RelightStats, Relit};
 use std::path::Path;
 
 /// The square's corners projected to continuous image coordinates (x right, y down, pixel
@@ -131,7 +131,7 @@ rotate = [0.0, 11.0, 0.0]
         footprints: None,
         lightmaps: Vec::new(),
     };
-    let image = prt_report::form_image(&scene, &accel, &relit, 0.0).unwrap();
+    let image = prt_scene_relight::form_image(&scene, &accel, &relit, 0.0).unwrap();
     let (w, h) = (image.width as usize, image.height as usize);
     // The square's outline, in the order its two triangles' outer edges run.
     let m = &scene.meshes[0];
@@ -155,7 +155,7 @@ rotate = [0.0, 11.0, 0.0]
                     && p[1] >= y as f64
                     && p[1] < y as f64 + 1.0
             });
-            let k = f64::from(prt_report::imaging::EDGE_SUBPIXELS);
+            let k = f64::from(prt_scene_relight::imaging::EDGE_SUBPIXELS);
             let bound = contrast * if corner { 1.0 / k } else { 0.5 / k } + 1e-5;
             if c > 1e-9 && c < 1.0 - 1e-9 {
                 edge += 1;
@@ -167,7 +167,8 @@ rotate = [0.0, 11.0, 0.0]
             }
             // The probe of `prt relight --target-psnr` forms single pixels from the same rays.
             let cam = prt_tracer::PinholeCamera::new(&scene.camera).unwrap();
-            let samples = prt_report::imaging::pixel_samples(&cam, &accel, x as u32, y as u32);
+            let samples =
+                prt_scene_relight::imaging::pixel_samples(&cam, &accel, x as u32, y as u32);
             let mean = samples
                 .iter()
                 .map(|(_, hit)| if hit.is_some() { q } else { b })

@@ -6,11 +6,11 @@
 //! noise: `SUBPIXELS²` rays, or `EDGE_SUBPIXELS²` where those do not all see the same surface
 //! ([`pixel_samples`]).
 
-use crate::error::ReportError;
+use crate::error::SceneRelightError;
 use crate::relit::Relit;
 use glam::{DMat3, Vec3};
-use prt_bake::points::PixelFootprints;
 use prt_scene::{Material, Scene};
+use prt_tracer::points::PixelFootprints;
 use prt_tracer::{Accel, PinholeCamera};
 use rayon::prelude::*;
 
@@ -117,7 +117,7 @@ pub struct RgbImage {
 }
 
 /// Environment radiance seen along `dir` with an extra rotation about +Y (degrees).
-pub(crate) fn background_radiance(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
+pub fn background_radiance(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
     let d = if rotate_y_deg == 0.0 {
         dir
     } else {
@@ -228,7 +228,7 @@ pub fn form_image(
     accel: &Accel,
     relit: &Relit,
     rotate_y_deg: f64,
-) -> Result<RgbImage, ReportError> {
+) -> Result<RgbImage, SceneRelightError> {
     let cam = PinholeCamera::new(&scene.camera)?;
     let (w, h) = (cam.width(), cam.height());
     // Pass 1: every pixel's coarse grid. Pass 2: pixels that may hold an edge (their own rays
@@ -328,7 +328,7 @@ fn shade_ray(
                     uv[0] += wt * t[0];
                     uv[1] += wt * t[1];
                 }
-                prt_bake::texels::bilinear(
+                prt_scene::lightmap::bilinear(
                     lm.width,
                     lm.height,
                     |k| lm.texels[k].is_some(),
@@ -373,7 +373,7 @@ fn shade_samples(
 ///
 /// # Errors
 /// A camera the tracer refuses.
-pub fn object_ids(scene: &Scene, accel: &Accel) -> Result<Vec<Option<usize>>, ReportError> {
+pub fn object_ids(scene: &Scene, accel: &Accel) -> Result<Vec<Option<usize>>, SceneRelightError> {
     let cam = PinholeCamera::new(&scene.camera)?;
     let (w, h) = (cam.width(), cam.height());
     let eye = cam.eye();
@@ -389,7 +389,7 @@ pub fn object_ids(scene: &Scene, accel: &Accel) -> Result<Vec<Option<usize>>, Re
 }
 
 /// The object mask: pixels whose centre ray hits a mesh.
-pub fn object_mask(scene: &Scene, accel: &Accel) -> Result<Vec<bool>, ReportError> {
+pub fn object_mask(scene: &Scene, accel: &Accel) -> Result<Vec<bool>, SceneRelightError> {
     Ok(object_ids(scene, accel)?
         .into_iter()
         .map(|o| o.is_some())
@@ -398,7 +398,11 @@ pub fn object_mask(scene: &Scene, accel: &Accel) -> Result<Vec<bool>, ReportErro
 
 /// The region-of-interest picture (Lee & Kim 2014, Figure 6.3(d)): ROI vertices red, others
 /// light grey, interpolated over the triangles; background black.
-pub fn roi_image(scene: &Scene, accel: &Accel, relit: &Relit) -> Result<RgbImage, ReportError> {
+pub fn roi_image(
+    scene: &Scene,
+    accel: &Accel,
+    relit: &Relit,
+) -> Result<RgbImage, SceneRelightError> {
     let colours = Relit {
         radiance: relit
             .roi

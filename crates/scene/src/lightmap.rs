@@ -14,8 +14,8 @@
 //! seams. Two triangles whose interiors both hold a texel centre are overlapping charts, an
 //! error (a lightmap needs a unique parameterisation), as are UVs outside `[0, 1]`.
 
+use crate::Mesh;
 use glam::{DVec2, DVec3, Vec3};
-use prt_scene::Mesh;
 
 /// The largest lightmap side `--per-texel` accepts.
 pub const MAX_LIGHTMAP_SIZE: u32 = 8192;

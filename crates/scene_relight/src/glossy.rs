@@ -12,7 +12,7 @@
 //! one Gaunt product per channel and one rotation, O(order⁵) to O(order⁴) — a reference-grade
 //! path, not a real-time one.
 
-use crate::error::ReportError;
+use crate::error::SceneRelightError;
 use glam::{DMat3, DVec3};
 use prt_bakefile::GlossyBrdfTable;
 use prt_sh::{GauntTensor, Rotation};
@@ -67,7 +67,7 @@ pub fn glossy_specular(
     normals: &[[f32; 3]],
     eye: [f32; 3],
     specular: [f32; 3],
-) -> Result<Vec<[f32; 3]>, ReportError> {
+) -> Result<Vec<[f32; 3]>, SceneRelightError> {
     let s = glossy_components(
         &[table],
         order,
@@ -94,12 +94,12 @@ pub fn glossy_components(
     positions: &[[f32; 3]],
     normals: &[[f32; 3]],
     eye: [f32; 3],
-) -> Result<Vec<Vec<[f64; 3]>>, ReportError> {
+) -> Result<Vec<Vec<[f64; 3]>>, SceneRelightError> {
     if let Some(t) = tables
         .iter()
         .find(|t| order > t.order as usize || order > prt_sh::MAX_GAUNT_ORDER)
     {
-        return Err(ReportError::Invalid(format!(
+        return Err(SceneRelightError::Invalid(format!(
             "glossy relighting at order {order}: the BRDF table has order {} (Gaunt products up to {})",
             t.order,
             prt_sh::MAX_GAUNT_ORDER
@@ -140,7 +140,7 @@ pub fn glossy_components(
             }
             Ok(out)
         })
-        .collect::<Result<_, ReportError>>()?;
+        .collect::<Result<_, SceneRelightError>>()?;
     Ok((0..tables.len())
         .map(|k| per_point.iter().map(|p| p[k]).collect())
         .collect())

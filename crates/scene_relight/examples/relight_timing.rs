@@ -10,7 +10,7 @@
 //! alternating and keeping minima is what `tools/relight_ab.sh` builds on to compare two builds.
 
 use prt_relight::{AdaptiveParams, Threshold};
-use prt_report::RelightOptions;
+use prt_scene_relight::RelightOptions;
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -65,7 +65,8 @@ fn run() -> Result<(), String> {
         .map_err(|e| e.to_string())?
         .scene;
     let bake = prt_bakefile::read_bake(Path::new(bake_path)).map_err(|e| e.to_string())?;
-    prt_report::check_bake(&scene, &bake, Path::new(bake_path)).map_err(|e| e.to_string())?;
+    prt_scene_relight::check_bake(&scene, &bake, Path::new(bake_path))
+        .map_err(|e| e.to_string())?;
     let accel = prt_tracer::Accel::build(&scene).map_err(|e| e.to_string())?;
     let threshold = if display {
         Threshold::Display {
@@ -95,7 +96,8 @@ fn run() -> Result<(), String> {
                 points: None,
                 ..Default::default()
             };
-            let r = prt_report::relight(&scene, &accel, &bake, &opt).map_err(|e| e.to_string())?;
+            let r = prt_scene_relight::relight(&scene, &accel, &bake, &opt)
+                .map_err(|e| e.to_string())?;
             best[k] = best[k].min(r.stats.shade_ms);
         }
     }

@@ -26,7 +26,7 @@
 //! 3 dB the next frame starts 1.5× higher. The cost of a frame (`shade_ms`) is the shading time
 //! of every try plus that of the probe's full-order vertices.
 
-use crate::error::ReportError;
+use crate::error::SceneRelightError;
 use crate::imaging::{background_radiance, pixel_samples, RgbImage};
 use crate::relit::{relight, RelightOptions};
 use glam::Vec3;
@@ -168,7 +168,7 @@ fn build_probe(
     accel: &prt_tracer::Accel,
     count: usize,
     seed: u64,
-) -> Result<Probe, ReportError> {
+) -> Result<Probe, SceneRelightError> {
     let cam = PinholeCamera::new(&scene.camera)?;
     let (w, h) = (cam.width(), cam.height());
     // The pixel as image formation forms it: the same sub-pixel rays.
@@ -197,7 +197,7 @@ fn build_probe(
     };
     let candidates: Vec<u32> = (0..w * h).filter(|&i| !trace(i).terms.is_empty()).collect();
     if candidates.is_empty() {
-        return Err(ReportError::Invalid(
+        return Err(SceneRelightError::Invalid(
             "no pixel shows an object: there is nothing to relight".into(),
         ));
     }
@@ -301,9 +301,9 @@ pub fn relight_to_target(
     accel: &prt_tracer::Accel,
     bake: &Bake,
     opt: &TargetOptions,
-) -> Result<TargetStudy, ReportError> {
+) -> Result<TargetStudy, SceneRelightError> {
     if !(opt.target_psnr.is_finite() && opt.target_psnr > 0.0) {
-        return Err(ReportError::Invalid(format!(
+        return Err(SceneRelightError::Invalid(format!(
             "--target-psnr {} must be a positive, finite number of dB (against full order, every frame can reach any finite target: at threshold 0 it is full order)",
             opt.target_psnr
         )));
@@ -312,12 +312,12 @@ pub fn relight_to_target(
         bake.meta.sample_kind,
         prt_bakefile::SampleKind::Pixel { .. }
     ) {
-        return Err(ReportError::Invalid(
+        return Err(SceneRelightError::Invalid(
             "--target-psnr drives adaptive relighting, which walks the mesh's vertex adjacency: it needs a per-vertex bake".into(),
         ));
     }
     if opt.rotations.is_empty() || opt.probe_pixels == 0 {
-        return Err(ReportError::Invalid(
+        return Err(SceneRelightError::Invalid(
             "a target-quality run needs at least one frame and one probe pixel".into(),
         ));
     }

@@ -1,7 +1,7 @@
 //! Relighting a scene from its bake: per-object full-order or adaptive shading (prt-relight),
 //! with the environment rotated about +Y by one SH rotation per frame.
 
-use crate::error::ReportError;
+use crate::error::SceneRelightError;
 use glam::{DMat3, Vec3};
 use prt_bakefile::{Bake, SampleKind, TransferKind};
 use prt_relight::{
@@ -48,7 +48,7 @@ pub struct RelightOptions {
 #[serde(rename_all = "snake_case")]
 pub enum GlossyPath {
     /// A zonal fit of the lobe per view elevation about its mean direction
-    /// (`prt_bake::brdf::fitted_table`), shaded by the Phong kernels: full order and adaptive,
+    /// (`prt_shading::projection::fitted_table`), shaded by the Phong kernels: full order and adaptive,
     /// at Phong's cost.
     #[default]
     Fitted,
@@ -58,7 +58,7 @@ pub enum GlossyPath {
     Exact,
     /// The fitted path, except at the points whose view elevation (and roughness) puts the
     /// fit's relative L2 error against the lobe at `fit_error` or more
-    /// (`prt_bake::brdf::FittedTable::error`, interpolated as the lobe rows are): those are
+    /// (`prt_shading::projection::FittedTable::error`, interpolated as the lobe rows are): those are
     /// shaded by the exact path. A sharp lobe is far from zonal at grazing views, where the fit
     /// falls behind; the hybrid spends the exact path's cost only there. `fit_error = 0`
     /// shades every point exactly, a value above every error none.
@@ -95,10 +95,10 @@ pub struct Relit {
     /// Per-pixel bakes: the sub-pixel samples the bake averaged over (its seed and
     /// `pixel_samples`), which image formation uses for the background share of each pixel.
     /// `None` for per-vertex bakes.
-    pub footprints: Option<prt_bake::points::PixelFootprints>,
+    pub footprints: Option<prt_tracer::points::PixelFootprints>,
     /// Per-texel bakes: per object its lightmap (`None` for objects relit per vertex), which
     /// image formation looks the texels' radiance up in; empty otherwise.
-    pub lightmaps: Vec<Option<prt_bake::texels::Lightmap>>,
+    pub lightmaps: Vec<Option<prt_scene::lightmap::Lightmap>>,
 }
 
 /// Figures of one relighting run.
@@ -143,8 +143,8 @@ pub struct RelightStats {
 }
 
 /// Checks that `bake` was made for `scene`'s meshes (count, names, geometry hashes).
-pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), ReportError> {
-    let bad = |reason: String| ReportError::BakeMismatch {
+pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), SceneRelightError> {
+    let bad = |reason: String| SceneRelightError::BakeMismatch {
         path: path.to_path_buf(),
         reason,
     };
@@ -170,7 +170,7 @@ pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), ReportE
         )));
     }
     for (o, (obj, mesh)) in bake.objects.iter().zip(&scene.meshes).enumerate() {
-        let h = prt_bake::geometry_hash(&mesh.positions, &mesh.indices);
+        let h = prt_scene::binding::geometry_hash(&mesh.positions, &mesh.indices);
         // A subdivided object was baked on a refinement of the scene's mesh: its source hash.
         let source = subdivided_from(bake, &obj.name).unwrap_or(obj.geometry_hash);
         if h != source {
@@ -195,7 +195,7 @@ pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), ReportE
                 continue;
             };
             let set = entry.uv_set;
-            let h = mesh.texcoords.get(set).map(|uv| prt_bake::uv_hash(uv));
+            let h = mesh.texcoords.get(set).map(|uv| prt_bakefile::uv_hash(uv));
             if h != Some(entry.uv_hash) {
                 return Err(bad(format!(
                     "object {}: its lightmap UVs (set {set}) differ from those it was baked with: re-bake",
@@ -233,7 +233,7 @@ fn lightmap_entry(bake: &Bake, name: &str) -> Option<LightmapEntry> {
 pub fn lightmaps(
     scene: &Scene,
     bake: &Bake,
-) -> Result<Vec<Option<prt_bake::texels::Lightmap>>, ReportError> {
+) -> Result<Vec<Option<prt_scene::lightmap::Lightmap>>, SceneRelightError> {
     let SampleKind::Texel { width, height } = bake.meta.sample_kind else {
         return Ok(vec![None; bake.objects.len()]);
     };
@@ -244,9 +244,9 @@ pub fn lightmaps(
             if obj.coverage.is_none() {
                 return Ok(None);
             }
-            prt_bake::texels::lightmap(mesh, width, height)
+            prt_scene::lightmap::lightmap(mesh, width, height)
                 .map(Some)
-                .map_err(|e| ReportError::Invalid(format!("object {}: {e}", obj.name)))
+                .map_err(|e| SceneRelightError::Invalid(format!("object {}: {e}", obj.name)))
         })
         .collect()
 }
@@ -269,14 +269,14 @@ fn subdivided_from(bake: &Bake, name: &str) -> Option<u64> {
 ///
 /// # Errors
 /// A subdivided object whose mesh is missing from the file.
-pub fn baked_scene(scene: &Scene, bake: &Bake) -> Result<Scene, ReportError> {
+pub fn baked_scene(scene: &Scene, bake: &Bake) -> Result<Scene, SceneRelightError> {
     let mut out = scene.clone();
     for (obj, mesh) in bake.objects.iter().zip(&mut out.meshes) {
         if subdivided_from(bake, &obj.name).is_none() {
             continue;
         }
         let g = obj.mesh.as_ref().ok_or_else(|| {
-            ReportError::Invalid(format!(
+            SceneRelightError::Invalid(format!(
                 "object {} was subdivided but the bake holds no mesh for it",
                 obj.name
             ))
@@ -354,9 +354,9 @@ pub fn relight(
     accel: &prt_tracer::Accel,
     bake: &Bake,
     opt: &RelightOptions,
-) -> Result<Relit, ReportError> {
+) -> Result<Relit, SceneRelightError> {
     let (env_order, env) = environment(bake);
-    let rotation = |deg: f64| -> Result<Option<Rotation>, ReportError> {
+    let rotation = |deg: f64| -> Result<Option<Rotation>, SceneRelightError> {
         Ok(if deg == 0.0 {
             None
         } else {
@@ -369,7 +369,7 @@ pub fn relight(
     let rot = rotation(opt.rotate_y_deg)?;
     // The lighting of timed frame `k` (rotated by its own angle), and the time that took.
     let frame_angle = |k: usize| opt.rotate_y_deg + opt.rotate_y_step_deg * k as f64;
-    let frame_light = |k: usize| -> Result<(Lighting, f64), ReportError> {
+    let frame_light = |k: usize| -> Result<(Lighting, f64), SceneRelightError> {
         let start = Instant::now();
         let r = rotation(frame_angle(k))?;
         let l = Lighting::from_rgb_coefficients(&env, r.as_ref())?;
@@ -382,7 +382,7 @@ pub fn relight(
     let eye = scene.camera.eye.as_vec3().to_array();
     let per_pixel = matches!(bake.meta.sample_kind, SampleKind::Pixel { .. });
     let footprints = if per_pixel {
-        Some(prt_bake::points::pixel_footprints(
+        Some(prt_tracer::points::pixel_footprints(
             scene,
             accel,
             bake.meta.seed,
@@ -409,8 +409,9 @@ pub fn relight(
         let order = opt.order.unwrap_or(baked).min(baked).min(env_order);
         stats.order = stats.order.max(order);
         let relighter = Relighter::new(order)?;
-        let diffuse_block =
-            prt_bake::diffuse_block(obj).ok_or_else(|| ReportError::BakeMismatch {
+        let diffuse_block = obj
+            .diffuse_block()
+            .ok_or_else(|| SceneRelightError::BakeMismatch {
                 path: PathBuf::from("<bake>"),
                 reason: format!("object {} has no diffuse transfer", obj.name),
             })?;
@@ -421,13 +422,13 @@ pub fn relight(
             .map(|p| p.get(o).map_or(&[][..], Vec::as_slice));
         let lightmap = lightmaps[o].as_ref();
         if subset.is_some() && (opt.adaptive.is_some() || per_pixel || lightmap.is_some()) {
-            return Err(ReportError::Invalid(
+            return Err(SceneRelightError::Invalid(
                 "relighting a subset of points is for full-order per-vertex relighting only".into(),
             ));
         }
         let all_points = diffuse_block.data.len() / (channels * baked * baked).max(1);
         if let Some(bad) = subset.and_then(|s| s.iter().find(|&&i| i as usize >= all_points)) {
-            return Err(ReportError::Invalid(format!(
+            return Err(SceneRelightError::Invalid(format!(
                 "point {bad} of object {} does not exist ({all_points} points)",
                 obj.name
             )));
@@ -577,7 +578,7 @@ pub fn relight(
         {
             (Some(_), GlossyPath::Exact | GlossyPath::Hybrid { .. }) => {
                 let names: Vec<String> = if is_pbr {
-                    prt_bake::brdf::PbrComponent::ALL
+                    prt_shading::projection::PbrComponent::ALL
                         .iter()
                         .map(|c| format!("{material_name}{}", c.suffix()))
                         .collect()
@@ -758,7 +759,7 @@ pub fn relight(
                 }
                 (diffuse_part, specular_part) = (scaled(&f.diffuse), f.specular);
             }
-            (Some(_), true) => return Err(ReportError::Invalid(
+            (Some(_), true) => return Err(SceneRelightError::Invalid(
                 "adaptive relighting walks the mesh's vertex adjacency: it needs a per-vertex bake"
                     .into(),
             )),
@@ -913,7 +914,7 @@ fn pixel_samples(bake: &Bake) -> u32 {
         .get("pixel_samples")
         .and_then(serde_json::Value::as_u64)
         .map_or(1, |k| {
-            k.clamp(1, u64::from(prt_bake::MAX_PIXEL_SAMPLES)) as u32
+            k.clamp(1, u64::from(prt_tracer::points::MAX_PIXEL_SAMPLES)) as u32
         })
 }
 
@@ -975,7 +976,7 @@ fn sum_terms(d: &[[f32; 3]], s: &[[f32; 3]], n: usize) -> Vec<[f32; 3]> {
 /// (for a `pbr` material that varies, its mean roughness), and the colour weights of its
 /// components per point (one entry when uniform): `a`, `b` and, for the exact path of `pbr`,
 /// `c` — the weights of the `D·V`, `s·D·V` and `s/π` tables (see
-/// `prt_bake::brdf::PbrComponent`); for the other lobes `a` is the specular colour.
+/// `prt_shading::projection::PbrComponent`); for the other lobes `a` is the specular colour.
 struct GlossyLobe {
     /// The lobe shape at each roughness level the fit is made at (one unless a texture varies
     /// a `pbr` roughness).
@@ -1009,7 +1010,7 @@ impl GlossyLobe {
             }),
             Material::Pbr { roughness, .. } => {
                 let mats: Vec<Material> = points.map_or_else(|| vec![*material], <[_]>::to_vec);
-                let weights = |k: prt_bake::brdf::PbrComponent| -> Vec<[f32; 3]> {
+                let weights = |k: prt_shading::projection::PbrComponent| -> Vec<[f32; 3]> {
                     mats.iter()
                         .map(|m| match *m {
                             Material::Pbr {
@@ -1021,7 +1022,7 @@ impl GlossyLobe {
                         })
                         .collect()
                 };
-                use prt_bake::brdf::PbrComponent as C;
+                use prt_shading::projection::PbrComponent as C;
                 let rough: Vec<f32> = mats
                     .iter()
                     .map(|m| match *m {
@@ -1071,7 +1072,7 @@ const ROUGHNESS_LEVELS: usize = 5;
 /// The view-dependent terms [`relight`] shades an object with at full order on the fitted
 /// glossy path (the default): what `prt export` writes so that an engine relights to the
 /// same radiance (SPEC §10.1).
-pub(crate) struct ViewDependent {
+pub struct ViewDependent {
     /// `pbr`: the table `(elevations, s̄_d)` of the diffuse factor `1 − s̄_d(θ_o)`.
     pub diffuse_fresnel: Option<(Vec<f32>, Vec<f32>)>,
     /// The specular lobe, if the material has one [`relight`] shades.
@@ -1079,36 +1080,51 @@ pub(crate) struct ViewDependent {
 }
 
 /// A specular lobe as [`relight`] shades it (SPEC §10.1).
-pub(crate) enum ExportLobe {
+pub enum ExportLobe {
     /// The `phong` material: its exponent and colour and the lobe's band multipliers.
     Phong {
+        /// The Phong exponent.
         exponent: f32,
+        /// The specular colour.
         specular: [f32; 3],
+        /// The lobe's zonal band multipliers, one per band.
         bands: Vec<f32>,
     },
     /// A fitted lobe: [`prt_relight::FittedLobe`]'s tables (stacked `[level][elevation]`)
     /// and its colours and roughness, one or one per point.
     Fitted {
+        /// The order the tables were fitted at.
         table_order: usize,
+        /// Zonal lobes per table row.
         lobes: usize,
+        /// The tabulated view elevations (radians).
         elevations: Vec<f32>,
+        /// The roughness of each fitted level (one level, roughness 0, unless a texture varies a
+        /// `pbr` roughness).
         roughness_levels: Vec<f32>,
+        /// The fitted lobes' axes, stacked `[level][elevation]` as `prt_relight::FittedLobe`
+        /// reads them.
         axis: Vec<f32>,
+        /// The fitted lobes' band multipliers, stacked likewise.
         bands: Vec<f32>,
+        /// Likewise for the table's second term (`pbr`'s Fresnel split; see `FittedLobe`).
         bands_b: Vec<f32>,
+        /// The colour weighting `bands`, one or one per point.
         colour_a: Vec<[f32; 3]>,
+        /// The colour weighting `bands_b`, one or one per point.
         colour_b: Vec<[f32; 3]>,
+        /// Each point's roughness (one value when uniform).
         point_roughness: Vec<f32>,
     },
 }
 
 /// The view-dependent terms of `material` relit at `order` (`points`: the material resolved
 /// per point when it varies over the surface), built by the same functions [`relight`] uses.
-pub(crate) fn view_dependent(
+pub fn view_dependent(
     material: &Material,
     points: Option<&[Material]>,
     order: usize,
-) -> Result<ViewDependent, ReportError> {
+) -> Result<ViewDependent, SceneRelightError> {
     let mut notes = RelightStats::default();
     let glossy = GlossyLobe::of(material, points, &mut notes, "");
     let fitted = glossy.as_ref().map(|g| {
@@ -1130,7 +1146,7 @@ pub(crate) fn view_dependent(
             exponent: *exponent,
             specular: *specular,
             bands: prt_sh::zonal::phong_lobe_bands(f64::from(*exponent), order)
-                .map_err(|e| ReportError::Invalid(e.to_string()))?
+                .map_err(|e| SceneRelightError::Invalid(e.to_string()))?
                 .into_iter()
                 .map(|a| a as f32)
                 .collect(),
@@ -1167,7 +1183,8 @@ fn fitted_cached(shape: &Material, order: usize) -> std::sync::Arc<FittedF32> {
         }
     }
     let t = std::sync::Arc::new(FittedF32::new(
-        &prt_bake::brdf::fitted_table(shape, order).expect("glossy materials have a fitted table"),
+        &prt_shading::projection::fitted_table(shape, order)
+            .expect("glossy materials have a fitted table"),
     ));
     if let Ok(mut c) = cache.lock() {
         c.push((*shape, order, t.clone()));
@@ -1175,7 +1192,7 @@ fn fitted_cached(shape: &Material, order: usize) -> std::sync::Arc<FittedF32> {
     t
 }
 
-/// A [`prt_bake::brdf::FittedTable`] in the f32 arrays prt-relight reads.
+/// A [`prt_shading::projection::FittedTable`] in the f32 arrays prt-relight reads.
 struct FittedF32 {
     order: usize,
     lobes: usize,
@@ -1189,7 +1206,7 @@ struct FittedF32 {
 }
 
 impl FittedF32 {
-    fn new(t: &prt_bake::brdf::FittedTable) -> Self {
+    fn new(t: &prt_shading::projection::FittedTable) -> Self {
         let f = |v: &[f64]| v.iter().map(|x| *x as f32).collect();
         Self {
             order: t.order,

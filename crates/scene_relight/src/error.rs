@@ -1,0 +1,43 @@
+//! Errors of scene-level relighting.
+
+use std::path::PathBuf;
+use thiserror::Error;
+
+/// Everything that can stop relighting a scene from its bake or forming its image.
+#[derive(Debug, Error)]
+pub enum SceneRelightError {
+    /// A bake that does not belong to the scene, or lacks what is asked of it.
+    #[error("{path}: {reason}")]
+    BakeMismatch {
+        /// The bake file (or `<memory>`).
+        path: PathBuf,
+        /// What does not match.
+        reason: String,
+    },
+    /// Bad options.
+    #[error("invalid options: {0}")]
+    Invalid(String),
+    /// Writing an output failed.
+    #[error("{path}: cannot write: {reason}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// From the relighting kernels.
+    #[error(transparent)]
+    Relight(#[from] prt_relight::RelightError),
+    /// From the tracer.
+    #[error(transparent)]
+    Tracer(#[from] prt_tracer::TracerError),
+    /// From the SH core.
+    #[error(transparent)]
+    Sh(#[from] prt_sh::ShError),
+    /// From the bake file format.
+    #[error(transparent)]
+    BakeFile(#[from] prt_bakefile::BakeFileError),
+    /// From the comparison crate.
+    #[error(transparent)]
+    Compare(#[from] prt_compare::CompareError),
+}

@@ -1,0 +1,27 @@
+//! Relighting a scene from its bake file: what `prt relight`, `prt export`, the report and the
+//! hard-case tests share. It takes a scene and a bake file, never the baker: the binding of
+//! the two is checked once ([`check_bake`], by geometry and UV hashes), each object's points
+//! are relit ([`relight`]: full-order or locally adaptive SH, with the view-dependent terms
+//! of glossy materials, [`glossy`]), and the result is formed into an image comparable with
+//! the path tracer's ([`imaging`]): Gouraud interpolation of per-vertex radiance over the
+//! triangles hit by the scene camera's rays, bilinear lookups of per-texel bakes at each hit's
+//! lightmap UV, or per-pixel radiance directly. [`target`] relights adaptively to a PSNR
+//! target frame by frame; [`io`] writes the images.
+//!
+//! The relighting follows Sloan, Kautz & Snyder 2002 (diffuse PRT) and Lee & Kim 2014
+//! (specular PRT through SH products and locally adaptive SH), whose scene-free kernels are
+//! `prt-relight`'s, and, for Blinn–Phong, Ward and Cook–Torrance, Kautz, Sloan & Snyder 2002
+//! (per-view-elevation BRDF projections, `prt_shading::projection`).
+
+mod error;
+pub mod glossy;
+pub mod imaging;
+pub mod io;
+pub mod relit;
+pub mod target;
+
+pub use error::SceneRelightError;
+pub use imaging::{form_image, object_mask, roi_image, RgbImage};
+pub use relit::{
+    baked_scene, check_bake, relight, GlossyPath, RelightOptions, RelightStats, Relit,
+};
