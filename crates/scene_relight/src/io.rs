@@ -43,10 +43,7 @@ pub fn write_exr(
         Encoding::SMALL_LOSSLESS,
         channels,
     ));
-    prt_tracer::output::write_atomically(path, |out| {
-        image.write().to_buffered(out).map_err(|e| e.to_string())
-    })
-    .map_err(|e| write_err(path, e))
+    prt_tracer::output::write_exr_image(path, &image).map_err(|e| write_err(path, e))
 }
 
 /// Writes the 8-bit sRGB view (exposure in EV) as PNG.

@@ -25,7 +25,7 @@ use exr::prelude::{
 use glam::Vec3;
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::{BufWriter, Seek, Write};
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 fn write_error(path: &Path, reason: impl std::fmt::Display) -> TracerError {
@@ -176,15 +176,68 @@ pub fn write_exr(path: &Path, out: &RenderOutput) -> Result<(), TracerError> {
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(channels),
     );
-    let image = Image::from_layer(layer);
-    write_atomically(path, |w| write_exr_to(image, w))
+    write_exr_image(path, &Image::from_layer(layer))
 }
 
-fn write_exr_to(
-    image: Image<Layer<AnyChannels<FlatSamples>>>,
-    w: &mut (impl Write + Seek),
-) -> Result<(), String> {
-    image.write().to_buffered(w).map_err(|e| e.to_string())
+/// An EXR image of one layer of f32 or f16 channels, as prt writes them.
+pub type ExrImage = Image<Layer<AnyChannels<FlatSamples>>>;
+
+/// Writes an EXR image atomically with its header's attributes in name order
+/// ([`sort_exr_attributes`]), so that the same image is always the same bytes.
+///
+/// # Errors
+/// When the image cannot be encoded or the file cannot be written.
+pub fn write_exr_image(path: &Path, image: &ExrImage) -> Result<(), TracerError> {
+    let mut buffer = std::io::Cursor::new(Vec::new());
+    image
+        .write()
+        .to_buffered(&mut buffer)
+        .map_err(|e| write_error(path, e))?;
+    let mut bytes = buffer.into_inner();
+    sort_exr_attributes(&mut bytes).map_err(|e| write_error(path, e))?;
+    write_atomically(path, |w| w.write_all(&bytes).map_err(|e| e.to_string()))
+}
+
+/// Puts the attributes of a single-part EXR header in name order, in place. The exr crate
+/// keeps custom attributes in a `HashMap` and writes them in its iteration order, which
+/// differs from process to process (and from map to map), so the same image came out as
+/// different bytes. An attribute is `name\0 type\0 size(i32 LE) value`; the header ends with
+/// an empty name. Reordering keeps the header's length, so the chunk offsets after it stay
+/// valid.
+///
+/// # Errors
+/// A multi-part file or a header that does not parse (neither is what the exr crate writes
+/// for prt's images).
+pub fn sort_exr_attributes(bytes: &mut [u8]) -> Result<(), String> {
+    const MULTI_PART: u32 = 0x1000;
+    let bad = || "malformed EXR header".to_string();
+    let version = u32::from_le_bytes(bytes.get(4..8).ok_or_else(bad)?.try_into().unwrap());
+    if version & MULTI_PART != 0 {
+        return Err("multi-part EXR headers are not reordered".into());
+    }
+    let nul = |from: usize| -> Result<usize, String> {
+        let rest = bytes.get(from..).ok_or_else(bad)?;
+        Ok(from + rest.iter().position(|&b| b == 0).ok_or_else(bad)?)
+    };
+    let (start, mut at) = (8, 8);
+    let mut attributes: Vec<(usize, usize)> = Vec::new();
+    while *bytes.get(at).ok_or_else(bad)? != 0 {
+        let type_end = nul(nul(at)? + 1)?;
+        let size = bytes.get(type_end + 1..type_end + 5).ok_or_else(bad)?;
+        let size =
+            usize::try_from(i32::from_le_bytes(size.try_into().unwrap())).map_err(|_| bad())?;
+        let end = type_end + 5 + size;
+        if end > bytes.len() {
+            return Err(bad());
+        }
+        attributes.push((at, end));
+        at = end;
+    }
+    let mut sorted: Vec<&[u8]> = attributes.iter().map(|&(a, b)| &bytes[a..b]).collect();
+    sorted.sort_unstable();
+    let header = sorted.concat();
+    bytes[start..at].copy_from_slice(&header);
+    Ok(())
 }
 
 /// The sRGB transfer curve of a linear value in [0, 1].

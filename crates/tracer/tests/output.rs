@@ -108,3 +108,75 @@ fn test03_unwritable_destination_is_an_error() {
     assert_eq!(std::fs::read(&path).unwrap(), b"old");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+/// The same image is the same bytes (determinism): the exr crate writes custom attributes in
+/// a hash map's order, which differs between maps, so `write_exr_image` sorts them. Written
+/// twice from two maps with ten attributes: identical files, attributes in name order, and
+/// the exr crate reads back every attribute and pixel.
+#[test]
+fn exr_files_are_the_same_bytes_whatever_the_attribute_map_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let pixels: Vec<f32> = (0..12).map(|i| i as f32 * 0.25).collect();
+    let write = |name: &str| {
+        let mut attributes = LayerAttributes::default();
+        for k in 0..10 {
+            attributes.other.insert(
+                Text::from(format!("prt.key{k}").as_str()),
+                AttributeValue::Text(Text::from(format!("value {k}").as_str())),
+            );
+        }
+        let channels = AnyChannels::sort(
+            [AnyChannel::new("R", FlatSamples::F32(pixels.clone()))]
+                .into_iter()
+                .collect(),
+        );
+        let image = Image::from_layer(Layer::new(
+            (4, 3),
+            attributes,
+            Encoding::SMALL_LOSSLESS,
+            channels,
+        ));
+        let path = dir.path().join(name);
+        prt_tracer::output::write_exr_image(&path, &image).unwrap();
+        path
+    };
+    let (a, b) = (write("a.exr"), write("b.exr"));
+    let bytes = std::fs::read(&a).unwrap();
+    assert_eq!(bytes, std::fs::read(&b).unwrap());
+    let at = |k: usize| {
+        let name = format!("prt.key{k}\0");
+        bytes
+            .windows(name.len())
+            .position(|w| w == name.as_bytes())
+            .unwrap()
+    };
+    assert!((0..9).all(|k| at(k) < at(k + 1)), "attributes out of order");
+    let back = read_all_flat_layers_from_file(&a).unwrap();
+    let layer = &back.layer_data[0];
+    for k in 0..10 {
+        assert_eq!(
+            layer
+                .attributes
+                .other
+                .get(&Text::from(format!("prt.key{k}").as_str())),
+            Some(&AttributeValue::Text(Text::from(
+                format!("value {k}").as_str()
+            )))
+        );
+    }
+    match &layer.channel_data.list[0].sample_data {
+        FlatSamples::F32(v) => assert_eq!(v, &pixels),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn malformed_exr_headers_are_refused_not_reordered() {
+    use prt_tracer::output::sort_exr_attributes;
+    let mut truncated = b"v/1\x01\x02\x00\x00\x00name\0".to_vec();
+    assert!(sort_exr_attributes(&mut truncated).is_err());
+    let mut multi = b"v/1\x01\x02\x10\x00\x00\0".to_vec();
+    assert!(sort_exr_attributes(&mut multi).is_err());
+    let mut oversize = b"v/1\x01\x02\x00\x00\x00a\0int\0\xff\x00\x00\x00\0".to_vec();
+    assert!(sort_exr_attributes(&mut oversize).is_err());
+}
