@@ -60,7 +60,8 @@ fn every_crate_is_a_prt_package_with_docs() {
 /// Each crate's allowed `prt-*` dependencies (issue 31): data flows one way, from the leaves
 /// (SH, wavelets, comparison, the file format) up through the scene, shading, tracer and the
 /// baker to the presentation and the binary. Relighting a scene from a bake
-/// (`prt-scene-relight`) and its glTF export (`prt-gltf`) never depend on the baker; the
+/// (`prt-scene-relight`), its glTF export (`prt-gltf`) and reflectance fields (`prt-fields`)
+/// never depend on the baker; the
 /// report runs experiments over every stage; only the CLI sees everything. A new edge must
 /// be added here on purpose (and to ARCHITECTURE.md's graph).
 const ALLOWED: &[(&str, &[&str])] = &[
@@ -81,6 +82,18 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ),
     ("gltf", &["scene", "tracer", "bakefile", "scene-relight"]),
     (
+        "fields",
+        &[
+            "sh",
+            "scene",
+            "shading",
+            "tracer",
+            "bakefile",
+            "scene-relight",
+            "wavelet",
+        ],
+    ),
+    (
         "report",
         &[
             "sh",
@@ -90,6 +103,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "bakefile",
             "relight",
             "scene-relight",
+            "fields",
             "compare",
             "wavelet",
         ],
@@ -107,6 +121,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "report",
             "scene-relight",
             "gltf",
+            "fields",
             "wavelet",
         ],
     ),

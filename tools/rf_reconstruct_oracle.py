@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Independent reference values ("oracle") for crates/report/src/rf_reconstruct.rs.
+"""Independent reference values ("oracle") for crates/fields/src/reconstruct.rs.
 
-Writes crates/report/tests/data/rf_reconstruct_oracle.json (run from the repository root):
+Writes crates/fields/tests/data/rf_reconstruct_oracle.json (run from the repository root):
 
     tools/.venv/bin/pip install numpy scipy
     tools/.venv/bin/python tools/rf_reconstruct_oracle.py            # regenerate the JSON (~1 s)
@@ -57,7 +57,7 @@ from scipy.spatial import cKDTree
 from scipy.special import lpmv, sph_harm_y
 
 SEED = 20040621
-OUT = "crates/report/tests/data/rf_reconstruct_oracle.json"
+OUT = "crates/fields/tests/data/rf_reconstruct_oracle.json"
 COMMAND = "tools/.venv/bin/python tools/rf_reconstruct_oracle.py"
 
 

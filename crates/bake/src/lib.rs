@@ -4,7 +4,7 @@
 //!
 //! For every vertex of every object (or, in pixel mode, the primary hit of every pixel of the
 //! scene camera; in texel mode, the surface point of every texel of each object's lightmap,
-//! [`texels`]) the baker estimates, to an order chosen per object:
+//! `prt_scene::lightmap`) the baker estimates, to an order chosen per object:
 //! - **shadowed diffuse transfer** `T_i = ∫ V(ω) max(0, n·ω) y_i(ω) dω` with cosine-distributed
 //!   rays from the R2 low-discrepancy sequence, Cranley–Patterson shifted per point;
 //! - **visibility** `V_i = ∫ V(ω) y_i(ω) dω` for materials with a glossy lobe (relit as
@@ -14,7 +14,7 @@
 //!   surface's albedo/π (see [`transfer`]);
 //! - optionally the analytic **unshadowed** transfer (the clamped cosine rotated to `n`);
 //! - the environment's exact SH projection and the BRDF projections of the materials used
-//!   ([`brdf`]: zonal clamped-cosine and Phong lobes; per-view-elevation tables for
+//!   (`prt_shading::projection`: zonal clamped-cosine and Phong lobes; per-view-elevation tables for
 //!   Blinn–Phong, Ward and Cook–Torrance, after Kautz, Sloan & Snyder 2002).
 //!
 //! A bake with bounces can run as sharded passes across machines ([`passes`]: each ray traced
@@ -33,7 +33,6 @@ mod error;
 mod material;
 pub mod passes;
 pub mod plan;
-pub mod reflectance;
 mod settings;
 pub mod subdivide;
 pub mod transfer;
@@ -43,18 +42,18 @@ pub use material::material_binding;
 pub use passes::PassInput;
 pub use settings::{BakeSettings, PointKind, DEFAULT_PIXEL_SAMPLES, MAX_PIXEL_SAMPLES};
 
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use prt_bakefile::{
-    Bake, BakeMeta, CameraInfo, Coverage, Decision, EnvCoefficients, EnvPrecision, ObjectBake,
-    RayStats, SampleKind, ShardInfo, ToolInfo, TransferBlock, TransferKind,
+    Bake, BakeMeta, Coverage, Decision, EnvCoefficients, EnvPrecision, ObjectBake, RayStats,
+    SampleKind, ShardInfo, ToolInfo, TransferBlock, TransferKind,
 };
-use prt_scene::binding::{geometry_hash, mesh_geometry};
-use prt_scene::{Camera, Mapping, Material, Mesh, Scene};
+use prt_scene::binding::{camera_info, geometry_hash, mesh_geometry};
+use prt_scene::{Mapping, Material, Mesh, Scene};
 use prt_sh::{Basis, EnvMapping, ImageRef};
+use prt_tracer::progress_bar;
 use prt_tracer::Accel;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::io::IsTerminal;
 use transfer::{direct, gather, DirectOptions, DirectResult, GatherScene, MeshTransfer};
 
 /// What a bake measured, for the log and `--json` output.
@@ -112,22 +111,6 @@ fn shard_range(count: u64, shard: Option<(u32, u32)>) -> (u64, u64) {
 
 fn progress(settings: &BakeSettings, len: u64, what: &str) -> ProgressBar {
     progress_bar(settings.progress, len, what)
-}
-
-/// A progress bar on a terminal when `show`, hidden otherwise.
-pub(crate) fn progress_bar(show: bool, len: u64, what: &str) -> ProgressBar {
-    if show && std::io::stderr().is_terminal() {
-        let bar = ProgressBar::new(len);
-        if let Ok(style) = ProgressStyle::with_template(
-            "{msg:>12} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
-        ) {
-            bar.set_style(style.progress_chars("=> "));
-        }
-        bar.set_message(what.to_owned());
-        bar
-    } else {
-        ProgressBar::hidden()
-    }
 }
 
 /// Estimated peak memory in bytes of a bake (hit records dominate when bounces are asked).
@@ -997,20 +980,6 @@ pub fn relit_diffuse(
             rgb
         })
         .collect())
-}
-
-/// The camera of a per-pixel bake (SPEC §3.9), as the renderer uses it.
-#[must_use]
-pub fn camera_info(c: &Camera) -> CameraInfo {
-    CameraInfo {
-        model: CameraInfo::PINHOLE.into(),
-        eye: c.eye.to_array(),
-        target: c.target.to_array(),
-        up: c.up.to_array(),
-        fov_y_degrees: c.fov_y_deg,
-        width: c.width,
-        height: c.height,
-    }
 }
 
 /// The lightmap of every object of a per-texel bake (`None` for objects without UVs, baked

@@ -10,7 +10,7 @@ pub enum PointKind {
     /// The primary hit of every pixel of the scene's camera.
     Pixel,
     /// Every texel of a `width × height` lightmap per object with lightmap UVs
-    /// ([`crate::texels`]); objects without UVs per vertex.
+    /// (`prt_scene::lightmap`); objects without UVs per vertex.
     Texel {
         /// Lightmap width.
         width: u32,
@@ -58,7 +58,7 @@ pub struct BakeSettings {
 /// reference also sees as (nearly) black — a grazing surface whose interpolated normal faces
 /// away from the camera, an occlusion edge — moves its pixel by at most 1/16 of the pixel's
 /// value, and creases converge to the box-filtered reference (measured in
-/// `crates/report/tests/per_pixel.rs`).
+/// `crates/scene_relight/tests/per_pixel.rs`).
 pub const DEFAULT_PIXEL_SAMPLES: u32 = 16;
 
 pub use prt_tracer::points::MAX_PIXEL_SAMPLES;

@@ -3,8 +3,8 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use prt_bake::reflectance::{ReflectanceSettings, MAX_DIRECTIONS};
 use prt_bakefile::ScalarType;
+use prt_fields::sample::{ReflectanceSettings, MAX_DIRECTIONS};
 use std::path::PathBuf;
 
 /// Options of `prt reflectance`.
@@ -102,12 +102,12 @@ pub fn run(args: &ReflectanceArgs) -> Result<()> {
             "sampling {}×{} directions per pixel: at most {:.3e} shadow rays",
             directions[0],
             directions[1],
-            prt_bake::reflectance::shadow_ray_estimate(&scene, &settings) as f64
+            prt_fields::sample::shadow_ray_estimate(&scene, &settings) as f64
         );
     }
     let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
-    let (field, stats) = prt_bake::reflectance::sample_field(&scene, &accel, &settings)?;
-    let bake = prt_bake::reflectance::field_bake(&scene, field, &settings);
+    let (field, stats) = prt_fields::sample::sample_field(&scene, &accel, &settings)?;
+    let bake = prt_fields::sample::field_bake(&scene, field, &settings);
     prt_bakefile::write_bake(&args.out, &bake, scalar)?;
     if args.json {
         outln!(

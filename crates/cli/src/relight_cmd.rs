@@ -395,8 +395,8 @@ pub enum ReconstructArg {
 
 impl ReconstructArg {
     /// The reconstruction it names.
-    pub fn method(self) -> prt_report::reflectance::Reconstruction {
-        use prt_report::reflectance::Reconstruction as R;
+    pub fn method(self) -> prt_fields::relight::Reconstruction {
+        use prt_fields::relight::Reconstruction as R;
         match self {
             ReconstructArg::Nearest => R::Nearest,
             ReconstructArg::Linear => R::Linear,
@@ -419,24 +419,24 @@ fn run_field(
     if args.adaptive || args.order.is_some() || args.vertex_colours.is_some() {
         bail!("{}: a reflectance field relights per pixel: --adaptive, --order and --vertex-colours are for SH bakes", args.bake.display());
     }
-    let field = prt_report::reflectance::check_field(scene, bake, &args.bake)?;
+    let field = prt_fields::relight::check_field(scene, bake, &args.bake)?;
     let accel = prt_tracer::Accel::build(scene).context("building the BVH")?;
-    let opt = prt_report::reflectance::FieldOptions {
+    let opt = prt_fields::relight::FieldOptions {
         reconstruction: args.reconstruct.method(),
         fine: crate::reflectance_cmd::parse_grid(&args.fine, "--fine")?,
         rotate_y_deg: args.rotate_y,
         timing_frames: 5,
         compression: match (args.wavelet, args.coefficients, args.rf_error) {
             (None, ..) => None,
-            (Some(w), k, e) => Some(prt_report::reflectance::Compression {
+            (Some(w), k, e) => Some(prt_fields::relight::Compression {
                 wavelet: match w {
                     WaveletArg::Haar => prt_wavelet::Wavelet::Haar,
                     WaveletArg::Legall53 => prt_wavelet::Wavelet::LeGall53,
                     WaveletArg::Cdf97 => prt_wavelet::Wavelet::Cdf97,
                 },
                 budget: match (k, e) {
-                    (Some(k), None) => prt_report::reflectance::Budget::Coefficients(k),
-                    (None, Some(e)) => prt_report::reflectance::Budget::RelativeError(e),
+                    (Some(k), None) => prt_fields::relight::Budget::Coefficients(k),
+                    (None, Some(e)) => prt_fields::relight::Budget::RelativeError(e),
                     _ => bail!("--wavelet needs --coefficients K or --rf-error E"),
                 },
                 error_pixels: match args.rf_error_pixels {
@@ -452,10 +452,10 @@ fn run_field(
         .map(|k| args.rotate_y + args.rotate_y_step * k as f64)
         .collect();
     let (mut frames, stats) =
-        prt_report::reflectance::relight_field_frames(scene, &accel, bake, field, &opt, &angles)?;
+        prt_fields::relight::relight_field_frames(scene, &accel, bake, field, &opt, &angles)?;
     let flicker = if frames.len() > 2 {
         let mask = prt_scene_relight::object_mask(scene, &accel)?;
-        prt_report::reflectance::flicker(&frames, &mask)
+        prt_fields::relight::flicker(&frames, &mask)
     } else {
         None
     };

@@ -37,6 +37,9 @@ pub enum ReportError {
     /// From the SH core.
     #[error(transparent)]
     Sh(#[from] prt_sh::ShError),
+    /// From reflectance fields.
+    #[error(transparent)]
+    Field(#[from] prt_fields::FieldError),
     /// From the baker.
     #[error(transparent)]
     Bake(#[from] prt_bake::BakeError),

@@ -1,6 +1,6 @@
 //! The report's reflectance-field section (`prt report --reflectance WxH`; Masselus, Peers,
 //! Dutré & Willems, EGSR 2004): the scene's reflectance field sampled at `W × H` lat-long
-//! directions ([`prt_bake::reflectance`], cached like the bakes), then
+//! directions ([`prt_fields::sample`], cached like the bakes), then
 //!
 //! - relit with every reconstruction of [`Reconstruction`] and compared with the path-traced
 //!   reference (PSNR of the 8-bit view and relative L2 on object pixels, shading time);
@@ -19,15 +19,15 @@
 
 use crate::error::ReportError;
 use crate::plots::{image_grid, line_chart, ChartOptions, Series};
-use crate::reflectance::{
+use crate::viewer::ViewerImage;
+use plotters::style::RGBColor;
+use prt_bake::{BakeSettings, PointKind};
+use prt_compare::{compare, Image, Mask};
+use prt_fields::relight::{
     check_field, fine_lighting, flicker, relight_field_frames, relight_field_series, wavelet_name,
     FieldOptions, Reconstruction,
 };
-use crate::viewer::ViewerImage;
-use plotters::style::RGBColor;
-use prt_bake::reflectance::ReflectanceSettings;
-use prt_bake::{BakeSettings, PointKind};
-use prt_compare::{compare, Image, Mask};
+use prt_fields::sample::ReflectanceSettings;
 use prt_scene::Scene;
 use prt_scene_relight::imaging::RgbImage;
 use prt_scene_relight::io::{to_compare_image, write_exr, write_png};
@@ -39,17 +39,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
-/// Every reconstruction, in the order the section lists them.
-pub const RECONSTRUCTIONS: [Reconstruction; 8] = [
-    Reconstruction::Nearest,
-    Reconstruction::Linear,
-    Reconstruction::LeGall53,
-    Reconstruction::Cdf97,
-    Reconstruction::Idw,
-    Reconstruction::Biquadric,
-    Reconstruction::Sh25,
-    Reconstruction::BSpline,
-];
+pub use prt_fields::RECONSTRUCTIONS;
 
 /// The three wavelets of the compression tables.
 pub const WAVELETS: [Wavelet; 3] = [Wavelet::Haar, Wavelet::LeGall53, Wavelet::Cdf97];
@@ -384,15 +374,15 @@ pub fn run_section(
             let t = Instant::now();
             // f16 (half the memory and file); a value beyond its range (65504 per sr, near-
             // delta lobes only) samples again in f32.
-            let (field, _, scalar) = match prt_bake::reflectance::sample_field(scene, accel, &rs) {
-                Err(prt_bake::BakeError::File(prt_bakefile::BakeFileError::OutOfF16Range {
+            let (field, _, scalar) = match prt_fields::sample::sample_field(scene, accel, &rs) {
+                Err(prt_fields::FieldError::File(prt_bakefile::BakeFileError::OutOfF16Range {
                     ..
                 })) => {
                     let rs32 = ReflectanceSettings {
                         scalar: prt_bakefile::ScalarType::F32,
                         ..rs.clone()
                     };
-                    let (f, st) = prt_bake::reflectance::sample_field(scene, accel, &rs32)?;
+                    let (f, st) = prt_fields::sample::sample_field(scene, accel, &rs32)?;
                     (f, st, prt_bakefile::ScalarType::F32)
                 }
                 r => {
@@ -401,7 +391,7 @@ pub fn run_section(
                 }
             };
             let seconds = t.elapsed().as_secs_f64();
-            let bake = prt_bake::reflectance::field_bake(scene, field, &rs);
+            let bake = prt_fields::sample::field_bake(scene, field, &rs);
             // Held in the file's precision already: relit from exactly what the file holds,
             // as a later run from the cache and `prt relight` by hand are.
             prt_bakefile::write_bake(&field_path, &bake, scalar)?;
@@ -554,7 +544,7 @@ pub fn run_section(
             "{wname}: compression error against coefficient count"
         ));
         for (k, e2, h1) in
-            crate::reflectance::compression_errors(field, &opt, wav, &curve_ks, error_stride)?
+            prt_fields::relight::compression_errors(field, &opt, wav, &curve_ks, error_stride)?
         {
             error_curve.push(RfErrorPoint {
                 wavelet: wname.into(),

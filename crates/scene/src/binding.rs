@@ -2,9 +2,10 @@
 //! stores for it and the `MESH` section it writes. The baker writes both; relighting and
 //! export check a scene against a bake with the same functions, so the two cannot drift.
 
+use crate::Camera;
 use crate::Mesh;
 use glam::Vec3;
-use prt_bakefile::MeshGeometry;
+use prt_bakefile::{CameraInfo, MeshGeometry};
 
 /// The geometry hash the bake file stores (FNV-1a of positions and indices, [`prt_bakefile::geometry_hash`]).
 #[must_use]
@@ -26,5 +27,19 @@ pub fn mesh_geometry(mesh: &Mesh) -> MeshGeometry {
             .map(|n| n.normalize_or(Vec3::Y).to_array())
             .collect(),
         triangles: mesh.indices.clone(),
+    }
+}
+
+/// The camera of a per-pixel bake (SPEC §3.9), as the renderer uses it.
+#[must_use]
+pub fn camera_info(c: &Camera) -> CameraInfo {
+    CameraInfo {
+        model: CameraInfo::PINHOLE.into(),
+        eye: c.eye.to_array(),
+        target: c.target.to_array(),
+        up: c.up.to_array(),
+        fov_y_degrees: c.fov_y_deg,
+        width: c.width,
+        height: c.height,
     }
 }

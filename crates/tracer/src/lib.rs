@@ -30,6 +30,7 @@ mod error;
 mod integrator;
 pub mod output;
 pub mod points;
+mod progress;
 mod render;
 pub mod rng;
 pub mod sequence;
@@ -43,5 +44,6 @@ pub use accel::{
 pub use camera::PinholeCamera;
 pub use error::TracerError;
 pub use obvhs::BvhBuildParams;
+pub use progress::progress_bar;
 pub use render::{render, Aovs, RenderOutput, Renderer, SurfacePoint, FIRST_PASS_SPP};
 pub use settings::{MisHeuristic, Mode, RenderSettings};

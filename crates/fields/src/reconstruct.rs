@@ -3,7 +3,7 @@
 //! Relighting", EGSR 2004, §4 "Reconstruction Methods"): inverse distance weighting, a
 //! biquadric polynomial per hemisphere, a spherical-harmonic fit and multilevel B-splines
 //! (Lee, Wolberg & Shin, "Scattered Data Interpolation with Multilevel B-Splines", IEEE TVCG
-//! 1997), beside the zero-order hold, bilinear and wavelet interpolation of [`crate::reflectance`].
+//! 1997), beside the zero-order hold, bilinear and wavelet interpolation of [`crate::relight`].
 //!
 //! Each one maps the samples `R_j` of one channel of a pixel's reflectance function, taken at
 //! the centres of a coarse `W × H` lat-long grid of directions, to values at the centres of a
@@ -29,7 +29,7 @@
 //! factorisation (classical Gram–Schmidt, twice) of the weighted design matrix, and refuse
 //! grids on which the fit is not determined.
 
-use crate::error::ReportError;
+use crate::error::FieldError;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -39,17 +39,17 @@ use std::f64::consts::PI;
 /// The implementations here panic when a slice's length does not match its grid (a caller's
 /// bug, not bad input: the constructors validate everything that comes from a user).
 pub trait LinearReconstruction: Send + Sync {
-    /// fine[k] = Σ_j M[k][j] · samples[j]   (samples: W·H values; fine: FW·FH values)
+    /// `fine[k] = Σ_j M[k][j] · samples[j]` (samples: W·H values; fine: FW·FH values)
     fn apply(&self, samples: &[f32], fine: &mut [f64]);
-    /// coarse[j] = Σ_k M[k][j] · fine[k]    (the adjoint; used to pull the lighting back)
+    /// `coarse[j] = Σ_k M[k][j] · fine[k]` (the adjoint; used to pull the lighting back)
     fn apply_transpose(&self, fine: &[f64], coarse: &mut [f64]);
 }
 
 /// Largest coarse or fine grid, in cells (as `relight_field`'s fine grid).
 const MAX_CELLS: u64 = 1 << 24;
 
-fn invalid(message: String) -> ReportError {
-    ReportError::Invalid(message)
+fn invalid(message: String) -> FieldError {
+    FieldError::Invalid(message)
 }
 
 /// The two grids, validated.
@@ -60,7 +60,7 @@ struct Grids {
 }
 
 impl Grids {
-    fn new(method: &str, coarse: [u32; 2], fine: [u32; 2]) -> Result<Self, ReportError> {
+    fn new(method: &str, coarse: [u32; 2], fine: [u32; 2]) -> Result<Self, FieldError> {
         for (what, [w, h]) in [("sampled", coarse), ("fine", fine)] {
             if w == 0 || h == 0 || u64::from(w) * u64::from(h) > MAX_CELLS {
                 return Err(invalid(format!(
@@ -283,7 +283,7 @@ fn weighted_pseudo_inverse(
 
 /// **Inverse distance weighted interpolation** (Shepard's method; Masselus et al. 2004, §4
 /// "Interpolation": "the angle between directions was used as a distance measure and the
-/// weights … are inverse proportional to the distance …; a variation … only tak[es] into
+/// weights … are inverse proportional to the distance …; a variation … only tak(es) into
 /// account a pre-defined number of nearest neighbor directions", 32 in their figure 4.D).
 ///
 /// At a fine centre `d`, with `a_j = ∠(d, d_j)` the angle to sample `j` (computed as
@@ -321,7 +321,7 @@ impl Idw {
         fine: [u32; 2],
         neighbours: usize,
         power: f64,
-    ) -> Result<Self, ReportError> {
+    ) -> Result<Self, FieldError> {
         let grids = Grids::new("IDW", coarse, fine)?;
         let d = grids.samples();
         if neighbours == 0 || neighbours > d {
@@ -388,7 +388,7 @@ impl Idw {
     ///
     /// # Errors
     /// As [`Idw::new`] (a grid of fewer than 32 samples).
-    pub fn paper(coarse: [u32; 2], fine: [u32; 2]) -> Result<Self, ReportError> {
+    pub fn paper(coarse: [u32; 2], fine: [u32; 2]) -> Result<Self, FieldError> {
         Self::new(coarse, fine, Self::DEFAULT_NEIGHBOURS, Self::DEFAULT_POWER)
     }
 
@@ -459,7 +459,7 @@ impl Biquadric {
     ///
     /// # Errors
     /// An empty or too large grid; `H` odd or below 4; `W` below 5.
-    pub fn new(coarse: [u32; 2], fine: [u32; 2]) -> Result<Self, ReportError> {
+    pub fn new(coarse: [u32; 2], fine: [u32; 2]) -> Result<Self, FieldError> {
         let grids = Grids::new("biquadric", coarse, fine)?;
         let [cw, ch] = grids.coarse;
         if !ch.is_multiple_of(2) {
@@ -604,7 +604,7 @@ impl ShFit {
     /// # Errors
     /// An empty or too large grid; order 0 or above `prt_sh::MAX_ORDER`; fewer samples than
     /// coefficients; `W < 2·order − 1` or `H < order`; more than 2^26 stored values.
-    pub fn new(coarse: [u32; 2], fine: [u32; 2], order: usize) -> Result<Self, ReportError> {
+    pub fn new(coarse: [u32; 2], fine: [u32; 2], order: usize) -> Result<Self, FieldError> {
         let grids = Grids::new("SH", coarse, fine)?;
         let basis_fn =
             prt_sh::Basis::new(order).map_err(|e| invalid(format!("SH reconstruction: {e}")))?;
@@ -856,7 +856,7 @@ impl MultilevelBSpline {
     ///
     /// # Errors
     /// An empty or too large grid; `levels` 0 or above [`MultilevelBSpline::MAX_LEVELS`].
-    pub fn new(coarse: [u32; 2], fine: [u32; 2], levels: usize) -> Result<Self, ReportError> {
+    pub fn new(coarse: [u32; 2], fine: [u32; 2], levels: usize) -> Result<Self, FieldError> {
         let grids = Grids::new("multilevel B-spline", coarse, fine)?;
         if levels == 0 || levels > Self::MAX_LEVELS {
             return Err(invalid(format!(
@@ -932,7 +932,7 @@ impl MultilevelBSpline {
     ///
     /// # Errors
     /// As [`MultilevelBSpline::new`].
-    pub fn with_default_levels(coarse: [u32; 2], fine: [u32; 2]) -> Result<Self, ReportError> {
+    pub fn with_default_levels(coarse: [u32; 2], fine: [u32; 2]) -> Result<Self, FieldError> {
         Self::new(coarse, fine, Self::default_levels(coarse))
     }
 

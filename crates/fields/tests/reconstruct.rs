@@ -1,11 +1,11 @@
-//! The reconstructions of `prt_report::rf_reconstruct` (Masselus et al. 2004, §4; Lee,
+//! The reconstructions of `prt_fields::reconstruct` (Masselus et al. 2004, §4; Lee,
 //! Wolberg & Shin 1997): against the independent numpy/SciPy oracle
 //! (`tools/rf_reconstruct_oracle.py`, `tests/data/rf_reconstruct_oracle.json`), the adjoint
 //! identity, constants, functions in each fit's span, convergence of the multilevel B-splines,
 //! and bad parameters.
 
 use glam::DVec3;
-use prt_report::rf_reconstruct::{Biquadric, Idw, LinearReconstruction, MultilevelBSpline, ShFit};
+use prt_fields::reconstruct::{Biquadric, Idw, LinearReconstruction, MultilevelBSpline, ShFit};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use serde_json::Value;
@@ -342,7 +342,7 @@ fn test06_multilevel_bsplines_converge_on_a_smooth_function() {
 fn test07_bad_parameters_are_errors() {
     let ok = [16u32, 8u32];
     let fine = [32u32, 16u32];
-    let errors: Vec<(&str, Result<(), prt_report::ReportError>)> = vec![
+    let errors: Vec<(&str, Result<(), prt_fields::FieldError>)> = vec![
         ("empty coarse", Idw::new([0, 8], fine, 4, 1.0).map(|_| ())),
         ("empty fine", Idw::new(ok, [32, 0], 4, 1.0).map(|_| ())),
         (
@@ -388,7 +388,7 @@ fn test07_bad_parameters_are_errors() {
     ];
     for (what, r) in errors {
         match r {
-            Err(prt_report::ReportError::Invalid(msg)) => eprintln!("{what}: {msg}"),
+            Err(prt_fields::FieldError::Invalid(msg)) => eprintln!("{what}: {msg}"),
             other => panic!("{what}: expected an Invalid error, got {other:?}"),
         }
     }

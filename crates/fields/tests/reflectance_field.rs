@@ -4,8 +4,8 @@
 //! texels above the horizon — computed here per texel, sharing no code with the sampler.
 
 use glam::{DVec3, Vec3};
-use prt_bake::reflectance::{field_bake, sample_field, ReflectanceSettings};
-use prt_report::reflectance::{relight_field, FieldOptions, Reconstruction};
+use prt_fields::relight::{relight_field, FieldOptions, Reconstruction};
+use prt_fields::sample::{field_bake, sample_field, ReflectanceSettings};
 use prt_scene::{Camera, EnvImage, Environment, Mapping, Material, Mesh, Scene};
 use prt_tracer::Accel;
 use std::f64::consts::PI;
@@ -117,7 +117,7 @@ fn an_unshadowed_lambert_floor_relights_to_its_irradiance() {
     // Through the file format and back.
     let bytes = prt_bakefile::encode(&bake, prt_bakefile::ScalarType::F32).unwrap();
     let bake = prt_bakefile::decode(&bytes).unwrap();
-    let field = prt_report::reflectance::check_field(&s, &bake, std::path::Path::new("t"))
+    let field = prt_fields::relight::check_field(&s, &bake, std::path::Path::new("t"))
         .unwrap()
         .clone();
     let want = exact(&s);
@@ -186,7 +186,7 @@ fn a_field_of_another_scene_or_a_bad_grid_is_refused() {
     let bake = field_bake(&s, field, &settings);
     let mut other = s.clone();
     other.meshes[0].positions[0].x += 1.0;
-    let e = prt_report::reflectance::check_field(&other, &bake, std::path::Path::new("f.prtb"))
+    let e = prt_fields::relight::check_field(&other, &bake, std::path::Path::new("f.prtb"))
         .unwrap_err();
     assert!(e.to_string().contains("re-sample"), "{e}");
     let field = bake.reflectance.clone().unwrap();
@@ -210,7 +210,7 @@ fn a_field_of_another_scene_or_a_bad_grid_is_refused() {
 
 #[test]
 fn wavelet_compression_is_exact_with_every_coefficient_and_bounded_by_its_error() {
-    use prt_report::reflectance::{fine_lighting, reconstruct, Budget, Compression};
+    use prt_fields::relight::{fine_lighting, reconstruct, Budget, Compression};
     let (w, h) = (16usize, 8usize);
     let s = scene(w, h);
     let accel = Accel::build(&s).unwrap();

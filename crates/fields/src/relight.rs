@@ -28,7 +28,7 @@
 //! between the four surrounding samples, periodic in azimuth, held constant beyond the first
 //! and last rows' centres at the poles).
 
-use crate::error::ReportError;
+use crate::error::FieldError;
 use glam::Vec3;
 use prt_bakefile::{Bake, ReflectanceField};
 use prt_scene::Scene;
@@ -56,31 +56,31 @@ pub enum Reconstruction {
     #[serde(rename = "cdf97")]
     Cdf97,
     /// Inverse-distance weighting of the 32 angularly nearest samples (Shepard's method,
-    /// [`crate::rf_reconstruct::Idw`]).
+    /// [`crate::reconstruct::Idw`]).
     Idw,
-    /// A biquadric polynomial per hemisphere, least squares ([`crate::rf_reconstruct::Biquadric`]).
+    /// A biquadric polynomial per hemisphere, least squares ([`crate::reconstruct::Biquadric`]).
     Biquadric,
     /// Spherical harmonics with 25 coefficients, least squares
-    /// ([`crate::rf_reconstruct::ShFit`]).
+    /// ([`crate::reconstruct::ShFit`]).
     #[serde(rename = "sh25")]
     Sh25,
-    /// Multilevel B-splines (Lee, Wolberg & Shin 1997; [`crate::rf_reconstruct::MultilevelBSpline`]).
+    /// Multilevel B-splines (Lee, Wolberg & Shin 1997; [`crate::reconstruct::MultilevelBSpline`]).
     #[serde(rename = "bspline")]
     BSpline,
     /// Spherical harmonics of this order (order² coefficients), least squares from the
-    /// samples ([`crate::rf_reconstruct::ShFit`]): the report's noise-free SH of a given
+    /// samples ([`crate::reconstruct::ShFit`]): the report's noise-free SH of a given
     /// coefficient count, fitted to the same samples as the other reconstructions.
     #[serde(rename = "sh_fit")]
     ShFit(usize),
 }
 
 /// A reconstruction set up for one pair of grids: the built-in ones are evaluated directly,
-/// the others ([`crate::rf_reconstruct`]) precompute their linear map once.
+/// the others ([`crate::reconstruct`]) precompute their linear map once.
 pub struct Prepared {
     method: Reconstruction,
     coarse: [u32; 2],
     fine: [u32; 2],
-    op: Option<Box<dyn crate::rf_reconstruct::LinearReconstruction>>,
+    op: Option<Box<dyn crate::reconstruct::LinearReconstruction>>,
 }
 
 impl Prepared {
@@ -92,8 +92,8 @@ impl Prepared {
         method: Reconstruction,
         coarse: [u32; 2],
         fine: [u32; 2],
-    ) -> Result<Self, ReportError> {
-        use crate::rf_reconstruct as rf;
+    ) -> Result<Self, FieldError> {
+        use crate::reconstruct as rf;
         let op: Option<Box<dyn rf::LinearReconstruction>> = match method {
             Reconstruction::Nearest
             | Reconstruction::Linear
@@ -125,7 +125,7 @@ impl Prepared {
     ///
     /// # Errors
     /// As [`reconstruct`].
-    pub fn apply(&self, samples: &[f32], out: &mut [f64]) -> Result<(), ReportError> {
+    pub fn apply(&self, samples: &[f32], out: &mut [f64]) -> Result<(), FieldError> {
         match &self.op {
             Some(op) => {
                 op.apply(samples, out);
@@ -139,7 +139,7 @@ impl Prepared {
     ///
     /// # Errors
     /// As [`pulled_back_lighting`].
-    pub fn pull_back(&self, lighting: &[[f64; 3]]) -> Result<Vec<[f64; 3]>, ReportError> {
+    pub fn pull_back(&self, lighting: &[[f64; 3]]) -> Result<Vec<[f64; 3]>, FieldError> {
         let Some(op) = &self.op else {
             return pulled_back_lighting(self.method, self.coarse, self.fine, lighting);
         };
@@ -300,7 +300,7 @@ fn compress(
     prepared: &Prepared,
     fine: [u32; 2],
     c: Compression,
-) -> Result<Sparse, ReportError> {
+) -> Result<Sparse, FieldError> {
     let stride = c
         .error_pixels
         .map_or(1, |n| field.pixels.len().div_ceil(n.max(1)).max(1));
@@ -321,9 +321,9 @@ fn compress_series(
     budgets: &[Budget],
     error_stride: usize,
     only_measured: bool,
-) -> Result<Vec<Sparse>, ReportError> {
+) -> Result<Vec<Sparse>, FieldError> {
     let start = std::time::Instant::now();
-    let wav = |e: prt_wavelet::WaveletError| ReportError::Invalid(format!("wavelet: {e}"));
+    let wav = |e: prt_wavelet::WaveletError| FieldError::Invalid(format!("wavelet: {e}"));
     let transform =
         prt_wavelet::Transform2d::lat_long(wavelet, fine[0] as usize, fine[1] as usize, None)
             .map_err(wav)?;
@@ -331,12 +331,12 @@ fn compress_series(
     for b in budgets {
         match *b {
             Budget::Coefficients(k) if k == 0 || k > n => {
-                return Err(ReportError::Invalid(format!(
+                return Err(FieldError::Invalid(format!(
                     "--coefficients {k}: give between 1 and the fine grid's {n}"
                 )))
             }
             Budget::RelativeError(e) if !(e > 0.0 && e < 1.0) => {
-                return Err(ReportError::Invalid(format!(
+                return Err(FieldError::Invalid(format!(
                     "--rf-error {e}: give a relative error in (0, 1)"
                 )))
             }
@@ -381,7 +381,7 @@ fn compress_series(
     for first in (0..len).step_by(CHUNK) {
         let per_pixel: Vec<PixelOut> = (first..(first + CHUNK).min(len))
             .into_par_iter()
-            .map_init(Vec::new, |scratch, i| -> Result<PixelOut, ReportError> {
+            .map_init(Vec::new, |scratch, i| -> Result<PixelOut, FieldError> {
                 let measure = i % error_stride == 0;
                 if only_measured && !measure {
                     return Ok(vec![(vec![Vec::new(); 3], [0.0; 4]); budgets.len()]);
@@ -552,7 +552,7 @@ pub fn reconstruct(
     samples: &[f32],
     fine: [u32; 2],
     out: &mut [f64],
-) -> Result<(), ReportError> {
+) -> Result<(), FieldError> {
     if matches!(
         method,
         Reconstruction::Idw
@@ -561,7 +561,7 @@ pub fn reconstruct(
             | Reconstruction::ShFit(_)
             | Reconstruction::BSpline
     ) {
-        return Err(ReportError::Invalid(format!(
+        return Err(FieldError::Invalid(format!(
             "{method:?} reconstruction precomputes its map: use Prepared"
         )));
     }
@@ -576,7 +576,7 @@ pub fn reconstruct(
             fine[0] as usize,
             fine[1] as usize,
         )
-        .map_err(|e| ReportError::Invalid(format!("--reconstruct {method:?}: {e}")))?;
+        .map_err(|e| FieldError::Invalid(format!("--reconstruct {method:?}: {e}")))?;
         // The synthesis puts coarse sample k on fine sample F·k (F = 2^levels per axis: the
         // low band sits on even samples at every level), whose cell centre lies (F − 1)/2 fine
         // cells before the coarse cell's centre, where the sample was taken. Read the refined
@@ -620,7 +620,7 @@ pub fn pulled_back_lighting(
     coarse: [u32; 2],
     fine: [u32; 2],
     lighting: &[[f64; 3]],
-) -> Result<Vec<[f64; 3]>, ReportError> {
+) -> Result<Vec<[f64; 3]>, FieldError> {
     if method.wavelet().is_some() {
         let d = coarse[0] as usize * coarse[1] as usize;
         let n = lighting.len();
@@ -691,8 +691,8 @@ pub fn check_field<'b>(
     scene: &Scene,
     bake: &'b Bake,
     path: &std::path::Path,
-) -> Result<&'b ReflectanceField, ReportError> {
-    let bad = |reason: String| ReportError::BakeMismatch {
+) -> Result<&'b ReflectanceField, FieldError> {
+    let bad = |reason: String| FieldError::BakeMismatch {
         path: path.to_path_buf(),
         reason,
     };
@@ -750,7 +750,7 @@ pub fn relight_field(
     bake: &Bake,
     field: &ReflectanceField,
     opt: &FieldOptions,
-) -> Result<(RgbImage, FieldStats), ReportError> {
+) -> Result<(RgbImage, FieldStats), FieldError> {
     let (mut images, stats) =
         relight_field_frames(scene, accel, bake, field, opt, &[opt.rotate_y_deg])?;
     Ok((images.remove(0), stats))
@@ -769,9 +769,9 @@ pub fn relight_field_frames(
     field: &ReflectanceField,
     opt: &FieldOptions,
     angles: &[f64],
-) -> Result<(Vec<RgbImage>, FieldStats), ReportError> {
+) -> Result<(Vec<RgbImage>, FieldStats), FieldError> {
     if angles.is_empty() {
-        return Err(ReportError::Invalid("no frames to relight".into()));
+        return Err(FieldError::Invalid("no frames to relight".into()));
     }
     check_fine(field, opt.fine)?;
     let prepared = Prepared::new(opt.reconstruction, field.directions, opt.fine)?;
@@ -797,11 +797,11 @@ pub fn relight_field_frames(
 }
 
 /// Checks the fine grid against the field's.
-fn check_fine(field: &ReflectanceField, fine: [u32; 2]) -> Result<(), ReportError> {
+fn check_fine(field: &ReflectanceField, fine: [u32; 2]) -> Result<(), FieldError> {
     let [fw, fh] = fine;
     let [cw, ch] = field.directions;
     if fw < cw || fh < ch || u64::from(fw) * u64::from(fh) > 1 << 24 {
-        return Err(ReportError::Invalid(format!(
+        return Err(FieldError::Invalid(format!(
             "the fine grid {fw}×{fh} must be at least the sampled grid {cw}×{ch} in each direction (and at most 2^24 cells)"
         )));
     }
@@ -827,7 +827,7 @@ pub fn relight_field_series(
     wavelet: prt_wavelet::Wavelet,
     ks: &[usize],
     error_stride: usize,
-) -> Result<Vec<(RgbImage, FieldStats)>, ReportError> {
+) -> Result<Vec<(RgbImage, FieldStats)>, FieldError> {
     check_fine(field, opt.fine)?;
     let prepared = Prepared::new(opt.reconstruction, field.directions, opt.fine)?;
     let budgets: Vec<Budget> = ks.iter().map(|&k| Budget::Coefficients(k)).collect();
@@ -871,7 +871,7 @@ pub fn compression_errors(
     wavelet: prt_wavelet::Wavelet,
     ks: &[usize],
     stride: usize,
-) -> Result<Vec<(usize, f64, f64)>, ReportError> {
+) -> Result<Vec<(usize, f64, f64)>, FieldError> {
     check_fine(field, opt.fine)?;
     let prepared = Prepared::new(opt.reconstruction, field.directions, opt.fine)?;
     let budgets: Vec<Budget> = ks.iter().map(|&k| Budget::Coefficients(k)).collect();
@@ -895,7 +895,7 @@ fn shade_frames(
     sparse: Option<&Sparse>,
     opt: &FieldOptions,
     angles: &[f64],
-) -> Result<(Vec<RgbImage>, f64, f64), ReportError> {
+) -> Result<(Vec<RgbImage>, f64, f64), FieldError> {
     let d = field.direction_count();
     let mut times = Vec::new();
     let mut lighting_ms = 0.0;
@@ -924,7 +924,7 @@ fn shade_frames(
                         sp.transform
                             .primal_coefficients(&l)
                             .map(|p| p.iter().map(|v| *v as f32).collect())
-                            .map_err(|e| ReportError::Invalid(format!("wavelet: {e}")))
+                            .map_err(|e| FieldError::Invalid(format!("wavelet: {e}")))
                     })
                     .collect::<Result<_, _>>()?;
                 values.par_iter_mut().enumerate().for_each(|(i, v)| {
@@ -1037,7 +1037,7 @@ mod tests {
             .map(|k| [(k % 7) as f64, (k % 5) as f64 * 0.5, 1.0])
             .collect();
         // Every reconstruction of the report, and an SH fit of another order.
-        for m in crate::rf_section::RECONSTRUCTIONS
+        for m in crate::RECONSTRUCTIONS
             .into_iter()
             .chain([Reconstruction::ShFit(3)])
         {

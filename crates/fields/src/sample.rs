@@ -17,7 +17,7 @@
 //! estimation towards each grid direction), so every direction shares the same paths. Delta
 //! lobes (mirrors) have no value at a grid direction: their reflections are not represented.
 
-use crate::error::BakeError;
+use crate::error::FieldError;
 use glam::Vec3;
 use prt_bakefile::{FieldValues, ReflectanceField, ScalarType};
 use prt_scene::{Material, Scene};
@@ -94,7 +94,7 @@ const BATCH_VALUES: usize = 8 << 20;
 
 /// Samples the reflectance field of `scene`'s camera image, its values held as `s.scalar`.
 ///
-/// Pixels are sampled in batches (about [`BATCH_VALUES`] values each, in pixel order, each
+/// Pixels are sampled in batches (about `BATCH_VALUES` values each, in pixel order, each
 /// batch in parallel); a batch's functions are appended to the field converted to its
 /// precision and dropped, so no f32 copy of an f16 field ever exists. Each pixel's function
 /// depends only on the pixel, so the field is bit-identical for any thread count.
@@ -102,12 +102,12 @@ const BATCH_VALUES: usize = 8 << 20;
 /// # Errors
 /// Impossible settings (a grid smaller than 2 × 1 or above [`MAX_DIRECTIONS`], no footprint
 /// samples), the tracer's camera errors, and [`prt_bakefile::BakeFileError::OutOfF16Range`]
-/// (as [`BakeError::File`]) when the field is held as f16 and a value rounds beyond ±65504.
+/// (as [`FieldError::File`]) when the field is held as f16 and a value rounds beyond ±65504.
 pub fn sample_field(
     scene: &Scene,
     accel: &Accel,
     s: &ReflectanceSettings,
-) -> Result<(ReflectanceField, FieldStats), BakeError> {
+) -> Result<(ReflectanceField, FieldStats), FieldError> {
     let d = (u64::from(s.directions[0]) * u64::from(s.directions[1])).max(1) as usize;
     sample_in_batches(scene, accel, s, (BATCH_VALUES / (3 * d)).max(64))
 }
@@ -118,24 +118,24 @@ fn sample_in_batches(
     accel: &Accel,
     s: &ReflectanceSettings,
     batch: usize,
-) -> Result<(ReflectanceField, FieldStats), BakeError> {
+) -> Result<(ReflectanceField, FieldStats), FieldError> {
     let start = std::time::Instant::now();
     let [w, h] = s.directions;
     let dirs = u64::from(w) * u64::from(h);
     if w < 2 || h < 1 || dirs > MAX_DIRECTIONS {
-        return Err(BakeError::InvalidSettings(format!(
+        return Err(FieldError::InvalidSettings(format!(
             "--directions {w}x{h}: give at least 2x1 and at most {MAX_DIRECTIONS} directions"
         )));
     }
-    if s.pixel_samples == 0 || s.pixel_samples > crate::MAX_PIXEL_SAMPLES {
-        return Err(BakeError::InvalidSettings(format!(
+    if s.pixel_samples == 0 || s.pixel_samples > prt_tracer::points::MAX_PIXEL_SAMPLES {
+        return Err(FieldError::InvalidSettings(format!(
             "{} pixel samples: give between 1 and {}",
             s.pixel_samples,
-            crate::MAX_PIXEL_SAMPLES
+            prt_tracer::points::MAX_PIXEL_SAMPLES
         )));
     }
     if s.bounces > 0 && s.rays == 0 {
-        return Err(BakeError::InvalidSettings(
+        return Err(FieldError::InvalidSettings(
             "bounces need at least one path per sample (--rays)".into(),
         ));
     }
@@ -143,7 +143,7 @@ fn sample_in_batches(
     let directions: Vec<Vec3> = (0..d).map(|j| grid_direction(w, h, j)).collect();
     let fp = pixel_footprints(scene, accel, s.seed, s.pixel_samples)?;
     let k = s.pixel_samples as usize;
-    let bar = crate::progress_bar(s.progress, fp.pixel_count() as u64, "pixels");
+    let bar = prt_tracer::progress_bar(s.progress, fp.pixel_count() as u64, "pixels");
     let mut pixels = Vec::new();
     let mut values = FieldValues::new(s.scalar);
     let mut shadow_rays = 0u64;
@@ -338,7 +338,7 @@ pub fn field_bake(
         .map(|m| {
             serde_json::json!({
                 "object": m.name,
-                "geometry_hash": format!("{:#018x}", crate::geometry_hash(&m.positions, &m.indices)),
+                "geometry_hash": format!("{:#018x}", prt_scene::binding::geometry_hash(&m.positions, &m.indices)),
             })
         })
         .collect();
@@ -371,7 +371,7 @@ pub fn field_bake(
             decisions: Vec::new(),
             shard: prt_bakefile::ShardInfo::default(),
             ray_stats: Vec::new(),
-            camera: Some(crate::camera_info(&scene.camera)),
+            camera: Some(prt_scene::binding::camera_info(&scene.camera)),
             pass: None,
         },
         objects: Vec::new(),
