@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs a distributed bounced bake on this machine, pass by pass: N `prt bake --shard I/N --pass K`
 # processes at once, then `prt merge`, then the next pass. Prints each pass's wall time and
-# rays, and leaves the final bake at OUT. The same sequence a cluster runs (slurm-bake.sh,
-# k8s/), for testing a setup or measuring scaling on one machine.
+# rays, and leaves the final bake at OUT. The same sequence slurm-bake.sh runs on a cluster,
+# for testing a setup or measuring scaling on one machine.
 #
 #   tools/distributed/run-local.sh SCENE N OUT.prtb --bounces B [other prt bake options...]
 #
@@ -16,10 +16,11 @@ fi
 scene=$1 n=$2 out=$3
 shift 3
 prt=${PRT:-$(command -v prt || echo target/release/prt)}
-bounces=""
+bounces="" per_pixel=0
 args=("$@")
 for ((i = 0; i < ${#args[@]}; i++)); do
     if [ "${args[$i]}" = "--bounces" ]; then bounces=${args[$((i + 1))]}; fi
+    if [ "${args[$i]}" = "--per-pixel" ]; then per_pixel=1; fi
 done
 if [ -z "$bounces" ]; then
     echo "run-local.sh: give --bounces B explicitly (the passes are 0..=B)" >&2
@@ -33,7 +34,10 @@ for ((k = 0; k <= bounces; k++)); do
     pids=()
     for ((i = 0; i < n; i++)); do
         hits=()
-        [ "$k" -gt 0 ] && hits=(--hits "$work/pass0-shard$i.prtb")
+        # Every pass but the last of a per-pixel bake gathers at vertices from the shard's hits.
+        if [ "$k" -gt 0 ] && { [ "$per_pixel" -eq 0 ] || [ "$k" -lt "$bounces" ]; }; then
+            hits=(--hits "$work/pass0-shard$i.prtb")
+        fi
         "$prt" bake "$scene" "$@" --shard "$i/$n" --pass "$k" "${previous[@]}" "${hits[@]}" --json \
             --out "$work/pass$k-shard$i.prtb" >"$work/pass$k-shard$i.json" 2>"$work/pass$k-shard$i.log" &
         pids+=($!)
