@@ -34,6 +34,7 @@ mod material;
 pub mod passes;
 pub mod plan;
 mod settings;
+pub mod shard_plan;
 pub mod subdivide;
 pub mod transfer;
 

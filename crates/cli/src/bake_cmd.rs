@@ -91,8 +91,24 @@ pub struct BakeArgs {
     #[arg(long)]
     pub json: bool,
     /// Output file (.prtb).
-    #[arg(long)]
-    pub out: PathBuf,
+    #[arg(long, required_unless_present = "plan_shards")]
+    pub out: Option<PathBuf>,
+    /// Plan a distributed bake of these options in N shards per pass instead of baking: the
+    /// expected time of each pass's slowest shard and merge and the sizes of its files, for a
+    /// node like this machine. Measured by running the whole distributed bake (every pass,
+    /// shard and merge) at two small ray counts and extrapolating linearly in the rays
+    /// (--plan-probe-rays R: R and 2R rays per point).
+    #[arg(long, value_name = "N", conflicts_with_all = ["shard", "pass", "previous", "hits", "per_texel", "subdivide", "target_psnr", "out"])]
+    pub plan_shards: Option<u32>,
+    /// With --plan-shards: the smaller of the two ray counts measured (default: 1/32 of
+    /// --rays, at least 4).
+    #[arg(long, value_name = "R", requires = "plan_shards")]
+    pub plan_probe_rays: Option<u32>,
+    /// With --plan-shards: where the measured bakes write their files (removed afterwards;
+    /// default: the system's temporary directory). Give the shared file system the bake will
+    /// use: reading and writing the files is part of each pass's time.
+    #[arg(long, value_name = "DIR", requires = "plan_shards")]
+    pub plan_dir: Option<PathBuf>,
     /// Model each object with only what it needs: path-trace a reference (to a noise ceiling
     /// 6 dB above this), bake per vertex at --order (default 13), and keep per object the
     /// lowest SH order whose PSNR against the reference over its pixels (8-bit view) reaches
@@ -275,7 +291,9 @@ fn choose_orders(
 
 /// Runs `prt bake`.
 pub fn run_bake(args: &BakeArgs) -> Result<()> {
+    let loading = std::time::Instant::now();
     let scene = crate::common::load_scene(&args.scene)?;
+    let load_seconds = loading.elapsed().as_secs_f64();
     let bounces = crate::common::bake_bounces(args.bounces, &scene, &args.scene)?;
     if let Some(p) = args.target_psnr {
         if !(p.is_finite() && p > 0.0) {
@@ -318,6 +336,22 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build()?;
+    if let Some(shards) = args.plan_shards {
+        let probe = args.plan_probe_rays.unwrap_or((settings.rays / 32).max(4));
+        let dir = args.plan_dir.clone().unwrap_or_else(std::env::temp_dir);
+        return pool.install(|| {
+            run_plan(
+                &scene,
+                &settings,
+                shards,
+                probe,
+                load_seconds,
+                &dir,
+                args.json,
+            )
+        });
+    }
+    let out_path = args.out.as_ref().context("--out is required")?;
     let previous = match &args.previous {
         Some(p) => Some(prt_bakefile::read_bake(p)?),
         None => None,
@@ -356,7 +390,7 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
     } else {
         ScalarType::F32
     };
-    prt_bakefile::write_bake(&args.out, &out.bake, scalar)?;
+    prt_bakefile::write_bake(out_path, &out.bake, scalar)?;
     if let Some(p) = &intermediate {
         eprintln!(
             "pass {} of passes 0..={}: an intermediate file; merge this pass's shards (prt merge), then run --pass {} --previous MERGED",
@@ -389,9 +423,59 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
             out.report.rays_traced,
             out.report.seconds,
             out.report.rays_traced as f64 / out.report.seconds.max(1e-9) / 1e6,
-            args.out.display()
+            out_path.display()
         );
     }
+    Ok(())
+}
+
+/// `prt bake --plan-shards N`: prints the plan of the distributed bake of `settings`.
+fn run_plan(
+    scene: &prt_scene::Scene,
+    settings: &BakeSettings,
+    shards: u32,
+    probe: u32,
+    load_seconds: f64,
+    dir: &std::path::Path,
+    json: bool,
+) -> Result<()> {
+    // What each shard process pays before baking: the scene and its BVH.
+    let start = std::time::Instant::now();
+    let accel = prt_tracer::Accel::build(scene)?;
+    let startup = load_seconds + start.elapsed().as_secs_f64();
+    let plan =
+        prt_bake::shard_plan::plan_shards(scene, &accel, settings, shards, probe, startup, dir)?;
+    if json {
+        outln!("{}", serde_json::to_string(&plan)?);
+        return Ok(());
+    }
+    let mb = |b: f64| b / 1e6;
+    outln!(
+        "plan: {} shards per pass, {} rays per point, passes 0..={} (measured here at {} and {} rays in {:.1} s, extrapolated linearly; times for a node like this machine with {} threads)",
+        plan.shards,
+        plan.rays,
+        settings.bounces,
+        plan.probe_rays[0],
+        plan.probe_rays[1],
+        plan.probe_seconds,
+        rayon::current_num_threads()
+    );
+    for p in &plan.passes {
+        outln!(
+            "pass {}: slowest shard {:.2} s, merge {:.2} s, {:.3e} rays; shard files up to {:.1} MB ({:.1} MB in all), merged {:.1} MB",
+            p.pass,
+            p.slowest_shard_seconds,
+            p.merge_seconds,
+            p.rays,
+            mb(p.largest_shard_bytes),
+            mb(p.shard_bytes),
+            mb(p.merged_bytes)
+        );
+    }
+    outln!(
+        "expected wall time {:.1} s plus scheduling (about 1.3 s per job on an idle Slurm, 2 jobs per pass: tools/distributed/README.md)",
+        plan.wall_seconds()
+    );
     Ok(())
 }
 
