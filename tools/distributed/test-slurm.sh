@@ -5,11 +5,13 @@
 # socket, everything under a temporary directory), then:
 #   1. a per-vertex and a per-pixel 2-bounce bake through slurm-bake.sh (real sbatch job
 #      arrays, squeue), each byte for byte the unsharded local bake;
-#   2. faults, each on its own run, each ending in the unsharded bake's bytes:
-#      scancel of one array element mid-pass; kill -9 of one task's prt process; the node
-#      taken down mid-pass (scontrol update state=down) and brought back (state=resume);
-#      a task that runs twice (scontrol requeue of a finished task: same bytes again);
-#      a truncated and a corrupted shard file left in the output directory (named, re-run);
+#   2. faults, each ending in the unsharded bake's bytes: scancel of one array element
+#      mid-pass and kill -9 of one task's prt process (per vertex in pass 0, and per pixel in
+#      the pixel-tracing last pass); the node taken down mid-pass (scontrol update
+#      state=down) and brought back (state=resume); a task that runs twice (scontrol requeue
+#      of a finished task: same bytes again); a truncated and a corrupted shard file left in
+#      the output directory (per vertex in pass 0, per pixel in the last pass: named, re-run,
+#      the rest kept);
 #   3. the scheduler's overhead: the clean per-vertex run against run-local.sh's same passes.
 # Tears everything down and exits 0 only if every check held.
 #
@@ -110,6 +112,9 @@ light=(--bounces 2 --rays 64 --order 4 --seed 3)
 pixel=(--bounces 2 --rays 64 --order 4 --seed 3 --per-pixel --pixel-samples 1)
 # Pass 0 shard tasks of about 3 s each on one CPU: time to inject a fault into a running task.
 heavy=(--bounces 2 --rays 16384 --order 4 --seed 3)
+# Likewise for the pixel-tracing last pass of a per-pixel bake (`prt bake --plan-shards 3`
+# --threads 1: 24 s per shard at 4096 rays, so about 3 s at 512).
+pixel_heavy=(--bounces 2 --rays 512 --order 4 --seed 3 --per-pixel --pixel-samples 1)
 local_bake() { # NAME OPTIONS...: the unsharded bake, the reference bytes
     local name=$1
     shift
@@ -118,6 +123,7 @@ local_bake() { # NAME OPTIONS...: the unsharded bake, the reference bytes
 local_bake light "${light[@]}"
 local_bake pixel "${pixel[@]}"
 local_bake heavy "${heavy[@]}"
+local_bake pixel_heavy "${pixel_heavy[@]}"
 
 # Runs the driver: NAME OUTDIR OPTIONS... (in the foreground; its output in OUTDIR.log).
 drive() {
@@ -192,6 +198,33 @@ wait "$d" || fail "kill -9 run: the driver failed"
 grep -q "pass 0 shard 2: .* missing" "$work/kill.log" || fail "kill -9: the driver did not re-run shard 2"
 same heavy "$work/kill" "one task's prt killed (SIGKILL), re-run by the driver"
 
+# Both in the pixel-tracing last pass of a per-pixel bake: task 1 cancelled, shard 0's prt
+# killed.
+drive pixel_heavy "$work/pfault" "${pixel_heavy[@]}" &
+d=$!
+job=$(array_of "$work/pfault.log" 2)
+if [ -n "$job" ] && running "${job}_1"; then
+    scancel "${job}_1"
+    say "cancelled task ${job}_1 of the per-pixel bake's last pass while it ran"
+else
+    fail "per-pixel scancel: task 1 of pass 2 never ran"
+fi
+victim=""
+for ((t = 0; t < 600; t++)); do
+    victim=$(pgrep -f -- "--shard 0/3 --pass 2 .*$work/pfault/" | head -1 || true)
+    [ -n "$victim" ] && break
+    sleep 0.1
+done
+if [ -n "$victim" ] && kill -9 "$victim"; then
+    say "killed prt (pid $victim) of the per-pixel bake's pass 2 shard 0 with SIGKILL"
+else
+    fail "per-pixel kill -9: the task's prt process was never seen"
+fi
+wait "$d" || fail "per-pixel fault run: the driver failed"
+grep -q "pass 2 shard 1: .* missing" "$work/pfault.log" || fail "per-pixel: shard 1 not re-run"
+grep -q "pass 2 shard 0: .* missing" "$work/pfault.log" || fail "per-pixel: shard 0 not re-run"
+same pixel_heavy "$work/pfault" "per-pixel last pass: one task cancelled, one killed, both re-run"
+
 # The node goes down while pass 0 runs, and comes back.
 drive heavy "$work/down" "${heavy[@]}" &
 d=$!
@@ -251,6 +284,22 @@ grep -q "pass 0 shard 1: $work/bad/pass0-shard1.prtb damaged" "$work/bad.log" ||
 grep -q "shards 0,1 " "$work/bad.log" || fail "the driver did not re-run exactly shards 0 and 1"
 [ "$(stat -c %Y "$work/bad/pass0-shard2.prtb")" = "$kept" ] || fail "the intact shard was not kept"
 same light "$work/bad" "a truncated and a corrupted shard file, named and re-run"
+
+# The same in the last pass of the per-pixel bake: the run resumes from the kept files of
+# passes 0 and 1 and re-runs exactly the damaged shards.
+mkdir -p "$work/pbad"
+cp "$work"/p/pass*.prtb "$work/pbad/"
+truncate -s 1000 "$work/pbad/pass2-shard2.prtb"
+python3 -c '
+import sys
+p = sys.argv[1]; b = bytearray(open(p, "rb").read()); b[len(b) // 3] ^= 0x01
+open(p, "wb").write(b)' "$work/pbad/pass2-shard0.prtb"
+drive pixel "$work/pbad" "${pixel[@]}" || fail "per-pixel damaged-shards run: the driver failed"
+grep -q "pass 1: $work/pbad/pass1.prtb is complete (kept)" "$work/pbad.log" ||
+    fail "per-pixel resume: pass 1 was not kept"
+grep -q "pass 2: job array [0-9]*, shards 0,2 " "$work/pbad.log" ||
+    fail "per-pixel: the driver did not re-run exactly shards 0 and 2"
+same pixel "$work/pbad" "per-pixel: a truncated and a corrupted last-pass shard, named and re-run"
 
 # The scheduler's overhead: the same passes on this machine without Slurm.
 start=$(date +%s.%N)
