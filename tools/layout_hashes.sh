@@ -46,6 +46,18 @@ q bake "$quad" --per-texel 32 --rays 32 --order 3 --bounces 1 --out quad.texel.p
 q relight "$quad" --bake quad.texel.prtb --out quad.texel.exr --vertex-colours quad.texel.csv
 q export "$quad" --bake quad.texel.prtb --out quad.texel.glb
 q compress default.b0.prtb --clusters 4 --out default.cpca.prtb
+q compress default.b0.prtb --error 0.02 --out default.cpca-auto.prtb
+# --target-psnr: met per vertex (25 dB), met by falling back to per pixel (30 dB), and not met
+# (the refusal's words are hashed).
+q bake "$quad" --target-psnr 25 --rays 64 --out quad.target25.prtb
+q bake "$quad" --target-psnr 30 --rays 64 --out quad.target30.prtb
+if "$prt" bake "$root/scenes/hard_shadow.toml" --target-psnr 30 --rays 32 --out unmet.prtb \
+    2>unmet.log >/dev/null; then
+    echo "hard_shadow at --target-psnr 30 was met: pick a harder target" >&2
+    exit 1
+fi
+grep '^error' unmet.log > hard_shadow.target.error
+rm unmet.log
 q relight "$root/scenes/default.toml" --bake default.cpca.prtb --out default.cpca.exr
 
 sun="$root/scenes/hard/figure_on_quad_sun.toml"

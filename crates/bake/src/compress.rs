@@ -338,9 +338,239 @@ pub fn cpca(data: &[f32], dimension: usize, opt: &CpcaOptions) -> Cpca {
     out
 }
 
+/// What `prt compress` is asked: the cluster count (`None`: per object, points/256 within
+/// 1..=64), the basis vectors per cluster (`None`: the fewest meeting `error_target`) and the
+/// relative L2 error they aim at.
+#[derive(Clone, Copy, Debug)]
+pub struct CompressPolicy {
+    /// Clusters per block, or per object's point count.
+    pub clusters: Option<usize>,
+    /// Basis vectors per cluster, or from the error target.
+    pub components: Option<usize>,
+    /// The relative L2 error the component count aims at, in (0, 1).
+    pub error_target: f64,
+}
+
+impl CompressPolicy {
+    /// The clusters of an object of `points` points: the policy's, or `points/256` within
+    /// 1..=64 (a cluster of a few hundred points keeps its basis well estimated; 64 clusters
+    /// keep the per-frame cluster lighting cheap).
+    #[must_use]
+    pub fn clusters_for(&self, points: usize) -> usize {
+        self.clusters.unwrap_or((points / 256).clamp(1, 64))
+    }
+}
+
+/// Why a bake cannot be compressed.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum CompressError {
+    /// The error target is not in (0, 1).
+    #[error("--error {0} must be a relative error in (0, 1)")]
+    ErrorTarget(f64),
+    /// Zero clusters asked.
+    #[error("--clusters must be at least 1")]
+    NoClusters,
+    /// An intermediate file of a distributed bake.
+    #[error("an intermediate pass file; compress the finished bake")]
+    IntermediatePass,
+    /// One shard of a sharded bake.
+    #[error("shard {index} of {count}: merge the shards first, then compress")]
+    Shard {
+        /// The shard's index.
+        index: u32,
+        /// The shard count.
+        count: u32,
+    },
+    /// Blocks that are compressed already.
+    #[error("already compressed (clustered PCA blocks); compress the original bake instead")]
+    AlreadyCompressed,
+    /// More components than an object's scalars per point.
+    #[error(
+        "--components {components} exceeds the {scalars} scalars per point of object {object}"
+    )]
+    TooManyComponents {
+        /// Components asked.
+        components: usize,
+        /// The object's scalars per point.
+        scalars: u64,
+        /// The object.
+        object: String,
+    },
+}
+
+impl CompressError {
+    /// Whether the refusal is about the file (and a message should name it) rather than the
+    /// options.
+    #[must_use]
+    pub fn is_about_the_file(&self) -> bool {
+        matches!(
+            self,
+            Self::IntermediatePass | Self::Shard { .. } | Self::AlreadyCompressed
+        )
+    }
+}
+
+/// One compressed block: what it was and what it became (`bytes_*` the block's payload in the
+/// file's scalar type before, and the `CPCA` section after).
+#[derive(Clone, Debug)]
+pub struct BlockCompression {
+    /// The object's name.
+    pub object: String,
+    /// The block's kind name (SPEC §3.4).
+    pub kind: &'static str,
+    /// Points in the block.
+    pub points: usize,
+    /// Scalars per point.
+    pub dimension: usize,
+    /// Clusters used.
+    pub clusters: u32,
+    /// Basis vectors per cluster.
+    pub components: u32,
+    /// Relative L2 error of the reconstruction.
+    pub rel_error: f64,
+    /// Bytes of the block before.
+    pub bytes_before: u64,
+    /// Bytes of its `CPCA` section after.
+    pub bytes_after: u64,
+}
+
+fn check_compressible(
+    bake: &prt_bakefile::Bake,
+    policy: &CompressPolicy,
+) -> Result<(), CompressError> {
+    let e = policy.error_target;
+    if !(e.is_finite() && e > 0.0 && e < 1.0) {
+        return Err(CompressError::ErrorTarget(e));
+    }
+    if policy.clusters == Some(0) {
+        return Err(CompressError::NoClusters);
+    }
+    if bake.meta.pass.is_some() {
+        return Err(CompressError::IntermediatePass);
+    }
+    if bake.meta.shard.count != 1 {
+        return Err(CompressError::Shard {
+            index: bake.meta.shard.index,
+            count: bake.meta.shard.count,
+        });
+    }
+    if bake
+        .objects
+        .iter()
+        .any(|o| o.blocks.iter().any(|b| b.cpca.is_some()))
+    {
+        return Err(CompressError::AlreadyCompressed);
+    }
+    if let Some(m) = policy.components {
+        if let Some(o) = bake
+            .objects
+            .iter()
+            .find(|o| m as u64 > o.scalars_per_point())
+        {
+            return Err(CompressError::TooManyComponents {
+                components: m,
+                scalars: o.scalars_per_point(),
+                object: o.name.clone(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// `prt compress`: replaces every diffuse transfer block (unshadowed, shadowed,
+/// interreflected) of every object of `bake` by its clustered-PCA form (SPEC §3.13), keeping
+/// the reconstructed vectors as the block's data; visibility blocks, which the specular path
+/// reads, stay as they are. Records the decision in the bake. `scalar_size`: bytes per scalar
+/// of the file the bake came from (for the reported sizes).
+///
+/// # Errors
+/// [`CompressError`]: options out of range, an intermediate or shard file, a bake that is
+/// compressed already, more components than an object has scalars per point.
+pub fn compress_bake(
+    bake: &mut prt_bakefile::Bake,
+    policy: &CompressPolicy,
+    scalar_size: usize,
+) -> Result<Vec<BlockCompression>, CompressError> {
+    check_compressible(bake, policy)?;
+    let seed = bake.meta.seed;
+    let mut rows = Vec::new();
+    for (oi, o) in bake.objects.iter_mut().enumerate() {
+        let d = o.scalars_per_point() as usize;
+        let points = o.points_in_file as usize;
+        let clusters = policy.clusters_for(points);
+        for b in &mut o.blocks {
+            if b.kind == prt_bakefile::TransferKind::Visibility || points == 0 {
+                continue;
+            }
+            let opt = CpcaOptions {
+                clusters,
+                components: policy.components,
+                error_target: policy.error_target,
+                seed: seed ^ (oi as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15),
+                ..CpcaOptions::default()
+            };
+            let c = cpca(&b.data, d, &opt);
+            rows.push(BlockCompression {
+                object: o.name.clone(),
+                kind: b.kind.name(),
+                points,
+                dimension: d,
+                clusters: c.clusters,
+                components: c.components,
+                rel_error: c.rel_error,
+                bytes_before: (b.data.len() * scalar_size) as u64,
+                bytes_after: 32
+                    + 4 * (c.centres.len() + c.cluster_of.len() + c.weights.len()) as u64,
+            });
+            b.data = c.reconstruct();
+            b.cpca = Some(c);
+        }
+    }
+    bake.meta.decisions.push(prt_bakefile::Decision {
+        object: None,
+        decision: "clustered PCA compression of the diffuse transfer".into(),
+        reason: format!(
+            "prt compress: clusters {}, components {}, error target {}",
+            policy
+                .clusters
+                .map_or("per object (points/256, 1..64)".into(), |k| k.to_string()),
+            policy
+                .components
+                .map_or("from the error target".into(), |m| m.to_string()),
+            policy.error_target
+        ),
+    });
+    Ok(rows)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_default_cluster_count_follows_the_points() {
+        let policy = CompressPolicy {
+            clusters: None,
+            components: None,
+            error_target: 0.01,
+        };
+        assert_eq!(policy.clusters_for(10), 1);
+        assert_eq!(policy.clusters_for(256 * 7 + 255), 7);
+        assert_eq!(policy.clusters_for(1 << 20), 64);
+        let fixed = CompressPolicy {
+            clusters: Some(3),
+            ..policy
+        };
+        assert_eq!(fixed.clusters_for(1 << 20), 3);
+    }
+
+    #[test]
+    fn refusals_about_the_file_are_told_from_bad_options() {
+        assert!(CompressError::AlreadyCompressed.is_about_the_file());
+        assert!(CompressError::Shard { index: 1, count: 4 }.is_about_the_file());
+        assert!(!CompressError::NoClusters.is_about_the_file());
+        assert!(!CompressError::ErrorTarget(2.0).is_about_the_file());
+    }
 
     /// Points that lie exactly in `k` clusters, each an affine subspace of dimension `m`.
     fn planted(k: usize, m: usize, d: usize, per: usize, seed: u64) -> Vec<f32> {

@@ -156,139 +156,6 @@ fn parse_shard(text: &str) -> Result<(u32, u32)> {
     Ok((i, n))
 }
 
-/// The highest order `prt bake --target-psnr` bakes and chooses below.
-const TARGET_HIGHEST_ORDER: usize = 13;
-
-/// `prt bake --target-psnr P`: the reference, each object's PSNR per order, the truncated bake.
-fn choose_orders(
-    scene: &prt_scene::Scene,
-    accel: &prt_tracer::Accel,
-    vertex: prt_bake::BakeOutput,
-    settings: &BakeSettings,
-    target: f64,
-    scene_path: &std::path::Path,
-) -> Result<prt_bake::BakeOutput> {
-    let highest = settings.order.unwrap_or(TARGET_HIGHEST_ORDER);
-    eprintln!(
-        "target {target} dB: path-tracing a reference to a {} dB noise ceiling",
-        target + 6.0
-    );
-    let rs = prt_tracer::RenderSettings {
-        spp: 16384,
-        bounces: settings.bounces as i32,
-        seed: settings.seed,
-        target_psnr_ldr: Some(target + 6.0),
-        progress: true,
-        ..Default::default()
-    };
-    let reference = prt_tracer::render(scene, &rs)?;
-    let ceiling = reference.noise_psnr_ldr.unwrap_or(f64::NAN);
-    let img = prt_compare::Image {
-        width: reference.width as usize,
-        height: reference.height as usize,
-        pixels: reference.radiance.iter().map(|v| v.to_array()).collect(),
-    };
-    let orders: Vec<usize> = (1..=highest).collect();
-    let short = |quality: &[prt_report::recommend::ObjectQuality]| -> Vec<String> {
-        quality
-            .iter()
-            .filter(|q| q.pixels > 0 && q.chosen.is_none())
-            .map(|q| {
-                format!(
-                    "{} reaches at most {:.2} dB (order {})",
-                    q.object, q.best_psnr, q.best_order
-                )
-            })
-            .collect()
-    };
-    let mut chosen = vertex;
-    let mut quality =
-        prt_report::recommend::object_quality(scene, accel, &chosen.bake, &img, &orders, target)?;
-    let vertex_short = short(&quality);
-    let vertex_short_names: Vec<String> = quality
-        .iter()
-        .filter(|q| q.pixels > 0 && q.chosen.is_none())
-        .map(|q| q.object.clone())
-        .collect();
-    // Empty for a per-vertex result; else why the bake is per pixel.
-    let mut kind = String::new();
-    if !vertex_short.is_empty() {
-        // Per-vertex transfer cannot: try per-pixel transfer (no interpolation across
-        // triangles, the pixel footprint averaged), which a bake file holds for every object.
-        eprintln!(
-            "target: per-vertex falls short ({}); trying a per-pixel bake",
-            vertex_short.join("; ")
-        );
-        let pixel_settings = BakeSettings {
-            points: PointKind::Pixel,
-            // Every footprint sample needs one of the pixel's rays.
-            pixel_samples: settings.pixel_samples.min(settings.rays).max(1),
-            progress: true,
-            ..settings.clone()
-        };
-        let pixel = prt_bake::bake(scene, accel, &pixel_settings)?;
-        let pixel_quality = prt_report::recommend::object_quality(
-            scene,
-            accel,
-            &pixel.bake,
-            &img,
-            &orders,
-            target,
-        )?;
-        let pixel_short = short(&pixel_quality);
-        if !pixel_short.is_empty() {
-            bail!(
-                "{}: --target-psnr {target} cannot be met up to order {highest}: per vertex {}; per pixel {} (reference {} spp, noise ceiling {ceiling:.1} dB); `prt report` splits that error into its terms",
-                scene_path.display(),
-                vertex_short.join(", "),
-                pixel_short.join(", "),
-                reference.settings.spp
-            );
-        }
-        chosen = pixel;
-        quality = pixel_quality;
-        kind = format!(
-            ", in a per-pixel bake (per-vertex transfer falls short on {})",
-            vertex_short_names.join(", ")
-        );
-    }
-    let mut orders_out = Vec::new();
-    let mut reasons = Vec::new();
-    for q in &quality {
-        let (n, reason) = match q.chosen {
-            Some(n) => (
-                n,
-                format!(
-                    "lowest order whose PSNR against a path-traced reference over its {} pixels reaches {target} dB{}: {:.2} dB (order {highest}: {:.2} dB)",
-                    q.pixels,
-                    kind,
-                    q.psnr_by_order.iter().find(|(o, _)| *o == n).map_or(f64::NAN, |x| x.1),
-                    q.psnr_by_order.last().map_or(f64::NAN, |x| x.1)
-                ),
-            ),
-            None => (
-                highest,
-                format!("not visible from the scene camera, so its error cannot be measured: kept at order {highest}"),
-            ),
-        };
-        eprintln!("target: {}: order {n} ({reason})", q.object);
-        orders_out.push(n);
-        reasons.push(reason);
-    }
-    let mut out = prt_report::recommend::truncate_bake(&chosen.bake, &orders_out, &reasons)?;
-    if let serde_json::Value::Object(m) = &mut out.meta.settings {
-        m.insert("target_psnr".into(), target.into());
-        m.insert("order".into(), serde_json::Value::Null);
-    }
-    // The log's per-object lines and decisions follow the chosen kind and orders.
-    for (o, obj) in chosen.report.objects.iter_mut().zip(&out.objects) {
-        o.order = obj.order as usize;
-    }
-    chosen.report.decisions = out.meta.decisions.clone();
-    chosen.bake = out;
-    Ok(chosen)
-}
-
 /// Runs `prt bake`.
 pub fn run_bake(args: &BakeArgs) -> Result<()> {
     let loading = std::time::Instant::now();
@@ -302,7 +169,10 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
     }
     let settings = BakeSettings {
         order: if args.target_psnr.is_some() {
-            Some(args.order.unwrap_or(TARGET_HIGHEST_ORDER))
+            Some(
+                args.order
+                    .unwrap_or(prt_report::recommend::TARGET_HIGHEST_ORDER),
+            )
         } else {
             args.order
         },
@@ -380,7 +250,13 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
             }
         })?;
         Ok(match args.target_psnr {
-            Some(p) => choose_orders(&scene, &accel, out, &settings, p, &args.scene)?,
+            Some(p) => prt_report::recommend::bake_to_target(&scene, &accel, out, &settings, p)
+                .map_err(|e| match e {
+                    prt_report::ReportError::TargetUnmet(m) => {
+                        anyhow::anyhow!("{}: {m}", args.scene.display())
+                    }
+                    e => e.into(),
+                })?,
             None => out,
         })
     })?;
@@ -646,90 +522,22 @@ pub struct CompressArgs {
 /// of every object is replaced by its clustered-PCA form (SPEC §3.13); visibility blocks,
 /// which the specular path reads, stay as they are.
 pub fn run_compress(args: &CompressArgs) -> Result<()> {
-    if !(args.error.is_finite() && args.error > 0.0 && args.error < 1.0) {
-        bail!("--error {} must be a relative error in (0, 1)", args.error);
-    }
-    if args.clusters == Some(0) {
-        bail!("--clusters must be at least 1");
-    }
     let bytes = std::fs::read(&args.input)
         .with_context(|| format!("{}: cannot read", args.input.display()))?;
     let view = BakeView::new(&bytes).map_err(|e| e.in_file(&args.input))?;
     let scalar = view.scalar_type();
     let mut bake = view.to_bake().map_err(|e| e.in_file(&args.input))?;
-    let name = args.input.display();
-    if bake.meta.pass.is_some() {
-        bail!("{name}: an intermediate pass file; compress the finished bake");
-    }
-    if bake.meta.shard.count != 1 {
-        bail!(
-            "{name}: shard {} of {}: merge the shards first, then compress",
-            bake.meta.shard.index,
-            bake.meta.shard.count
-        );
-    }
-    if bake
-        .objects
-        .iter()
-        .any(|o| o.blocks.iter().any(|b| b.cpca.is_some()))
-    {
-        bail!(
-            "{name}: already compressed (clustered PCA blocks); compress the original bake instead"
-        );
-    }
-    if let Some(m) = args.components {
-        if let Some(o) = bake
-            .objects
-            .iter()
-            .find(|o| m as u64 > o.scalars_per_point())
-        {
-            bail!(
-                "--components {m} exceeds the {} scalars per point of object {}",
-                o.scalars_per_point(),
-                o.name
-            );
-        }
-    }
-    let mut rows = Vec::new();
-    for (oi, o) in bake.objects.iter_mut().enumerate() {
-        let d = o.scalars_per_point() as usize;
-        let points = o.points_in_file as usize;
-        let clusters = args.clusters.unwrap_or((points / 256).clamp(1, 64));
-        for b in &mut o.blocks {
-            if b.kind == prt_bakefile::TransferKind::Visibility || points == 0 {
-                continue;
-            }
-            let opt = prt_bake::compress::CpcaOptions {
-                clusters,
-                components: args.components,
-                error_target: args.error,
-                seed: bake.meta.seed ^ (oi as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15),
-                ..prt_bake::compress::CpcaOptions::default()
-            };
-            let c = prt_bake::compress::cpca(&b.data, d, &opt);
-            let before = (b.data.len() * scalar.size()) as u64;
-            let after = 32 + 4 * (c.centres.len() + c.cluster_of.len() + c.weights.len()) as u64;
-            rows.push(serde_json::json!({
-                "object": o.name, "kind": b.kind.name(), "points": points, "dimension": d,
-                "clusters": c.clusters, "components": c.components, "rel_error": c.rel_error,
-                "bytes_before": before, "bytes_after": after,
-            }));
-            b.data = c.reconstruct();
-            b.cpca = Some(c);
-        }
-    }
-    bake.meta.decisions.push(prt_bakefile::Decision {
-        object: None,
-        decision: "clustered PCA compression of the diffuse transfer".into(),
-        reason: format!(
-            "prt compress: clusters {}, components {}, error target {}",
-            args.clusters
-                .map_or("per object (points/256, 1..64)".into(), |k| k.to_string()),
-            args.components
-                .map_or("from the error target".into(), |m| m.to_string()),
-            args.error
-        ),
-    });
+    let policy = prt_bake::compress::CompressPolicy {
+        clusters: args.clusters,
+        components: args.components,
+        error_target: args.error,
+    };
+    let rows = prt_bake::compress::compress_bake(&mut bake, &policy, scalar.size()).map_err(
+        |e| match e.is_about_the_file() {
+            true => anyhow::anyhow!("{}: {e}", args.input.display()),
+            false => anyhow::anyhow!("{e}"),
+        },
+    )?;
     prt_bakefile::write_bake(&args.out, &bake, scalar)?;
     let size_in = bytes.len() as u64;
     let size_out = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
@@ -738,16 +546,20 @@ pub fn run_compress(args: &CompressArgs) -> Result<()> {
             "{}",
             serde_json::to_string(&serde_json::json!({
                 "input": args.input.display().to_string(), "output": args.out.display().to_string(),
-                "file_bytes_before": size_in, "file_bytes_after": size_out, "blocks": rows,
+                "file_bytes_before": size_in, "file_bytes_after": size_out,
+                "blocks": rows.iter().map(|r| serde_json::json!({
+                    "object": r.object, "kind": r.kind, "points": r.points, "dimension": r.dimension,
+                    "clusters": r.clusters, "components": r.components, "rel_error": r.rel_error,
+                    "bytes_before": r.bytes_before, "bytes_after": r.bytes_after,
+                })).collect::<Vec<_>>(),
             }))?
         );
     } else {
         for r in &rows {
             outln!(
                 "{} {}: {} points × {} → {} clusters × {} components, relative L2 error {:.3} %, {} → {} bytes",
-                r["object"].as_str().unwrap_or(""), r["kind"].as_str().unwrap_or(""), r["points"], r["dimension"],
-                r["clusters"], r["components"], 100.0 * r["rel_error"].as_f64().unwrap_or(0.0),
-                r["bytes_before"], r["bytes_after"]
+                r.object, r.kind, r.points, r.dimension, r.clusters, r.components,
+                100.0 * r.rel_error, r.bytes_before, r.bytes_after
             );
         }
         outln!(

@@ -14,6 +14,10 @@ pub enum ReportError {
         /// What does not match.
         reason: String,
     },
+    /// `prt bake --target-psnr`: no bake meets the target (the message says how far each
+    /// object falls short).
+    #[error("{0}")]
+    TargetUnmet(String),
     /// Bad options.
     #[error("invalid options: {0}")]
     Invalid(String),

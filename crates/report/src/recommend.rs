@@ -210,3 +210,181 @@ pub fn truncate_bake(
     }
     Ok(out)
 }
+
+/// The highest order `prt bake --target-psnr` bakes and chooses below.
+pub const TARGET_HIGHEST_ORDER: usize = 13;
+
+/// The path-traced reference a quality target is measured against: rendered until its own
+/// noise ceiling is 6 dB above the target (so that its noise costs the measured PSNR at most
+/// about 1 dB), with its ceiling and sample count.
+struct TargetReference {
+    image: Image,
+    noise_ceiling_db: f64,
+    spp: u32,
+}
+
+fn target_reference(
+    scene: &Scene,
+    settings: &prt_bake::BakeSettings,
+    target: f64,
+) -> Result<TargetReference, ReportError> {
+    eprintln!(
+        "target {target} dB: path-tracing a reference to a {} dB noise ceiling",
+        target + 6.0
+    );
+    let rs = prt_tracer::RenderSettings {
+        spp: 16384,
+        bounces: settings.bounces as i32,
+        seed: settings.seed,
+        target_psnr_ldr: Some(target + 6.0),
+        progress: true,
+        ..Default::default()
+    };
+    let reference = prt_tracer::render(scene, &rs)?;
+    Ok(TargetReference {
+        image: Image {
+            width: reference.width as usize,
+            height: reference.height as usize,
+            pixels: reference.radiance.iter().map(|v| v.to_array()).collect(),
+        },
+        noise_ceiling_db: reference.noise_psnr_ldr.unwrap_or(f64::NAN),
+        spp: reference.settings.spp,
+    })
+}
+
+/// The visible objects that no order meets the target on: `(name, "NAME reaches at most P
+/// dB (order N)")`.
+fn shortfalls(quality: &[ObjectQuality]) -> Vec<(String, String)> {
+    quality
+        .iter()
+        .filter(|q| q.pixels > 0 && q.chosen.is_none())
+        .map(|q| {
+            (
+                q.object.clone(),
+                format!(
+                    "{} reaches at most {:.2} dB (order {})",
+                    q.object, q.best_psnr, q.best_order
+                ),
+            )
+        })
+        .collect()
+}
+
+fn joined(short: &[(String, String)], sep: &str, pick: fn(&(String, String)) -> &str) -> String {
+    short.iter().map(pick).collect::<Vec<_>>().join(sep)
+}
+
+/// Each object's chosen order and the decision's reason (`kind`: why the bake is per pixel,
+/// empty for a per-vertex bake).
+fn chosen_orders(
+    quality: &[ObjectQuality],
+    target: f64,
+    highest: usize,
+    kind: &str,
+) -> (Vec<usize>, Vec<String>) {
+    quality
+        .iter()
+        .map(|q| {
+            let (n, reason) = match q.chosen {
+                Some(n) => (
+                    n,
+                    format!(
+                        "lowest order whose PSNR against a path-traced reference over its {} pixels reaches {target} dB{}: {:.2} dB (order {highest}: {:.2} dB)",
+                        q.pixels,
+                        kind,
+                        q.psnr_by_order.iter().find(|(o, _)| *o == n).map_or(f64::NAN, |x| x.1),
+                        q.psnr_by_order.last().map_or(f64::NAN, |x| x.1)
+                    ),
+                ),
+                None => (
+                    highest,
+                    format!("not visible from the scene camera, so its error cannot be measured: kept at order {highest}"),
+                ),
+            };
+            eprintln!("target: {}: order {n} ({reason})", q.object);
+            (n, reason)
+        })
+        .unzip()
+}
+
+/// `prt bake --target-psnr P`: from a bake at the highest order (`vertex`, per vertex), the
+/// lowest order per object whose relit image meets `target` dB against a path-traced
+/// reference over the object's pixels ([`object_quality`]); when per-vertex transfer cannot
+/// meet it on some visible object, a per-pixel bake of the same settings instead (no
+/// interpolation across triangles); the chosen bake truncated to those orders
+/// ([`truncate_bake`]) with every decision in its file and report.
+///
+/// # Errors
+/// [`ReportError::TargetUnmet`] when neither per-vertex nor per-pixel transfer meets the target
+/// on every visible object up to the highest order (naming each and its best PSNR); the
+/// render's, bake's and relighting's errors.
+pub fn bake_to_target(
+    scene: &Scene,
+    accel: &Accel,
+    vertex: prt_bake::BakeOutput,
+    settings: &prt_bake::BakeSettings,
+    target: f64,
+) -> Result<prt_bake::BakeOutput, ReportError> {
+    let highest = settings.order.unwrap_or(TARGET_HIGHEST_ORDER);
+    let reference = target_reference(scene, settings, target)?;
+    let orders: Vec<usize> = (1..=highest).collect();
+    let mut chosen = vertex;
+    let mut quality = object_quality(
+        scene,
+        accel,
+        &chosen.bake,
+        &reference.image,
+        &orders,
+        target,
+    )?;
+    let vertex_short = shortfalls(&quality);
+    // Empty for a per-vertex result; else why the bake is per pixel.
+    let mut kind = String::new();
+    if !vertex_short.is_empty() {
+        // Per-vertex transfer cannot: try per-pixel transfer (no interpolation across
+        // triangles, the pixel footprint averaged), which a bake file holds for every object.
+        eprintln!(
+            "target: per-vertex falls short ({}); trying a per-pixel bake",
+            joined(&vertex_short, "; ", |s| &s.1)
+        );
+        let pixel_settings = prt_bake::BakeSettings {
+            points: prt_bake::PointKind::Pixel,
+            // Every footprint sample needs one of the pixel's rays.
+            pixel_samples: settings.pixel_samples.min(settings.rays).max(1),
+            progress: true,
+            ..settings.clone()
+        };
+        let pixel = prt_bake::bake(scene, accel, &pixel_settings)?;
+        let pixel_quality =
+            object_quality(scene, accel, &pixel.bake, &reference.image, &orders, target)?;
+        let pixel_short = shortfalls(&pixel_quality);
+        if !pixel_short.is_empty() {
+            return Err(ReportError::TargetUnmet(format!(
+                "--target-psnr {target} cannot be met up to order {highest}: per vertex {}; per pixel {} (reference {} spp, noise ceiling {:.1} dB); `prt report` splits that error into its terms",
+                joined(&vertex_short, ", ", |s| &s.1),
+                joined(&pixel_short, ", ", |s| &s.1),
+                reference.spp,
+                reference.noise_ceiling_db
+            )));
+        }
+        chosen = pixel;
+        quality = pixel_quality;
+        kind = format!(
+            ", in a per-pixel bake (per-vertex transfer falls short on {})",
+            joined(&vertex_short, ", ", |s| &s.0)
+        );
+    }
+    let (orders_out, reasons) = chosen_orders(&quality, target, highest, &kind);
+    let mut out = truncate_bake(&chosen.bake, &orders_out, &reasons)?;
+    if let serde_json::Value::Object(m) = &mut out.meta.settings {
+        m.insert("target_psnr".into(), target.into());
+        m.insert("order".into(), serde_json::Value::Null);
+    }
+    // The log's per-object lines and decisions follow the chosen kind and orders.
+    for (o, obj) in chosen.report.objects.iter_mut().zip(&out.objects) {
+        o.order = obj.order as usize;
+    }
+    chosen.report.decisions = out.meta.decisions.clone();
+    chosen.bake = out;
+    Ok(chosen)
+}
