@@ -19,57 +19,86 @@ pub struct RelightArgs {
     #[arg(long)]
     pub order: Option<usize>,
     /// Locally adaptive relighting (Lee & Kim 2014).
-    #[arg(long)]
+    #[arg(long, help_heading = "Adaptive (Lee & Kim 2014)")]
     pub adaptive: bool,
-    /// ROI threshold T, in units of output radiance (the thesis: 0.02 on [0,1] display values;
-    /// crates/relight/README.md measures speed against error for others, e.g. 0.09: 3.3× at
-    /// 45.4 dB at order 10 and 4.3× at order 11 on the bunny).
-    #[arg(long, default_value_t = 0.02, allow_negative_numbers = true)]
+    /// Adaptive: the ROI threshold T, in the unit of --threshold-unit (the thesis: 0.02 on
+    /// [0,1] display values; crates/relight/README.md measures speed against error for others,
+    /// e.g. 0.09 radiance: 3.3× at 45.4 dB at order 10 and 4.3× at order 11 on the bunny).
+    #[arg(
+        long,
+        default_value_t = 0.02,
+        allow_negative_numbers = true,
+        help_heading = "Adaptive (Lee & Kim 2014)"
+    )]
     pub threshold: f32,
-    /// Read --threshold as a fraction of the frame's mean radiance instead.
-    #[arg(long, conflicts_with = "display_threshold")]
+    /// Adaptive: what --threshold measures. `radiance`: output radiance; `mean`: a fraction of
+    /// the frame's mean radiance; `display`: the [0, 1] colour of the PNG view (its --exposure,
+    /// clamp, sRGB), diffuse and specular seen together.
+    #[arg(long, value_enum, default_value_t = ThresholdUnit::Radiance, help_heading = "Adaptive (Lee & Kim 2014)")]
+    pub threshold_unit: ThresholdUnit,
+    /// Old spelling of `--threshold-unit mean`.
+    #[arg(long, hide = true, conflicts_with_all = ["display_threshold", "threshold_unit"])]
     pub relative_threshold: bool,
-    /// Measure --threshold on the display instead: in units of the [0, 1] colour of the PNG
-    /// view (exposure --exposure, clamp, sRGB), diffuse and specular seen together.
-    #[arg(long)]
+    /// Old spelling of `--threshold-unit display`.
+    #[arg(long, hide = true, conflicts_with = "threshold_unit")]
     pub display_threshold: bool,
-    /// Exposure of the PNG view and of --display-threshold, stops.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    /// Exposure of the PNG view (and so of `--threshold-unit display`), stops.
+    #[arg(
+        long,
+        help_heading = "Output",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     pub exposure: f32,
     /// Adaptive: when a vertex stops adding levels. `convergence`: once its last two levels
     /// changed it by less than T; `significance`: Lee & Kim's Algorithm 1, at the first level
     /// where its accumulated difference from the base is below T; `either`: whichever first.
-    #[arg(long, value_enum, default_value_t = StopArg::Convergence)]
+    #[arg(long, help_heading = "Adaptive (Lee & Kim 2014)", value_enum, default_value_t = StopArg::Convergence)]
     pub stop: StopArg,
     /// Adaptive, convergence stop: how the threshold grows with the price of the next level.
     /// After level l the change of the last two levels is compared with T·(c(l+1)/c(5))^A,
     /// c(k) being the products of the term's level k: 1 (the default) asks each level for a
     /// change in proportion to its price, 0.5 for the square of it, 0 for T at every level.
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        help_heading = "Adaptive (Lee & Kim 2014)",
+        default_value_t = 1.0,
+        allow_negative_numbers = true
+    )]
     pub cost_exponent: f32,
     /// Rotate the environment about +Y by this many degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        help_heading = "Rotation and frames",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     pub rotate_y: f64,
     /// Shade this many frames of a rotating environment and report frames per second.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, help_heading = "Rotation and frames", default_value_t = 1)]
     pub frames: usize,
     /// Rotation step between frames, degrees.
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        help_heading = "Rotation and frames",
+        default_value_t = 10.0,
+        allow_negative_numbers = true
+    )]
     pub rotate_y_step: f64,
     /// Output EXR (linear RGB).
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub out: Option<PathBuf>,
     /// Output PNG view.
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub png: Option<PathBuf>,
     /// PNG of the region of interest (ROI vertices red), adaptive only.
-    #[arg(long)]
+    #[arg(long, help_heading = "Adaptive (Lee & Kim 2014)")]
     pub roi_png: Option<PathBuf>,
     /// Write the relit radiance of every point as CSV (`object,point,r,g,b`, linear RGB, each
     /// value the shortest decimal that reads back to the same f32): per vertex, or per pixel
     /// and object for per-pixel bakes. What an engine computes from the bake alone, for
     /// checking a reader of the format (tools/prtb_reader.py --relight).
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub vertex_colours: Option<PathBuf>,
     /// How glossy lobes without a zonal form (Blinn–Phong, Ward, Cook–Torrance, glTF `pbr`)
     /// are relit: `fitted`, a zonal fit of the lobe per view elevation shaded at Phong's cost
@@ -77,57 +106,88 @@ pub struct RelightArgs {
     /// per point (O(order⁵) per point, full order; the reference for `fitted`); `hybrid`, the
     /// fit, and the exact path at the points whose view elevation puts the fit's relative L2
     /// error against the lobe at --fit-error or more (sharp lobes at grazing views).
-    #[arg(long, value_enum, default_value_t = GlossyArg::Fitted)]
+    #[arg(long, help_heading = "Glossy materials", value_enum, default_value_t = GlossyArg::Fitted)]
     pub glossy: GlossyArg,
     /// With --glossy hybrid: the fit error (relative L2, against the lobe) from which a point
     /// is shaded by the exact path; 0 shades every point exactly.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, help_heading = "Glossy materials", default_value_t = 0.1)]
     pub fit_error: f32,
     /// Reflectance fields (`prt reflectance`): how each pixel's sampled function is
     /// reconstructed on the fine grid (`nearest`: zero-order hold; `linear`: bilinear,
     /// periodic in azimuth; `legall53` / `cdf97`: wavelet interpolation, periodic in azimuth
     /// and mirrored at the poles; `idw`, `biquadric`, `sh25`, `bspline`: the paper's other
     /// methods).
-    #[arg(long, value_enum, default_value_t = ReconstructArg::Linear)]
+    #[arg(long, help_heading = "Reflectance fields (prt reflectance)", value_enum, default_value_t = ReconstructArg::Linear)]
     pub reconstruct: ReconstructArg,
     /// Reflectance fields: the fine lat-long grid `WxH` the functions are reconstructed on and
     /// the environment is integrated over.
-    #[arg(long, value_name = "WxH", default_value = "256x128")]
+    #[arg(
+        long,
+        help_heading = "Reflectance fields (prt reflectance)",
+        value_name = "WxH",
+        default_value = "256x128"
+    )]
     pub fine: String,
     /// Reflectance fields: compress each reconstructed function by non-linear wavelet
     /// approximation on the fine grid (with --coefficients K or --rf-error E) and relight as
     /// sparse dot products with the lighting's wavelet coefficients.
-    #[arg(long, value_enum)]
+    #[arg(
+        long,
+        help_heading = "Reflectance fields (prt reflectance)",
+        value_enum
+    )]
     pub wavelet: Option<WaveletArg>,
     /// With --wavelet: keep this many coefficients per pixel and channel.
-    #[arg(long, requires = "wavelet", conflicts_with = "rf_error")]
+    #[arg(
+        long,
+        help_heading = "Reflectance fields (prt reflectance)",
+        requires = "wavelet",
+        conflicts_with = "rf_error"
+    )]
     pub coefficients: Option<usize>,
     /// With --wavelet: keep per function the fewest coefficients whose relative L2 error is at
     /// most E (exact, on the fine grid).
-    #[arg(long, requires = "wavelet")]
+    #[arg(
+        long,
+        help_heading = "Reflectance fields (prt reflectance)",
+        requires = "wavelet"
+    )]
     pub rf_error: Option<f64>,
     /// With --wavelet: measure rf_rel_l2 and rf_rel_h1 over an even subsample of at most N
     /// pixels (every ⌈P/N⌉-th of the P held pixels) instead of all of them. Each measured
     /// function costs an inverse transform: at full coverage (124k pixels, 256×128) that is
     /// most of the run. The coefficients kept and the image do not change.
-    #[arg(long, value_name = "N", requires = "wavelet")]
+    #[arg(
+        long,
+        help_heading = "Reflectance fields (prt reflectance)",
+        value_name = "N",
+        requires = "wavelet"
+    )]
     pub rf_error_pixels: Option<usize>,
     /// Print one JSON object.
-    #[arg(long)]
+    #[arg(long, help_heading = "Output")]
     pub json: bool,
     /// With --adaptive: pick each frame's threshold so that its PSNR against full order
     /// (8-bit view, whole image) is at least this many dB, estimated from a random sample of
     /// pixels relit at full order (--threshold is where the first frame starts). Runs the
     /// --frames frames (rotated by --rotate-y-step) and prints each frame's threshold,
     /// estimate and time.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        help_heading = "Adaptive to a PSNR target",
+        allow_negative_numbers = true
+    )]
     pub target_psnr: Option<f64>,
     /// Pixels of the --target-psnr estimate.
-    #[arg(long, default_value_t = 512)]
+    #[arg(
+        long,
+        help_heading = "Adaptive to a PSNR target",
+        default_value_t = 512
+    )]
     pub probe_pixels: usize,
     /// With --target-psnr: also relight every frame at full order and at each lower order, to
     /// print the PSNR reached and the best uniform truncation meeting the same target.
-    #[arg(long)]
+    #[arg(long, help_heading = "Adaptive to a PSNR target")]
     pub verify: bool,
 }
 
@@ -153,6 +213,28 @@ pub enum StopArg {
     Either,
 }
 
+/// `--threshold-unit` values: what the adaptive threshold measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ThresholdUnit {
+    /// Output radiance.
+    Radiance,
+    /// A fraction of the frame's mean radiance.
+    Mean,
+    /// The [0, 1] colour of the PNG view.
+    Display,
+}
+
+impl RelightArgs {
+    /// The threshold's unit, from `--threshold-unit` or its old spellings.
+    fn unit(&self) -> ThresholdUnit {
+        match (self.relative_threshold, self.display_threshold) {
+            (true, _) => ThresholdUnit::Mean,
+            (_, true) => ThresholdUnit::Display,
+            _ => self.threshold_unit,
+        }
+    }
+}
+
 /// Runs `prt relight`.
 pub fn run(args: &RelightArgs) -> Result<()> {
     if args.frames == 0 {
@@ -170,8 +252,8 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     if !(0.0..=MAX_COST_EXPONENT).contains(&args.cost_exponent) {
         bail!("--cost-exponent must be a number within [0, {MAX_COST_EXPONENT}]");
     }
-    if args.display_threshold && !args.adaptive {
-        bail!("--display-threshold needs --adaptive");
+    if args.unit() == ThresholdUnit::Display && !args.adaptive {
+        bail!("--threshold-unit display (--display-threshold) needs --adaptive");
     }
     if args.roi_png.is_some() && !args.adaptive {
         bail!("--roi-png needs --adaptive");
@@ -202,15 +284,13 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             StopArg::Either => StopRule::Either,
         },
         cost_exponent: args.cost_exponent,
-        ..AdaptiveParams::new(if args.relative_threshold {
-            Threshold::RelativeToMean(args.threshold)
-        } else if args.display_threshold {
-            Threshold::Display {
+        ..AdaptiveParams::new(match args.unit() {
+            ThresholdUnit::Mean => Threshold::RelativeToMean(args.threshold),
+            ThresholdUnit::Display => Threshold::Display {
                 t: args.threshold,
                 exposure_ev: args.exposure,
-            }
-        } else {
-            Threshold::Absolute(args.threshold)
+            },
+            ThresholdUnit::Radiance => Threshold::Absolute(args.threshold),
         })
     });
     if let Some(target) = args.target_psnr {
@@ -299,12 +379,10 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     }
     let s = &relit.stats;
     if args.json {
-        let threshold_kind = if args.relative_threshold {
-            "relative to mean radiance"
-        } else if args.display_threshold {
-            "display"
-        } else {
-            "absolute radiance"
+        let threshold_kind = match args.unit() {
+            ThresholdUnit::Mean => "relative to mean radiance",
+            ThresholdUnit::Display => "display",
+            ThresholdUnit::Radiance => "absolute radiance",
         };
         let obj = serde_json::json!({
             "order": s.order,

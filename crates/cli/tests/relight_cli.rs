@@ -401,3 +401,92 @@ fn bake_target_psnr_keeps_the_lowest_order_that_meets_it() {
         assert!(err.contains("--target-psnr"), "{v}: {err}");
     }
 }
+
+/// Issue 31: `prt relight`'s options read as groups of orthogonal options, and every command
+/// line that worked before still works. The threshold's unit is one option
+/// (`--threshold-unit radiance|mean|display`); the old booleans are hidden spellings of it and
+/// give the same image bit for bit; the old flag combinations of the SH path still run.
+#[test]
+fn old_relight_command_lines_still_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), 3);
+    let b = dir.path().join("scene.prtb");
+    bake(&scene, &b, &[]);
+    let image = |name: &str, args: &[&str]| -> Vec<u8> {
+        let out = dir.path().join(format!("{name}.exr"));
+        run(relight(&scene, &b).args(args).arg("--out").arg(&out));
+        std::fs::read(&out).unwrap()
+    };
+    for (old, new) in [
+        ("--relative-threshold", "mean"),
+        ("--display-threshold", "display"),
+    ] {
+        let a = image(
+            &format!("old{new}"),
+            &["--adaptive", "--threshold", "0.1", old],
+        );
+        let n = image(
+            &format!("new{new}"),
+            &["--adaptive", "--threshold", "0.1", "--threshold-unit", new],
+        );
+        assert!(a == n, "{old} and --threshold-unit {new} differ");
+    }
+    // The default unit is radiance.
+    assert!(
+        image("plain", &["--adaptive", "--threshold", "0.1"])
+            == image(
+                "radiance",
+                &[
+                    "--adaptive",
+                    "--threshold",
+                    "0.1",
+                    "--threshold-unit",
+                    "radiance"
+                ]
+            )
+    );
+    // The other old command lines still run.
+    let csv = dir.path().join("colours.csv");
+    for args in [
+        vec!["--adaptive", "--threshold", "0.02"],
+        vec!["--adaptive", "--relative-threshold", "--threshold", "0.05"],
+        vec!["--adaptive", "--display-threshold", "--exposure", "1"],
+        vec!["--glossy", "exact"],
+        vec!["--glossy", "hybrid", "--fit-error", "0.2"],
+        vec!["--frames", "3", "--rotate-y-step", "15", "--json"],
+        vec!["--vertex-colours", csv.to_str().unwrap()],
+        vec![
+            "--adaptive",
+            "--target-psnr",
+            "30",
+            "--frames",
+            "2",
+            "--rotate-y-step",
+            "20",
+        ],
+    ] {
+        run(relight(&scene, &b).args(&args));
+    }
+    // The help groups the options and does not list the old spellings.
+    let help = String::from_utf8(run(prt().args(["relight", "--help"])).stdout).unwrap();
+    for heading in [
+        "Adaptive (Lee & Kim 2014):",
+        "Output:",
+        "Rotation and frames:",
+        "Glossy materials:",
+        "Reflectance fields (prt reflectance):",
+        "Adaptive to a PSNR target:",
+    ] {
+        assert!(help.contains(heading), "{help}");
+    }
+    assert!(help.contains("--threshold-unit"));
+    assert!(!help.contains("--relative-threshold") && !help.contains("--display-threshold"));
+    // The old booleans do not combine with the new option or with each other.
+    fail(relight(&scene, &b).args(["--adaptive", "--relative-threshold", "--display-threshold"]));
+    fail(relight(&scene, &b).args([
+        "--adaptive",
+        "--display-threshold",
+        "--threshold-unit",
+        "mean",
+    ]));
+}
