@@ -2,6 +2,8 @@
 
 mod common;
 
+use std::path::Path;
+
 #[test]
 fn top_level_holds_only_the_documented_entries() {
     let allowed = [
@@ -186,4 +188,197 @@ fn crate_dependencies_flow_one_way() {
 fn manifest_dependencies_are_parsed() {
     let m = "[package]\nname = \"prt-x\"\n[dependencies]\nprt-sh.workspace = true\nprt-scene-relight = { path = \"a\" }\nglam.workspace = true\n\n[dev-dependencies]\nprt-bake.workspace = true\n";
     assert_eq!(prt_dependencies(m), ["sh", "scene-relight"]);
+}
+
+/// A module's source without its test module (written last, by convention) and comments.
+fn code_of(source: &str) -> String {
+    let end = source.find("#[cfg(test)]").unwrap_or(source.len());
+    source[..end]
+        .lines()
+        .map(|l| l.split("//").next().unwrap_or(""))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The identifiers that follow `prefix` in `code` (`crate::x` gives `x`; `crate::{a, b::c}`
+/// gives `a` and `b`).
+fn names_after(code: &str, prefix: &str) -> Vec<String> {
+    let ident = |s: &str| -> String {
+        s.chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect()
+    };
+    let mut out = Vec::new();
+    for (at, _) in code.match_indices(prefix) {
+        let rest = &code[at + prefix.len()..];
+        if let Some(group) = rest.strip_prefix('{') {
+            let group = &group[..group.find('}').unwrap_or(group.len())];
+            out.extend(group.split(',').map(|p| ident(p.trim())));
+        } else {
+            out.push(ident(rest));
+        }
+    }
+    out.retain(|n| !n.is_empty());
+    out
+}
+
+/// The module graph of one crate's `src/`: module → the modules its code names, through
+/// `crate::module`, items defined in the crate root, or items the root re-exports.
+fn module_graph(
+    src: &Path,
+) -> std::collections::BTreeMap<String, std::collections::BTreeSet<String>> {
+    let files: std::collections::BTreeMap<String, String> = std::fs::read_dir(src)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "rs"))
+        .map(|p| {
+            let name = p.file_stem().unwrap().to_string_lossy().into_owned();
+            (name, code_of(&std::fs::read_to_string(&p).unwrap()))
+        })
+        .collect();
+    let root = if files.contains_key("lib") {
+        "lib"
+    } else {
+        "main"
+    };
+    let root_code = files.get(root).cloned().unwrap_or_default();
+    let modules: Vec<&String> = files.keys().filter(|m| *m != root).collect();
+    let mut defined_in_root = std::collections::BTreeSet::new();
+    let mut reexported_from = std::collections::BTreeMap::new();
+    for line in root_code.lines().map(str::trim) {
+        let bare = line
+            .trim_start_matches("pub(crate) ")
+            .trim_start_matches("pub ");
+        for kw in [
+            "fn ", "struct ", "enum ", "const ", "static ", "type ", "trait ",
+        ] {
+            if let Some(rest) = bare.strip_prefix(kw) {
+                defined_in_root.insert(names_after(&format!(" {rest}"), " ")[0].clone());
+            }
+        }
+        if let Some(rest) = line.strip_prefix("pub use ") {
+            let rest = rest.trim_start_matches("crate::");
+            let module: String = rest.split("::").next().unwrap().to_owned();
+            for name in names_after(rest, "::") {
+                reexported_from.insert(name, module.clone());
+            }
+        }
+    }
+    let mut graph = std::collections::BTreeMap::new();
+    for (name, code) in &files {
+        let mut refs = names_after(code, "crate::");
+        if name == root {
+            // The root's own code (not its `mod` and `pub use` lines) naming a module.
+            let body: String = code
+                .lines()
+                .filter(|l| {
+                    let t = l.trim_start();
+                    !(t.starts_with("mod ")
+                        || t.starts_with("pub mod ")
+                        || t.starts_with("pub use "))
+                })
+                .collect::<Vec<_>>()
+                .join("\n");
+            for m in &modules {
+                if body.contains(&format!("{m}::")) {
+                    refs.push((*m).clone());
+                }
+            }
+        }
+        let targets: std::collections::BTreeSet<String> = refs
+            .into_iter()
+            .filter_map(|r| {
+                if modules.contains(&&r) {
+                    Some(r)
+                } else if defined_in_root.contains(&r) {
+                    Some(root.to_owned())
+                } else {
+                    reexported_from.get(&r).cloned()
+                }
+            })
+            .filter(|t| t != name)
+            .collect();
+        graph.insert(name.clone(), targets);
+    }
+    graph
+}
+
+/// A cycle of `graph`, if it has one (depth-first search).
+fn find_cycle(
+    graph: &std::collections::BTreeMap<String, std::collections::BTreeSet<String>>,
+) -> Option<Vec<String>> {
+    fn visit(
+        g: &std::collections::BTreeMap<String, std::collections::BTreeSet<String>>,
+        v: &str,
+        path: &mut Vec<String>,
+        done: &mut std::collections::BTreeSet<String>,
+    ) -> Option<Vec<String>> {
+        if let Some(at) = path.iter().position(|p| p == v) {
+            let mut cycle = path[at..].to_vec();
+            cycle.push(v.to_owned());
+            return Some(cycle);
+        }
+        if done.contains(v) {
+            return None;
+        }
+        path.push(v.to_owned());
+        for w in g.get(v).into_iter().flatten() {
+            if let Some(c) = visit(g, w, path, done) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        done.insert(v.to_owned());
+        None
+    }
+    let mut done = std::collections::BTreeSet::new();
+    graph
+        .keys()
+        .find_map(|v| visit(graph, v, &mut Vec::new(), &mut done))
+}
+
+/// Issue 31: no import circle between the files of a crate (`relit` ↔ `imaging` and the
+/// like), so each file can be read, and moved, after the ones it uses.
+#[test]
+fn no_crate_has_an_import_circle_between_its_files() {
+    let crates = common::workspace_root().join("crates");
+    for entry in std::fs::read_dir(&crates).unwrap() {
+        let src = entry.unwrap().path().join("src");
+        if !src.is_dir() {
+            continue;
+        }
+        let graph = module_graph(&src);
+        assert!(!graph.is_empty(), "{}: no sources", src.display());
+        if let Some(cycle) = find_cycle(&graph) {
+            panic!("{}: import circle {}", src.display(), cycle.join(" → "));
+        }
+    }
+}
+
+#[test]
+fn the_import_analysis_sees_the_three_ways_a_file_names_another() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
+    write(
+        "lib.rs",
+        "mod a;\nmod b;\nmod c;\npub use c::Thing;\npub struct Root;\n",
+    );
+    write(
+        "a.rs",
+        "use crate::b::f;\n// crate::c is only named in a comment\n",
+    );
+    write(
+        "b.rs",
+        "use crate::{Thing, Root};\n#[cfg(test)]\nmod tests { use crate::a; }\n",
+    );
+    write("c.rs", "pub struct Thing;\nfn g() { crate::a::h() }\n");
+    let graph = module_graph(dir);
+    let names = |m: &str| graph[m].iter().cloned().collect::<Vec<_>>();
+    assert_eq!(names("a"), ["b"]);
+    assert_eq!(names("b"), ["c", "lib"]);
+    assert_eq!(names("c"), ["a"]);
+    assert_eq!(find_cycle(&graph).unwrap(), ["a", "b", "c", "a"]);
+    std::fs::write(dir.join("c.rs"), "pub struct Thing;\n").unwrap();
+    assert!(find_cycle(&module_graph(dir)).is_none());
 }

@@ -33,6 +33,7 @@ mod error;
 mod material;
 pub mod passes;
 pub mod plan;
+mod report;
 mod settings;
 pub mod shard_plan;
 pub mod subdivide;
@@ -41,6 +42,7 @@ pub mod transfer;
 pub use error::BakeError;
 pub use material::material_binding;
 pub use passes::PassInput;
+pub use report::{BakeOutput, BakeReport, ObjectReport};
 pub use settings::{BakeSettings, PointKind, DEFAULT_PIXEL_SAMPLES, MAX_PIXEL_SAMPLES};
 
 use indicatif::ProgressBar;
@@ -54,50 +56,7 @@ use prt_sh::{Basis, EnvMapping, ImageRef};
 use prt_tracer::progress_bar;
 use prt_tracer::Accel;
 use rayon::prelude::*;
-use serde::Serialize;
 use transfer::{direct, gather, DirectOptions, DirectResult, GatherScene, MeshTransfer};
-
-/// What a bake measured, for the log and `--json` output.
-#[derive(Clone, Debug, Serialize)]
-pub struct BakeReport {
-    /// One entry per object.
-    pub objects: Vec<ObjectReport>,
-    /// Rays traced in all.
-    pub rays_traced: u64,
-    /// Wall-clock seconds.
-    pub seconds: f64,
-    /// Every decision the baker made, with its reason.
-    pub decisions: Vec<Decision>,
-}
-
-/// Per-object figures.
-#[derive(Clone, Debug, Serialize)]
-pub struct ObjectReport {
-    /// Object name.
-    pub name: String,
-    /// Order baked.
-    pub order: usize,
-    /// Points baked (in this shard).
-    pub points: u64,
-    /// Fraction of diffuse rays that hit the scene.
-    pub hit_fraction: f64,
-    /// Fraction of diffuse rays that hit the back of a surface.
-    pub backface_fraction: f64,
-    /// Fraction of diffuse rays traced from points more than half of whose rays hit the back
-    /// of a surface: rays started inside geometry.
-    pub inside_fraction: f64,
-    /// Transfer kinds stored.
-    pub kinds: Vec<String>,
-}
-
-/// A bake and its report.
-#[derive(Clone, Debug)]
-pub struct BakeOutput {
-    /// What goes into the file.
-    pub bake: Bake,
-    /// What the log shows.
-    pub report: BakeReport,
-}
 
 fn shard_range(count: u64, shard: Option<(u32, u32)>) -> (u64, u64) {
     match shard {
@@ -469,7 +428,11 @@ pub fn bake_pass(
             .collect();
         vertex_totals = vertex_direct
             .iter()
-            .map(|r| r.iter().map(|d| level0_totals(&d.shadowed)).collect())
+            .map(|r| {
+                r.iter()
+                    .map(|d| transfer::level0_totals(&d.shadowed))
+                    .collect()
+            })
             .collect();
         chain.push(t0);
         for b in 1..=vertex_bounces {
@@ -1354,15 +1317,4 @@ fn bake_meta(
         camera: None,
         pass: None,
     }
-}
-
-/// The running totals a vertex's bounces start from: its shadowed transfer in each of the
-/// three channels (f64, as the gathers add to it).
-pub(crate) fn level0_totals(shadowed: &[f64]) -> Vec<f64> {
-    shadowed
-        .iter()
-        .cycle()
-        .take(3 * shadowed.len())
-        .copied()
-        .collect()
 }

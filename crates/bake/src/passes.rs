@@ -351,7 +351,10 @@ pub(crate) fn info(index: u32, last: u32, albedo: &[[f32; 3]]) -> PassInfo {
 /// What one distributed pass produced.
 pub(crate) enum Outcome {
     /// Pass `k < last`: this shard's objects with their pass state, and the report rows.
-    Intermediate(Vec<prt_bakefile::ObjectBake>, Vec<crate::ObjectReport>),
+    Intermediate(
+        Vec<prt_bakefile::ObjectBake>,
+        Vec<crate::report::ObjectReport>,
+    ),
     /// The last pass: the bounce levels (`chain[level][object]`, complete; per-pixel bakes)
     /// and this shard's running totals (per-vertex bakes) for the final assembly.
     Final {
@@ -424,7 +427,7 @@ impl Step<'_> {
                 let totals = if self.vertex_mode {
                     rows_o
                         .iter()
-                        .map(|d| crate::level0_totals(&d.shadowed))
+                        .map(|d| crate::transfer::level0_totals(&d.shadowed))
                         .collect()
                 } else {
                     Vec::new()
@@ -481,7 +484,7 @@ impl Step<'_> {
             } else {
                 (None, Vec::new())
             };
-            reports.push(crate::ObjectReport {
+            reports.push(crate::report::ObjectReport {
                 name: plan.name.clone(),
                 order: plan.order,
                 points: count,

@@ -47,7 +47,7 @@ pub struct BakeSettings {
     pub shard: Option<(u32, u32)>,
     /// Per-vertex bakes: refine the meshes where the transfer changes fast
     /// ([`crate::subdivide`]).
-    pub subdivide: Option<crate::subdivide::SubdivideOptions>,
+    pub subdivide: Option<SubdivideOptions>,
     /// Memory the bake may use, in bytes (estimated before any work).
     pub memory_limit: u64,
     /// Show a progress bar on a terminal.
@@ -163,5 +163,26 @@ impl BakeSettings {
             }
         }
         Ok(())
+    }
+}
+
+/// `prt bake --subdivide` options.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SubdivideOptions {
+    /// Relative difference of the transfer across an edge above which it is split.
+    pub error: f64,
+    /// Refinement levels at most.
+    pub max_levels: u32,
+    /// An object stops refining once it has this many vertices.
+    pub max_vertices: usize,
+}
+
+impl Default for SubdivideOptions {
+    fn default() -> Self {
+        Self {
+            error: 0.1,
+            max_levels: 5,
+            max_vertices: 1 << 20,
+        }
     }
 }

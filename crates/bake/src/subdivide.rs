@@ -28,26 +28,7 @@ use prt_tracer::{point_offset, Accel};
 use rayon::prelude::*;
 use std::collections::HashMap;
 
-/// `prt bake --subdivide` options.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SubdivideOptions {
-    /// Relative difference of the transfer across an edge above which it is split.
-    pub error: f64,
-    /// Refinement levels at most.
-    pub max_levels: u32,
-    /// An object stops refining once it has this many vertices.
-    pub max_vertices: usize,
-}
-
-impl Default for SubdivideOptions {
-    fn default() -> Self {
-        Self {
-            error: 0.1,
-            max_levels: 5,
-            max_vertices: 1 << 20,
-        }
-    }
-}
+pub use crate::settings::SubdivideOptions;
 
 /// What refinement did to one object.
 #[derive(Clone, Debug, serde::Serialize)]

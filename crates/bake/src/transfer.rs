@@ -239,3 +239,14 @@ pub fn unshadowed(order: usize, n: Vec3) -> Vec<f64> {
     );
     prt_sh::zonal::rotate_zonal(&g, n.as_dvec3()).expect("order checked")
 }
+
+/// The running totals a vertex's bounces start from: its shadowed transfer in each of the
+/// three channels (f64, as the gathers add to it).
+pub(crate) fn level0_totals(shadowed: &[f64]) -> Vec<f64> {
+    shadowed
+        .iter()
+        .cycle()
+        .take(3 * shadowed.len())
+        .copied()
+        .collect()
+}

@@ -20,7 +20,7 @@ use half::f16;
 use half::slice::HalfFloatSliceExt;
 
 use crate::error::BakeFileError;
-use crate::model::ScalarType;
+use crate::scalar::ScalarType;
 
 /// Values converted per step when converting between precisions.
 pub(crate) const CHUNK: usize = 1 << 14;

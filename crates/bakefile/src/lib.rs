@@ -57,6 +57,7 @@ mod material;
 mod merge;
 mod meta;
 mod model;
+mod scalar;
 mod summary;
 mod view;
 

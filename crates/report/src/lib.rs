@@ -10,6 +10,7 @@
 //! self-contained interactive HDR page.
 
 pub mod budget;
+mod cache;
 mod error;
 pub mod plots;
 pub mod recommend;

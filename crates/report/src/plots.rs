@@ -3,8 +3,10 @@
 //! grid.
 
 use crate::error::ReportError;
+use glam::Vec3;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
+use prt_compare::Image;
 use std::path::Path;
 use std::sync::Once;
 
@@ -428,6 +430,18 @@ pub fn image_grid(
         root.present().map_err(|e| err(path, e))?;
     }
     std::fs::rename(&tmp, path).map_err(|e| err(path, e))
+}
+
+/// The 8-bit sRGB view of a linear image (exposure 0) as a tile of the image grid.
+pub(crate) fn srgb_tile(img: &Image, caption: String) -> Tile {
+    let lin: Vec<Vec3> = img.pixels.iter().map(|p| Vec3::from_array(*p)).collect();
+    let bytes = prt_tracer::output::to_srgb8(&lin, 0.0);
+    Tile {
+        caption,
+        width: img.width as u32,
+        height: img.height as u32,
+        pixels: bytes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    }
 }
 
 #[cfg(test)]

@@ -9,8 +9,10 @@
 use crate::budget::{
     ldr_noise_psnr, masked_mean_square, masked_mse, summary_sentence, BudgetInputs, BudgetRow,
 };
+pub use crate::cache::cache_dir;
+use crate::cache::{cached_bake, reference_key, scene_key};
 use crate::error::ReportError;
-use crate::plots::{image_grid, line_chart, stacked_shares, ChartOptions, Series, Tile};
+use crate::plots::{image_grid, line_chart, srgb_tile, stacked_shares, ChartOptions, Series, Tile};
 use crate::viewer::ViewerImage;
 use glam::Vec3;
 use plotters::style::RGBColor;
@@ -23,10 +25,10 @@ use prt_scene_relight::imaging::{form_image, object_mask, roi_image, RgbImage};
 use prt_scene_relight::io::{
     read_reference, to_compare_image, write_exr, write_png, write_reference, CachedReference,
 };
-use prt_scene_relight::relit::{check_bake, relight, RelightOptions};
+use prt_scene_relight::relit::{relight, RelightOptions};
 use serde::Serialize;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 /// Settings of a report.
@@ -354,135 +356,11 @@ fn machine() -> Machine {
     }
 }
 
-pub(crate) fn fnv(bytes: &[u8], mut h: u64) -> u64 {
-    for b in bytes {
-        h ^= u64::from(*b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
-}
-
-/// Bumped whenever the tracer or the baker changes what they compute for the same inputs, so a
-/// report never reuses a cached reference or bake made by different code (with the crate
-/// version, part of every cache key). 2: per-pixel bakes share one sequence per pixel.
-const CACHE_EPOCH: u32 = 2;
-
-/// Cache key of a bake: the geometry hashes, materials, environment texels and settings.
-fn bake_key(scene: &Scene, s: &BakeSettings) -> u64 {
-    let h = scene_key(scene);
-    let h = if s.points == PointKind::Pixel {
-        fnv(
-            format!("{:?} {}", scene.camera, s.pixel_samples).as_bytes(),
-            h,
-        )
-    } else {
-        h
-    };
-    fnv(
-        format!(
-            "{:?} {:?} {} {} {} {}",
-            s.order, s.points, s.rays, s.bounces, s.seed, s.error_target
-        )
-        .as_bytes(),
-        h,
-    )
-}
-
-/// Cache key of a reference render: the scene, its camera and the render settings.
-fn reference_key(scene: &Scene, r: &prt_tracer::RenderSettings) -> u64 {
-    fnv(
-        format!(
-            "{:?} {} {} {} {:?} {:?} {:?}",
-            scene.camera, r.spp, r.bounces, r.seed, r.mode, r.mis, r.target_psnr_ldr
-        )
-        .as_bytes(),
-        scene_key(scene),
-    )
-}
-
-/// Hash of what every cached result depends on: geometry, materials, environment texels.
-pub(crate) fn scene_key(scene: &Scene) -> u64 {
-    let mut h = fnv(
-        format!("{} {CACHE_EPOCH}", env!("CARGO_PKG_VERSION")).as_bytes(),
-        0xcbf2_9ce4_8422_2325u64,
-    );
-    for m in &scene.meshes {
-        h = fnv(
-            &prt_scene::binding::geometry_hash(&m.positions, &m.indices).to_le_bytes(),
-            h,
-        );
-        h = fnv(&(m.material as u64).to_le_bytes(), h);
-    }
-    h = fnv(format!("{:?}", scene.materials).as_bytes(), h);
-    let env = &scene.environment;
-    h = fnv(
-        format!(
-            "{:?} {} {}x{}",
-            env.mapping, env.rotation_y_deg, env.image.width, env.image.height
-        )
-        .as_bytes(),
-        h,
-    );
-    for t in &env.image.texels {
-        for c in t {
-            h = fnv(&c.to_le_bytes(), h);
-        }
-    }
-    h
-}
-
-/// A bake from the report's cache (`DIR/cache/bake-KEY.prtb`), or baked and cached: the bake,
-/// its file and the bake time (`None` when reused).
-pub(crate) fn cached_bake(
-    scene: &Scene,
-    accel: &prt_tracer::Accel,
-    out_dir: &Path,
-    bs: &BakeSettings,
-    what: &str,
-    progress: bool,
-) -> Result<(Bake, PathBuf, Option<f64>), ReportError> {
-    let key = bake_key(scene, bs);
-    let path = out_dir.join("cache").join(format!("bake-{key:016x}.prtb"));
-    if let Some(b) = prt_bakefile::read_bake(&path)
-        .ok()
-        .filter(|b| check_bake(scene, b, &path).is_ok())
-    {
-        if progress {
-            eprintln!("report: reusing the cached {what} {}", path.display());
-        }
-        return Ok((b, path, None));
-    }
-    if progress {
-        eprintln!(
-            "report: baking the {what}: order {}, {} rays per point, {} bounce(s)",
-            bs.order.map_or("auto".into(), |o| o.to_string()),
-            bs.rays,
-            bs.bounces
-        );
-    }
-    let t = Instant::now();
-    let out = prt_bake::bake(scene, accel, bs)?;
-    let seconds = t.elapsed().as_secs_f64();
-    prt_bakefile::write_bake(&path, &out.bake, prt_bakefile::ScalarType::F32)?;
-    Ok((out.bake, path, Some(seconds)))
-}
-
 fn to_image(radiance: &[Vec3], w: u32, h: u32) -> Image {
     Image {
         width: w as usize,
         height: h as usize,
         pixels: radiance.iter().map(|v| v.to_array()).collect(),
-    }
-}
-
-pub(crate) fn srgb_tile(img: &Image, caption: String) -> Tile {
-    let lin: Vec<Vec3> = img.pixels.iter().map(|p| Vec3::from_array(*p)).collect();
-    let bytes = prt_tracer::output::to_srgb8(&lin, 0.0);
-    Tile {
-        caption,
-        width: img.width as u32,
-        height: img.height as u32,
-        pixels: bytes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
     }
 }
 
@@ -1724,10 +1602,4 @@ fn escape(s: &str) -> String {
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('`', "")
-}
-
-/// Where a report's bake cache lives.
-#[must_use]
-pub fn cache_dir(out_dir: &Path) -> PathBuf {
-    out_dir.join("cache")
 }

@@ -247,7 +247,7 @@ pub struct RfOutput {
 
 /// Cache key of a field: the scene's, the camera and the sampling settings.
 fn field_key(scene_key: u64, scene: &Scene, s: &ReflectanceSettings) -> u64 {
-    crate::report::fnv(
+    crate::cache::fnv(
         format!(
             "field {:?} {:?} {} {} {} {}",
             scene.camera, s.directions, s.bounces, s.rays, s.pixel_samples, s.seed
@@ -431,7 +431,7 @@ pub fn run_section(
             0.0,
         )?)
     };
-    let mut tiles = vec![crate::report::srgb_tile(
+    let mut tiles = vec![crate::plots::srgb_tile(
         cx.reference,
         "path traced (reference)".into(),
     )];
@@ -455,7 +455,7 @@ pub fn run_section(
         let (frames, stats) = relight_field_frames(scene, accel, &bake, field, &opt, &angles)?;
         let (psnr_ldr, rel_l2, mean_error) = measure(&frames[0])?;
         save(&format!("rf_{name}"), &frames[0], "reflectance field")?;
-        tiles.push(crate::report::srgb_tile(
+        tiles.push(crate::plots::srgb_tile(
             &to_compare_image(&frames[0]),
             format!("field, {name}: {psnr_ldr:.2} dB"),
         ));
@@ -510,7 +510,7 @@ pub fn run_section(
                 rgb: img.pixels.clone(),
             });
             if k == *ks.last().expect("non-empty") {
-                tiles.push(crate::report::srgb_tile(
+                tiles.push(crate::plots::srgb_tile(
                     &to_compare_image(img),
                     format!("{wname}, K = {k}: {psnr_ldr:.2} dB"),
                 ));
@@ -572,7 +572,7 @@ pub fn run_section(
         progress: cx.progress,
         ..BakeSettings::final_quality()
     };
-    let (sh_bake, sh_path, _) = crate::report::cached_bake(
+    let (sh_bake, sh_path, _) = crate::cache::cached_bake(
         scene,
         accel,
         out_dir,
@@ -607,7 +607,7 @@ pub fn run_section(
         if order == top {
             tiles.insert(
                 1,
-                crate::report::srgb_tile(
+                crate::plots::srgb_tile(
                     &to_compare_image(&img),
                     format!("per-pixel SH {order}: {psnr_ldr:.2} dB"),
                 ),
@@ -656,7 +656,7 @@ pub fn run_section(
         if order == top {
             tiles.insert(
                 2,
-                crate::report::srgb_tile(
+                crate::plots::srgb_tile(
                     &to_compare_image(&frames[0]),
                     format!("SH {order} fitted to the field: {psnr_ldr:.2} dB"),
                 ),

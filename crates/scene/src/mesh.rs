@@ -346,24 +346,3 @@ pub fn object_transform(translate: DVec3, rotate_deg: DVec3, scale: DVec3) -> DM
         * DMat3::from_rotation_x(rotate_deg.x.to_radians());
     DMat4::from_translation(translate) * DMat4::from_mat3(r) * DMat4::from_scale(scale)
 }
-
-/// Reads a mesh file by extension (`.obj`, `.gltf`, `.glb`, case-insensitive) and transforms
-/// it to world space with `to_world` (see the module docs of this crate for the clean-up).
-///
-/// # Errors
-/// [`SceneError::Format`] for an unknown extension; the errors of
-/// [`crate::load_obj`] and [`crate::load_gltf`].
-pub fn load_mesh(path: &Path, to_world: &DMat4) -> Result<crate::LoadedMeshes, SceneError> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    match ext.as_str() {
-        "obj" => crate::load_obj(path, to_world),
-        "gltf" | "glb" => crate::load_gltf(path, to_world),
-        _ => Err(SceneError::format(
-            path,
-            format!("unknown mesh extension `{ext}`: expected .obj, .gltf or .glb"),
-        )),
-    }
-}

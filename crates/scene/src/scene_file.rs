@@ -2,7 +2,8 @@
 //! into plain structs (unknown keys and wrong types are errors that point at the line), then
 //! every value is checked and errors name the scene file and the key.
 
-use crate::mesh::{load_mesh, object_transform};
+use crate::load::load_mesh;
+use crate::mesh::object_transform;
 use crate::{
     load_environment, Camera, LoadedScene, Mapping, Material, RenderSettings, Rgb, Scene,
     SceneError,

@@ -14,6 +14,7 @@
 //! (per-view-elevation BRDF projections, `prt_shading::projection`).
 
 mod error;
+pub mod footprint;
 pub mod glossy;
 pub mod imaging;
 pub mod io;

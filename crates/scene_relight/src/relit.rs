@@ -462,7 +462,7 @@ pub fn relight(
             let fp = footprints
                 .as_ref()
                 .expect("per-pixel bakes have footprints");
-            crate::imaging::pixel_surface(scene, fp, o)
+            crate::footprint::pixel_surface(scene, fp, o)
                 .into_iter()
                 .unzip()
         } else {
@@ -492,7 +492,7 @@ pub fn relight(
                         None => *material,
                     })
                     .collect(),
-                (Some(fp), None) => crate::imaging::pixel_materials(scene, fp, o),
+                (Some(fp), None) => crate::footprint::pixel_materials(scene, fp, o),
                 (None, None) => (0..mesh.positions.len() as u32)
                     .map(|v| scene.material_at(o, prt_scene::SurfacePoint::Vertex(v)))
                     .collect(),

@@ -8,25 +8,13 @@
 //! `s = 0` and 1 when `d = 0`. The returned pdf is the mixture pdf and the weight is
 //! `f(ω_i, ω_o) cos θ_i / pdf` with the full BRDF, so one sample estimates the whole material.
 
+use crate::bsdf_sample::BsdfSample;
 use crate::microfacet::{CookTorranceLobe, WardLobe};
 use crate::pbr::PbrLobe;
 use crate::phong::{BlinnPhongLobe, PhongLobe};
 use crate::{lambert, luminance, mirror, Frame};
 use glam::Vec3;
 use prt_scene::Material;
-
-/// A direction drawn by [`sample`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct BsdfSample {
-    /// Sampled incident direction (world, unit, away from the surface).
-    pub wi: Vec3,
-    /// `f · |cos θ_i| / pdf`, RGB (for a delta lobe: reflectance / selection probability).
-    pub weight: Vec3,
-    /// Solid-angle pdf of `wi`; for delta lobes the discrete selection probability.
-    pub pdf: f32,
-    /// True when `wi` came from a delta lobe (mirror): no other strategy can generate it.
-    pub is_delta: bool,
-}
 
 /// A specular lobe of a glossy material (local frame).
 #[derive(Clone, Copy, Debug)]

@@ -45,6 +45,7 @@
 //! with expected counts from adaptive quadrature of the pdf and a Šidák-corrected significance.
 
 mod bsdf;
+mod bsdf_sample;
 pub mod chi2;
 pub mod distribution;
 mod envmap;
@@ -58,7 +59,8 @@ mod phong;
 pub mod projection;
 mod warp;
 
-pub use bsdf::{eval, has_delta, pdf, sample, specular_selection_probability, BsdfSample};
+pub use bsdf::{eval, has_delta, pdf, sample, specular_selection_probability};
+pub use bsdf_sample::BsdfSample;
 pub use distribution::{Distribution1D, Distribution2D};
 pub use envmap::{EnvSample, EnvSampler};
 pub use frame::Frame;

@@ -6,7 +6,7 @@
 //! density) and `is_delta = true`. `eval` and `pdf` describe only the diffuse part, whose
 //! density is `(1 − P) cos θ/π`.
 
-use crate::bsdf::BsdfSample;
+use crate::bsdf_sample::BsdfSample;
 use crate::{lambert, luminance, phong::reflect_z};
 use glam::Vec3;
 

@@ -8,49 +8,12 @@
 //! would pass through it, so it contributes nothing (no light leaks through thin geometry)
 //! except in the unshadowed mode, which by definition ignores geometry.
 
-use crate::accel::offset_origin;
 use crate::rng::Sampler;
 use crate::settings::{MisHeuristic, Mode};
+use crate::vertex::Vertex;
 use crate::Renderer;
 use glam::Vec3;
-use prt_scene::Material;
 use prt_shading::{eval, luminance, pdf, sample, sample_cosine_hemisphere, Frame};
-
-/// A surface point being shaded.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Vertex {
-    /// Position.
-    pub p: Vec3,
-    /// Unit geometric normal (any orientation).
-    pub ng: Vec3,
-    /// Unit shading normal (any orientation).
-    pub ns: Vec3,
-    /// Spawn offset along `ng`.
-    pub offset: f32,
-    /// The BRDF.
-    pub mat: Material,
-}
-
-impl Vertex {
-    /// `(ng, ns)` turned towards `wo`.
-    fn oriented(&self, wo: Vec3) -> (Vec3, Vec3) {
-        let ng = if self.ng.dot(wo) < 0.0 {
-            -self.ng
-        } else {
-            self.ng
-        };
-        let ns = if self.ns.dot(wo) < 0.0 {
-            -self.ns
-        } else {
-            self.ns
-        };
-        (ng, ns)
-    }
-
-    fn spawn(&self, ng: Vec3, dir: Vec3) -> Vec3 {
-        offset_origin(self.p, ng, self.offset, dir)
-    }
-}
 
 /// MIS weight of strategy `a` against `b` (pdfs in solid angle).
 pub(crate) fn mis_weight(h: MisHeuristic, a: f32, b: f32) -> f32 {

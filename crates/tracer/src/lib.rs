@@ -26,6 +26,7 @@
 
 mod accel;
 mod camera;
+mod color;
 mod error;
 mod integrator;
 pub mod output;
@@ -36,6 +37,7 @@ pub mod rng;
 pub mod sequence;
 mod settings;
 pub mod test_util;
+mod vertex;
 
 pub use accel::{
     offset_origin, point_offset, spawn_offset, Accel, AccelOptions, Hit, SHADOW_RAY_SHORTEN,

@@ -17,6 +17,7 @@
 //! is flushed and fsynced, then renamed over the destination (and the directory is fsynced),
 //! so readers see either the old file or the complete new one.
 
+pub use crate::color::{srgb_encode, to_srgb8};
 use crate::{Mode, RenderOutput, TracerError};
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer, LayerAttributes,
@@ -238,34 +239,6 @@ pub fn sort_exr_attributes(bytes: &mut [u8]) -> Result<(), String> {
     let header = sorted.concat();
     bytes[start..at].copy_from_slice(&header);
     Ok(())
-}
-
-/// The sRGB transfer curve of a linear value in [0, 1].
-#[must_use]
-pub fn srgb_encode(linear: f32) -> f32 {
-    if linear <= 0.003_130_8 {
-        12.92 * linear
-    } else {
-        1.055 * linear.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// The 8-bit sRGB view of linear radiance: `× 2^exposure_ev`, clamp to [0, 1], sRGB, round.
-#[must_use]
-pub fn to_srgb8(radiance: &[Vec3], exposure_ev: f32) -> Vec<u8> {
-    let k = exposure_ev.exp2();
-    radiance
-        .iter()
-        .flat_map(|l| l.to_array())
-        .map(|x| {
-            let x = if x.is_nan() {
-                0.0
-            } else {
-                (x * k).clamp(0.0, 1.0)
-            };
-            (srgb_encode(x) * 255.0 + 0.5).floor() as u8
-        })
-        .collect()
 }
 
 /// Writes the PNG view of the radiance (exposure in EV, 0 by default), atomically.

@@ -2,10 +2,10 @@
 
 use crate::accel::{point_offset, Accel, Hit};
 use crate::camera::PinholeCamera;
-use crate::integrator::Vertex;
-use crate::output::srgb_encode;
+use crate::color::srgb_encode;
 use crate::rng::{stream, PixelKeys, Purpose};
 use crate::settings::{Mode, RenderSettings};
+use crate::vertex::Vertex;
 use crate::TracerError;
 use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};

@@ -346,3 +346,9 @@ pub(crate) fn multi_level_1d(
         lengths.iter().for_each(|&len| run(len));
     }
 }
+
+/// The level of 1D layout position `i` of an axis of `n` samples with `levels` levels: `l` for
+/// the detail band `[n/2^l, n/2^(l−1))`, `levels + 1` for the approximation `[0, n/2^levels)`.
+pub(crate) fn axis_level(i: usize, n: usize, levels: usize) -> usize {
+    (1..=levels).find(|&l| i >= n >> l).unwrap_or(levels + 1)
+}

@@ -2,7 +2,7 @@
 
 use std::sync::{Arc, OnceLock};
 
-use crate::dwt1d::{max_levels_1d, run_step, Bank, Scratch, Step};
+use crate::dwt1d::{axis_level, max_levels_1d, run_step, Bank, Scratch, Step};
 use crate::error::{check_finite, check_len, Result, WaveletError};
 use crate::norms::BasisNorms;
 use crate::wavelet::{Boundaries, Wavelet};
@@ -286,17 +286,21 @@ impl Transform2d {
     /// (orthonormal).
     pub fn basis_norms_squared(&self) -> &[f64] {
         self.norms
-            .get_or_init(|| BasisNorms::compute(self))
+            .get_or_init(|| {
+                BasisNorms::compute(
+                    &self.bank,
+                    self.boundaries,
+                    self.width,
+                    self.height,
+                    self.levels,
+                )
+            })
             .per_coefficient()
     }
 
     /// The inverse transform of data already checked (right length, finite).
     pub(crate) fn inverse_unchecked(&self, data: &mut [f64]) {
         self.run(Step::Synthesis, data);
-    }
-
-    pub(crate) fn bank(&self) -> &Bank {
-        &self.bank
     }
 
     fn position(&self, index: usize) -> Result<(usize, usize)> {
@@ -353,10 +357,4 @@ impl Transform2d {
         }
         scratch.line = line;
     }
-}
-
-/// The level of 1D layout position `i` of an axis of `n` samples with `levels` levels: `l` for
-/// the detail band `[n/2^l, n/2^(l−1))`, `levels + 1` for the approximation `[0, n/2^levels)`.
-pub(crate) fn axis_level(i: usize, n: usize, levels: usize) -> usize {
-    (1..=levels).find(|&l| i >= n >> l).unwrap_or(levels + 1)
 }

@@ -1,9 +1,8 @@
 //! Squared L2 norms of the synthesis basis functions, for ranking coefficients by their share
 //! of the L2 error.
 
-use crate::dwt1d::{multi_level_1d, Bank, Step};
-use crate::dwt2d::{axis_level, Transform2d};
-use crate::wavelet::Boundary;
+use crate::dwt1d::{axis_level, multi_level_1d, Bank, Step};
+use crate::wavelet::{Boundaries, Boundary};
 
 /// Squared norms of the 1D synthesis functions of one axis: `scaling[l − 1][k]` of the level-`l`
 /// scaling function `k`, `wavelet[l − 1][k]` of the level-`l` wavelet `k`.
@@ -63,14 +62,20 @@ pub(crate) struct BasisNorms {
 }
 
 impl BasisNorms {
-    pub(crate) fn compute(t: &Transform2d) -> BasisNorms {
-        let (w, h, levels) = (t.width(), t.height(), t.levels());
-        let bank = t.bank();
-        let x_norms = AxisNorms::compute(bank, t.boundaries().x, w, levels);
-        let y_norms = if h == w && t.boundaries().x == t.boundaries().y {
+    /// The norms of a `w × h` transform of `levels` levels with filter `bank` and
+    /// `boundaries`.
+    pub(crate) fn compute(
+        bank: &Bank,
+        boundaries: Boundaries,
+        w: usize,
+        h: usize,
+        levels: usize,
+    ) -> BasisNorms {
+        let x_norms = AxisNorms::compute(bank, boundaries.x, w, levels);
+        let y_norms = if h == w && boundaries.x == boundaries.y {
             x_norms.clone()
         } else {
-            AxisNorms::compute(bank, t.boundaries().y, h, levels)
+            AxisNorms::compute(bank, boundaries.y, h, levels)
         };
         let mut per_coefficient = Vec::with_capacity(w * h);
         for y in 0..h {
