@@ -159,6 +159,32 @@ running() {
     return 1
 }
 
+# Cancels task TASK of pass K (the driver's first array of it, from LOG) while it runs.
+cancel_running() { # LOG K TASK WHAT
+    local job
+    job=$(array_of "$1" "$2")
+    if [ -n "$job" ] && running "${job}_$3"; then
+        scancel "${job}_$3"
+        say "cancelled task ${job}_$3 ($4) while it ran"
+    else
+        fail "scancel ($4): task $3 of pass $2 never ran"
+    fi
+}
+# Kills (SIGKILL) the prt process of shard I of pass K of the run writing to OUTDIR.
+kill_running() { # OUTDIR K I WHAT
+    local victim=""
+    for ((t = 0; t < 600; t++)); do
+        victim=$(pgrep -f -- "--shard $3/3 --pass $2 .*$1/" | head -1 || true)
+        [ -n "$victim" ] && break
+        sleep 0.1
+    done
+    if [ -n "$victim" ] && kill -9 "$victim"; then
+        say "killed prt (pid $victim) of pass $2 shard $3 ($4) with SIGKILL"
+    else
+        fail "kill -9 ($4): the prt process of pass $2 shard $3 was never seen"
+    fi
+}
+
 start=$(date +%s.%N)
 drive light "$work/v" "${light[@]}" || fail "per-vertex run: the driver failed"
 slurm_s=$(python3 -c "print($(date +%s.%N) - $start)")
@@ -169,13 +195,7 @@ same pixel "$work/p" "per-pixel 2-bounce bake, 3 shards"
 # scancel of one array element while it runs.
 drive heavy "$work/cancel" "${heavy[@]}" &
 d=$!
-job=$(array_of "$work/cancel.log" 0)
-if [ -n "$job" ] && running "${job}_1"; then
-    scancel "${job}_1"
-    say "cancelled task ${job}_1 while it ran"
-else
-    fail "scancel: task 1 of pass 0 never ran"
-fi
+cancel_running "$work/cancel.log" 0 1 "per vertex"
 wait "$d" || fail "scancel run: the driver failed"
 grep -q "pass 0 shard 1: .* missing" "$work/cancel.log" || fail "scancel: the driver did not re-run shard 1"
 same heavy "$work/cancel" "one task cancelled (scancel), re-run by the driver"
@@ -183,17 +203,7 @@ same heavy "$work/cancel" "one task cancelled (scancel), re-run by the driver"
 # kill -9 of one task's prt process.
 drive heavy "$work/kill" "${heavy[@]}" &
 d=$!
-victim=""
-for ((t = 0; t < 600; t++)); do
-    victim=$(pgrep -f -- "--shard 2/3 --pass 0 .*$work/kill/" | head -1 || true)
-    [ -n "$victim" ] && break
-    sleep 0.1
-done
-if [ -n "$victim" ] && kill -9 "$victim"; then
-    say "killed prt (pid $victim) of pass 0 shard 2 with SIGKILL"
-else
-    fail "kill -9: the task's prt process was never seen"
-fi
+kill_running "$work/kill" 0 2 "per vertex"
 wait "$d" || fail "kill -9 run: the driver failed"
 grep -q "pass 0 shard 2: .* missing" "$work/kill.log" || fail "kill -9: the driver did not re-run shard 2"
 same heavy "$work/kill" "one task's prt killed (SIGKILL), re-run by the driver"
@@ -202,24 +212,8 @@ same heavy "$work/kill" "one task's prt killed (SIGKILL), re-run by the driver"
 # killed.
 drive pixel_heavy "$work/pfault" "${pixel_heavy[@]}" &
 d=$!
-job=$(array_of "$work/pfault.log" 2)
-if [ -n "$job" ] && running "${job}_1"; then
-    scancel "${job}_1"
-    say "cancelled task ${job}_1 of the per-pixel bake's last pass while it ran"
-else
-    fail "per-pixel scancel: task 1 of pass 2 never ran"
-fi
-victim=""
-for ((t = 0; t < 600; t++)); do
-    victim=$(pgrep -f -- "--shard 0/3 --pass 2 .*$work/pfault/" | head -1 || true)
-    [ -n "$victim" ] && break
-    sleep 0.1
-done
-if [ -n "$victim" ] && kill -9 "$victim"; then
-    say "killed prt (pid $victim) of the per-pixel bake's pass 2 shard 0 with SIGKILL"
-else
-    fail "per-pixel kill -9: the task's prt process was never seen"
-fi
+cancel_running "$work/pfault.log" 2 1 "per pixel, last pass"
+kill_running "$work/pfault" 2 0 "per pixel, last pass"
 wait "$d" || fail "per-pixel fault run: the driver failed"
 grep -q "pass 2 shard 1: .* missing" "$work/pfault.log" || fail "per-pixel: shard 1 not re-run"
 grep -q "pass 2 shard 0: .* missing" "$work/pfault.log" || fail "per-pixel: shard 0 not re-run"

@@ -370,6 +370,29 @@ fn four_shards_two_bounces_pass_by_pass() {
     assert!(!dir.path().join("refused.prtb").exists());
 }
 
+/// The bake the driver tests run: 2 bounces, so 3 passes.
+const DRIVER_OPTIONS: [&str; 8] = [
+    "--bounces",
+    "2",
+    "--rays",
+    "64",
+    "--order",
+    "4",
+    "--seed",
+    "3",
+];
+
+/// `tools/distributed/run-local.sh SCENE 3 OUT OPTIONS` with this build's prt.
+fn run_local(scene: &Path, out: &Path, options: &[&str]) -> std::process::Output {
+    run(Command::new("bash")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/distributed/run-local.sh"))
+        .arg(scene)
+        .arg("3")
+        .arg(out)
+        .args(options)
+        .env("PRT", env!("CARGO_BIN_EXE_prt")))
+}
+
 /// The local driver in tools/distributed/: `run-local.sh` produces the unsharded bake's bytes,
 /// per vertex and per pixel (whose last pass takes no `--hits`). (The Slurm driver is tested
 /// on a real Slurm below.)
@@ -377,18 +400,8 @@ fn four_shards_two_bounces_pass_by_pass() {
 fn local_driver_produces_the_unsharded_bake() {
     let dir = tempfile::tempdir().unwrap();
     let scene = write_scene(dir.path());
-    let tools = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/distributed");
     for per_pixel in [false, true] {
-        let mut options = vec![
-            "--bounces",
-            "2",
-            "--rays",
-            "64",
-            "--order",
-            "4",
-            "--seed",
-            "3",
-        ];
+        let mut options = DRIVER_OPTIONS.to_vec();
         if per_pixel {
             options.extend(["--per-pixel", "--pixel-samples", "1"]);
         }
@@ -401,21 +414,8 @@ fn local_driver_produces_the_unsharded_bake() {
             .arg(&whole));
         let expected = std::fs::read(&whole).unwrap();
         let local = dir.path().join(format!("local{per_pixel}.prtb"));
-        let out = Command::new("bash")
-            .arg(tools.join("run-local.sh"))
-            .arg(&scene)
-            .arg("3")
-            .arg(&local)
-            .args(&options)
-            .env("PRT", env!("CARGO_BIN_EXE_prt"))
-            .output()
-            .unwrap();
+        let out = run_local(&scene, &local, &options);
         let text = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
         assert!(text.contains("pass 2: 3 shards"), "{text}");
         assert!(
             std::fs::read(&local).unwrap() == expected,
@@ -464,16 +464,7 @@ fn slurm_driver_survives_faults_on_a_real_slurm() {
 fn plan_shards_predicts_the_passes_files() {
     let dir = tempfile::tempdir().unwrap();
     let scene = write_scene(dir.path());
-    let options = [
-        "--bounces",
-        "2",
-        "--rays",
-        "64",
-        "--order",
-        "4",
-        "--seed",
-        "3",
-    ];
+    let options = DRIVER_OPTIONS;
     let out = run(prt()
         .arg("bake")
         .arg(&scene)
@@ -484,13 +475,7 @@ fn plan_shards_predicts_the_passes_files() {
     let plan: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(plan["probe_rays"], serde_json::json!([16, 32]));
     let local = dir.path().join("local.prtb");
-    run(Command::new("bash")
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/distributed/run-local.sh"))
-        .arg(&scene)
-        .arg("3")
-        .arg(&local)
-        .args(options)
-        .env("PRT", env!("CARGO_BIN_EXE_prt")));
+    run_local(&scene, &local, &options);
     let work = dir.path().join("local.prtb.passes");
     let size = |p: &Path| std::fs::metadata(p).unwrap().len() as f64;
     for k in 0..3 {

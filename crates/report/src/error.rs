@@ -6,14 +6,6 @@ use thiserror::Error;
 /// Everything that can stop a relight or a report.
 #[derive(Debug, Error)]
 pub enum ReportError {
-    /// A bake that does not belong to the scene, or lacks what is asked of it.
-    #[error("{path}: {reason}")]
-    BakeMismatch {
-        /// The bake file (or `<memory>`).
-        path: PathBuf,
-        /// What does not match.
-        reason: String,
-    },
     /// `prt bake --target-psnr`: no bake meets the target (the message says how far each
     /// object falls short).
     #[error("{0}")]
