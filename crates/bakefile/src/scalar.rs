@@ -50,3 +50,21 @@ impl ScalarType {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::ScalarType;
+
+    #[test]
+    fn codes_names_and_sizes_are_the_specs() {
+        for (t, code, name, size) in [
+            (ScalarType::F32, 1, "f32", 4),
+            (ScalarType::F16, 2, "f16", 2),
+        ] {
+            assert_eq!((t.code(), t.name(), t.size()), (code, name, size));
+            assert_eq!(ScalarType::from_code(code), Some(t));
+        }
+        assert_eq!(ScalarType::from_code(0), None);
+        assert_eq!(ScalarType::from_code(3), None);
+    }
+}

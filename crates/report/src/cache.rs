@@ -130,3 +130,19 @@ pub(crate) fn cached_bake(
 pub fn cache_dir(out_dir: &Path) -> PathBuf {
     out_dir.join("cache")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::fnv;
+
+    #[test]
+    fn fnv_is_fnv1a_64() {
+        // The published FNV-1a 64 vectors, from the offset basis.
+        let basis = 0xcbf2_9ce4_8422_2325u64;
+        assert_eq!(fnv(b"", basis), basis);
+        assert_eq!(fnv(b"a", basis), 0xaf63_dc4c_8601_ec8c);
+        assert_eq!(fnv(b"foobar", basis), 0x8594_4171_f739_67e8);
+        // Continuing from a hash is hashing the concatenation.
+        assert_eq!(fnv(b"bar", fnv(b"foo", basis)), fnv(b"foobar", basis));
+    }
+}

@@ -157,3 +157,76 @@ pub fn read_reference(path: &Path) -> std::result::Result<CachedReference, Strin
         half_difference: half_difference.to_vec(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn reference() -> CachedReference {
+        CachedReference {
+            width: 3,
+            height: 2,
+            spp: 64,
+            seconds: 1.25,
+            radiance: (0..6).map(|i| Vec3::splat(i as f32 * 0.5)).collect(),
+            half_difference: (0..6).map(|i| Vec3::new(0.0, -(i as f32), 1e-3)).collect(),
+        }
+    }
+
+    #[test]
+    fn a_cached_reference_reads_back_exactly_and_damage_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ref.bin");
+        let r = reference();
+        write_reference(&path, &r).unwrap();
+        let back = read_reference(&path).unwrap();
+        assert_eq!((back.width, back.height, back.spp), (3, 2, 64));
+        assert_eq!(back.seconds, 1.25);
+        assert_eq!(
+            (back.radiance, back.half_difference),
+            (r.radiance, r.half_difference)
+        );
+        let mut bytes = std::fs::read(&path).unwrap();
+        bytes[40] ^= 1;
+        std::fs::write(&path, &bytes).unwrap();
+        assert_eq!(read_reference(&path).unwrap_err(), "checksum mismatch");
+        std::fs::write(&path, &bytes[..20]).unwrap();
+        assert!(read_reference(&path).is_err());
+    }
+
+    #[test]
+    fn an_exr_reads_back_with_its_pixels_and_attributes() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("img.exr");
+        let img = RgbImage {
+            width: 2,
+            height: 2,
+            pixels: vec![
+                [0.0, 0.5, 1.0],
+                [2.0, 3.0, 4.0],
+                [-1.0, 0.25, 8.0],
+                [1e-3, 1e3, 0.0],
+            ],
+        };
+        write_exr(&path, &img, &[("order", "6".into())]).unwrap();
+        let back = read_all_flat_layers_from_file(&path).unwrap();
+        let layer = &back.layer_data[0];
+        assert_eq!(
+            layer.attributes.other.get(&Text::from("prt.order")),
+            Some(&AttributeValue::Text(Text::from("6")))
+        );
+        for (c, name) in ["R", "G", "B"].iter().enumerate() {
+            let ch = layer
+                .channel_data
+                .list
+                .iter()
+                .find(|ch| ch.name == Text::from(*name))
+                .unwrap();
+            let FlatSamples::F32(v) = &ch.sample_data else {
+                panic!("{name} is not f32")
+            };
+            let expected: Vec<f32> = img.pixels.iter().map(|p| p[c]).collect();
+            assert_eq!(v, &expected);
+        }
+    }
+}
