@@ -220,7 +220,7 @@ mod tests {
                 .channel_data
                 .list
                 .iter()
-                .find(|ch| ch.name == *name)
+                .find(|ch| ch.name == **name)
                 .unwrap();
             let FlatSamples::F32(v) = &ch.sample_data else {
                 panic!("{name} is not f32")
