@@ -350,9 +350,7 @@ pub fn export_glb(
         views: Vec::new(),
         accessors: Vec::new(),
     };
-    let (mut images, mut textures, mut samplers) = (Vec::new(), Vec::new(), Vec::new());
-    // Scene textures already written: (scene texture, sRGB) → glTF texture.
-    let mut written: Vec<((usize, bool), usize)> = Vec::new();
+    let mut tex = Textures::default();
     let (mut meshes, mut nodes, mut materials) = (Vec::new(), Vec::new(), Vec::new());
     let (mut vertices, mut attributes) = (0usize, 0usize);
     for (o, obj) in bake.objects.iter().enumerate() {
@@ -379,36 +377,7 @@ pub fn export_glb(
         }
         let (n, c) = (obj.order as usize, obj.channels as usize);
         let n2 = n * n;
-        let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-        for p in &geometry.positions {
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        let position = bin.add(
-            &f32_bytes(geometry.positions.iter().flatten().copied()),
-            ARRAY_BUFFER,
-            json!({"componentType": FLOAT, "count": v, "type": "VEC3", "min": lo, "max": hi}),
-        );
-        let normal = bin.add(
-            &f32_bytes(geometry.normals.iter().flatten().copied()),
-            ARRAY_BUFFER,
-            json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
-        );
-        let indices = bin.add(
-            &geometry
-                .triangles
-                .iter()
-                .flatten()
-                .flat_map(|i| i.to_le_bytes())
-                .collect::<Vec<u8>>(),
-            ELEMENT_ARRAY_BUFFER,
-            json!({"componentType": UNSIGNED_INT, "count": 3 * geometry.triangles.len(), "type": "SCALAR"}),
-        );
-        let mut attrs = serde_json::Map::new();
-        attrs.insert("POSITION".into(), json!(position));
-        attrs.insert("NORMAL".into(), json!(normal));
+        let (mut attrs, indices) = add_geometry(&mut bin, &geometry);
         let mut names = Vec::new();
         let mut lightmap_extras = Value::Null;
         if let Some(lm) = lightmap {
@@ -420,22 +389,13 @@ pub fn export_glb(
             );
             attrs.insert("TEXCOORD_0".into(), json!(uv_acc));
             let q = quantise_lightmap(lm, &block.data, c, n2);
-            let mut tex_ids = Vec::new();
+            let mut tex_ids: Vec<Vec<usize>> = Vec::new();
             for pngs in &q.pngs {
-                let mut ids = Vec::new();
-                for png in pngs {
-                    let view = bin.add_view(png);
-                    images.push(json!({"bufferView": view, "mimeType": "image/png"}));
-                    // Bilinear, clamp to edge: the lookup prt's image formation does, bar its
-                    // renormalisation over covered texels (which the dilation stands in for).
-                    let sampler = sampler_index(
-                        &mut samplers,
-                        json!({"magFilter": LINEAR, "minFilter": LINEAR, "wrapS": CLAMP_TO_EDGE, "wrapT": CLAMP_TO_EDGE}),
-                    );
-                    textures.push(json!({"sampler": sampler, "source": images.len() - 1}));
-                    ids.push(textures.len() - 1);
-                }
-                tex_ids.push(ids);
+                tex_ids.push(
+                    pngs.iter()
+                        .map(|png| tex.add_lightmap(&mut bin, png))
+                        .collect(),
+                );
             }
             lightmap_extras = json!({
                 "width": lm.width, "height": lm.height, "uv": "TEXCOORD_0",
@@ -480,80 +440,18 @@ pub fn export_glb(
         };
         // The core glTF material: the scene's own where glTF has it (`pbr`: factors and
         // textures, with the asset's UV sets and vertex colours), else the diffuse albedo.
-        let same_vertices = scene_mesh.positions.len() == v;
         let uv_shift = usize::from(lightmap.is_some());
-        let mut texture_info = |t: Option<prt_scene::TextureRef>,
-                                srgb: bool,
-                                attrs: &mut serde_json::Map<String, Value>,
-                                bin: &mut Bin|
-         -> Result<Option<Value>, SceneRelightError> {
-            let Some(t) = t.filter(|t| same_vertices && t.texcoord < scene_mesh.texcoords.len())
-            else {
-                return Ok(None);
-            };
-            let index = match written.iter().find(|(k, _)| *k == (t.index, srgb)) {
-                Some(&(_, i)) => i,
-                None => {
-                    let tex = scene.textures.get(t.index).ok_or_else(|| {
-                        invalid(format!(
-                            "object {}: texture {} is missing",
-                            obj.name, t.index
-                        ))
-                    })?;
-                    let view = bin.add_view(&texture_png(tex, srgb)?);
-                    images.push(
-                        json!({"bufferView": view, "mimeType": "image/png", "name": tex.name}),
-                    );
-                    let sampler = sampler_index(
-                        &mut samplers,
-                        json!({"magFilter": LINEAR, "minFilter": LINEAR,
-                               "wrapS": wrap_code(tex.wrap[0]), "wrapT": wrap_code(tex.wrap[1])}),
-                    );
-                    textures.push(json!({"sampler": sampler, "source": images.len() - 1}));
-                    written.push(((t.index, srgb), textures.len() - 1));
-                    textures.len() - 1
-                }
-            };
-            let set = t.texcoord + uv_shift;
-            let name = format!("TEXCOORD_{set}");
-            if !attrs.contains_key(&name) {
-                let uv = &scene_mesh.texcoords[t.texcoord];
-                let acc = bin.add(
-                    &f32_bytes(uv.iter().flatten().copied()),
-                    ARRAY_BUFFER,
-                    json!({"componentType": FLOAT, "count": v, "type": "VEC2"}),
-                );
-                attrs.insert(name, json!(acc));
-            }
-            Ok(Some(json!({"index": index, "texCoord": set})))
-        };
-        let pbr = match *material {
-            prt_scene::Material::Pbr {
-                base_color,
-                metallic,
-                roughness,
-                base_color_texture,
-                metallic_roughness_texture,
-            } => {
-                let mut m = json!({
-                    "baseColorFactor": [base_color[0], base_color[1], base_color[2], 1.0],
-                    "metallicFactor": metallic, "roughnessFactor": roughness,
-                });
-                if let Some(t) = texture_info(base_color_texture, true, &mut attrs, &mut bin)? {
-                    m["baseColorTexture"] = t;
-                }
-                if let Some(t) =
-                    texture_info(metallic_roughness_texture, false, &mut attrs, &mut bin)?
-                {
-                    m["metallicRoughnessTexture"] = t;
-                }
-                m
-            }
-            _ => {
-                let a = material.albedo();
-                json!({"baseColorFactor": [a[0], a[1], a[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0})
-            }
-        };
+        let pbr = tex.material(
+            &mut bin,
+            &mut attrs,
+            scene,
+            scene_mesh,
+            material,
+            uv_shift,
+            (scene_mesh.positions.len() == v).then_some(v),
+            &obj.name,
+        )?;
+        let same_vertices = scene_mesh.positions.len() == v;
         // The asset's vertex colours, which core glTF multiplies into the base colour.
         if same_vertices && !scene_mesh.colors.is_empty() {
             let a = bin.add(
@@ -626,6 +524,32 @@ pub fn export_glb(
     while !bin.data.len().is_multiple_of(4) {
         bin.data.push(0);
     }
+    let doc = document(scene, bake, (nodes, meshes, materials), &bin, tex);
+    let glb = glb_container(&doc, &bin.data)?;
+    prt_tracer::output::write_atomically(path, |w| {
+        std::io::Write::write_all(w, &glb).map_err(|e| e.to_string())
+    })
+    .map_err(|e| SceneRelightError::Write {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })?;
+    Ok(ExportSummary {
+        objects: bake.objects.len(),
+        vertices,
+        attributes,
+        bytes: glb.len(),
+    })
+}
+
+/// The glTF document of the export: its scene of one node per object, the meshes, materials,
+/// accessors, buffer views, textures, and the root `extras.prt` (SPEC §10).
+fn document(
+    scene: &Scene,
+    bake: &Bake,
+    (nodes, meshes, materials): (Vec<Value>, Vec<Value>, Vec<Value>),
+    bin: &Bin,
+    tex: Textures,
+) -> Value {
     let mut doc = json!({
         "asset": {"version": "2.0", "generator": format!("prt {}", env!("CARGO_PKG_VERSION"))},
         "scene": 0,
@@ -647,16 +571,204 @@ pub fn export_glb(
             },
         }},
     });
-    if !images.is_empty() {
-        doc["images"] = json!(images);
-        doc["textures"] = json!(textures);
-        doc["samplers"] = json!(samplers);
+    if !tex.images.is_empty() {
+        doc["images"] = json!(tex.images);
+        doc["textures"] = json!(tex.textures);
+        doc["samplers"] = json!(tex.samplers);
     }
-    let mut json_bytes = serde_json::to_vec(&doc).map_err(|e| invalid(e.to_string()))?;
+    doc
+}
+
+/// The accessors of an object's mesh: `POSITION` (with its bounds) and `NORMAL` attributes,
+/// and the triangle indices' accessor.
+fn add_geometry(
+    bin: &mut Bin,
+    geometry: &prt_bakefile::MeshGeometry,
+) -> (serde_json::Map<String, Value>, usize) {
+    let v = geometry.positions.len();
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for p in &geometry.positions {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let position = bin.add(
+        &f32_bytes(geometry.positions.iter().flatten().copied()),
+        ARRAY_BUFFER,
+        json!({"componentType": FLOAT, "count": v, "type": "VEC3", "min": lo, "max": hi}),
+    );
+    let normal = bin.add(
+        &f32_bytes(geometry.normals.iter().flatten().copied()),
+        ARRAY_BUFFER,
+        json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
+    );
+    let indices = bin.add(
+        &geometry
+            .triangles
+            .iter()
+            .flatten()
+            .flat_map(|i| i.to_le_bytes())
+            .collect::<Vec<u8>>(),
+        ELEMENT_ARRAY_BUFFER,
+        json!({"componentType": UNSIGNED_INT, "count": 3 * geometry.triangles.len(), "type": "SCALAR"}),
+    );
+    let mut attrs = serde_json::Map::new();
+    attrs.insert("POSITION".into(), json!(position));
+    attrs.insert("NORMAL".into(), json!(normal));
+    (attrs, indices)
+}
+
+/// The file's images, textures and samplers, and which scene textures are written already.
+#[derive(Default)]
+struct Textures {
+    images: Vec<Value>,
+    textures: Vec<Value>,
+    samplers: Vec<Value>,
+    /// Scene textures already written: (scene texture, sRGB) → glTF texture.
+    written: Vec<((usize, bool), usize)>,
+}
+
+impl Textures {
+    /// A texture of PNG `png` read with `sampler`; its index.
+    fn add(&mut self, bin: &mut Bin, png: &[u8], name: Option<&str>, sampler: Value) -> usize {
+        let view = bin.add_view(png);
+        let mut image = json!({"bufferView": view, "mimeType": "image/png"});
+        if let Some(n) = name {
+            image["name"] = json!(n);
+        }
+        self.images.push(image);
+        let sampler = sampler_index(&mut self.samplers, sampler);
+        self.textures
+            .push(json!({"sampler": sampler, "source": self.images.len() - 1}));
+        self.textures.len() - 1
+    }
+
+    /// A lightmap texture: bilinear, clamp to edge — the lookup prt's image formation does,
+    /// bar its renormalisation over covered texels (which the dilation stands in for).
+    fn add_lightmap(&mut self, bin: &mut Bin, png: &[u8]) -> usize {
+        self.add(
+            bin,
+            png,
+            None,
+            json!({"magFilter": LINEAR, "minFilter": LINEAR, "wrapS": CLAMP_TO_EDGE, "wrapT": CLAMP_TO_EDGE}),
+        )
+    }
+
+    /// The `textureInfo` of scene texture `t` (written once per texture and colour space),
+    /// adding the UV set it reads (shifted by `uv_shift` past a lightmap's `TEXCOORD_0`);
+    /// `None` when the export's vertices are not the scene mesh's (`vertices` is `None`) or
+    /// the mesh lacks that UV set.
+    #[allow(clippy::too_many_arguments)]
+    fn texture_info(
+        &mut self,
+        bin: &mut Bin,
+        attrs: &mut serde_json::Map<String, Value>,
+        scene: &Scene,
+        mesh: &prt_scene::Mesh,
+        t: Option<prt_scene::TextureRef>,
+        srgb: bool,
+        uv_shift: usize,
+        vertices: Option<usize>,
+        object: &str,
+    ) -> Result<Option<Value>, SceneRelightError> {
+        let (Some(t), Some(v)) = (t, vertices) else {
+            return Ok(None);
+        };
+        if t.texcoord >= mesh.texcoords.len() {
+            return Ok(None);
+        }
+        let index = match self.written.iter().find(|(k, _)| *k == (t.index, srgb)) {
+            Some(&(_, i)) => i,
+            None => {
+                let tex = scene.textures.get(t.index).ok_or_else(|| {
+                    invalid(format!("object {object}: texture {} is missing", t.index))
+                })?;
+                let i = self.add(
+                    bin,
+                    &texture_png(tex, srgb)?,
+                    Some(&tex.name),
+                    json!({"magFilter": LINEAR, "minFilter": LINEAR,
+                           "wrapS": wrap_code(tex.wrap[0]), "wrapT": wrap_code(tex.wrap[1])}),
+                );
+                self.written.push(((t.index, srgb), i));
+                i
+            }
+        };
+        let set = t.texcoord + uv_shift;
+        let name = format!("TEXCOORD_{set}");
+        if !attrs.contains_key(&name) {
+            let uv = &mesh.texcoords[t.texcoord];
+            let acc = bin.add(
+                &f32_bytes(uv.iter().flatten().copied()),
+                ARRAY_BUFFER,
+                json!({"componentType": FLOAT, "count": v, "type": "VEC2"}),
+            );
+            attrs.insert(name, json!(acc));
+        }
+        Ok(Some(json!({"index": index, "texCoord": set})))
+    }
+
+    /// The core glTF `pbrMetallicRoughness` of `material`: a `pbr` material's factors and
+    /// textures, else its diffuse albedo as the base colour.
+    #[allow(clippy::too_many_arguments)]
+    fn material(
+        &mut self,
+        bin: &mut Bin,
+        attrs: &mut serde_json::Map<String, Value>,
+        scene: &Scene,
+        mesh: &prt_scene::Mesh,
+        material: &prt_scene::Material,
+        uv_shift: usize,
+        vertices: Option<usize>,
+        object: &str,
+    ) -> Result<Value, SceneRelightError> {
+        let prt_scene::Material::Pbr {
+            base_color,
+            metallic,
+            roughness,
+            base_color_texture,
+            metallic_roughness_texture,
+        } = *material
+        else {
+            let a = material.albedo();
+            return Ok(
+                json!({"baseColorFactor": [a[0], a[1], a[2], 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}),
+            );
+        };
+        let mut m = json!({
+            "baseColorFactor": [base_color[0], base_color[1], base_color[2], 1.0],
+            "metallicFactor": metallic, "roughnessFactor": roughness,
+        });
+        for (key, t, srgb) in [
+            ("baseColorTexture", base_color_texture, true),
+            (
+                "metallicRoughnessTexture",
+                metallic_roughness_texture,
+                false,
+            ),
+        ] {
+            let info =
+                self.texture_info(bin, attrs, scene, mesh, t, srgb, uv_shift, vertices, object)?;
+            if let Some(info) = info {
+                m[key] = info;
+            }
+        }
+        Ok(m)
+    }
+}
+
+/// A binary glTF container (12-byte header, the JSON chunk padded with spaces, the binary
+/// chunk) of `doc` and `bin` (padded to 4 bytes already).
+fn glb_container(doc: &Value, bin: &[u8]) -> Result<Vec<u8>, SceneRelightError> {
+    let mut json_bytes = serde_json::to_vec(doc).map_err(|e| invalid(e.to_string()))?;
     while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
-    let total = 12 + 8 + json_bytes.len() + 8 + bin.data.len();
+    let total = 12 + 8 + json_bytes.len() + 8 + bin.len();
+    if u32::try_from(total).is_err() {
+        return Err(invalid("the export exceeds the 4 GiB of a .glb file"));
+    }
     let mut glb = Vec::with_capacity(total);
     glb.extend_from_slice(b"glTF");
     glb.extend_from_slice(&2u32.to_le_bytes());
@@ -664,25 +776,10 @@ pub fn export_glb(
     glb.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
     glb.extend_from_slice(b"JSON");
     glb.extend_from_slice(&json_bytes);
-    glb.extend_from_slice(&(bin.data.len() as u32).to_le_bytes());
+    glb.extend_from_slice(&(bin.len() as u32).to_le_bytes());
     glb.extend_from_slice(b"BIN\0");
-    glb.extend_from_slice(&bin.data);
-    if u32::try_from(total).is_err() {
-        return Err(invalid("the export exceeds the 4 GiB of a .glb file"));
-    }
-    prt_tracer::output::write_atomically(path, |w| {
-        std::io::Write::write_all(w, &glb).map_err(|e| e.to_string())
-    })
-    .map_err(|e| SceneRelightError::Write {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
-    Ok(ExportSummary {
-        objects: bake.objects.len(),
-        vertices,
-        attributes,
-        bytes: glb.len(),
-    })
+    glb.extend_from_slice(bin);
+    Ok(glb)
 }
 
 /// `extras.prt`'s `diffuse_fresnel`, `specular` and `view_dependent` of a per-vertex object
