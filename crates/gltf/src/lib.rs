@@ -1135,3 +1135,64 @@ fn read_lightmap(
             .collect(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn u32_at(b: &[u8], at: usize) -> u32 {
+        u32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+    }
+
+    #[test]
+    fn the_container_is_a_glb_with_padded_chunks() {
+        let doc = json!({"asset": {"version": "2.0"}});
+        let bin = [1u8, 2, 3, 4, 5, 6, 7, 8];
+        let glb = glb_container(&doc, &bin).unwrap();
+        // Header: magic, version 2, total length.
+        assert_eq!(&glb[..4], b"glTF");
+        assert_eq!((u32_at(&glb, 4), u32_at(&glb, 8) as usize), (2, glb.len()));
+        // The JSON chunk, padded with spaces to 4 bytes, parses back to the document.
+        let json_len = u32_at(&glb, 12) as usize;
+        assert_eq!((json_len % 4, &glb[16..20]), (0, &b"JSON"[..]));
+        let text = std::str::from_utf8(&glb[20..20 + json_len]).unwrap();
+        assert_eq!(serde_json::from_str::<Value>(text.trim_end()).unwrap(), doc);
+        // The binary chunk follows, unchanged.
+        let at = 20 + json_len;
+        assert_eq!(
+            (u32_at(&glb, at) as usize, &glb[at + 4..at + 8]),
+            (8, &b"BIN\0"[..])
+        );
+        assert_eq!(&glb[at + 8..], &bin);
+    }
+
+    #[test]
+    fn textures_share_samplers_and_the_buffer_keeps_its_views() {
+        let mut bin = Bin {
+            data: Vec::new(),
+            views: Vec::new(),
+            accessors: Vec::new(),
+        };
+        let mut tex = Textures::default();
+        let a = tex.add_lightmap(&mut bin, &[0u8; 5]);
+        let b = tex.add_lightmap(&mut bin, &[1u8; 7]);
+        assert_eq!((a, b), (0, 1));
+        // Two lightmap textures, two images, one sampler (bilinear, clamp to edge).
+        assert_eq!(
+            (tex.textures.len(), tex.images.len(), tex.samplers.len()),
+            (2, 2, 1)
+        );
+        assert_eq!(tex.textures[1]["source"], 1);
+        assert_eq!(tex.samplers[0]["wrapS"], CLAMP_TO_EDGE);
+        // Each image is its own buffer view over the bytes it was given.
+        let view = |i: usize| {
+            let v = &bin.views[tex.images[i]["bufferView"].as_u64().unwrap() as usize];
+            let (o, n) = (
+                v["byteOffset"].as_u64().unwrap() as usize,
+                v["byteLength"].as_u64().unwrap() as usize,
+            );
+            bin.data[o..o + n].to_vec()
+        };
+        assert_eq!((view(0), view(1)), (vec![0u8; 5], vec![1u8; 7]));
+    }
+}
