@@ -147,13 +147,7 @@ fn export_validates_reads_back_and_relights() {
 
         // The documented formula on the file's own numbers against prt relight.
         let colours = dir.path().join("colours.csv");
-        run(prt()
-            .arg("relight")
-            .arg(&scene)
-            .arg("--bake")
-            .arg(&bake)
-            .arg("--vertex-colours")
-            .arg(&colours));
+        relight_vertex_colours(&scene, &bake, &colours);
         let text = std::fs::read_to_string(&colours).unwrap();
         let floor = back.iter().position(|e| e.name == "floor.obj").unwrap();
         let (env, albedo) = lighting_and_albedo(&glb, floor);
@@ -239,20 +233,30 @@ fn export_validates_reads_back_and_relights() {
     assert!(!dir.path().join("px.glb").exists() && !dir.path().join("x.glb").exists());
 }
 
+/// `prt relight SCENE --bake BAKE --vertex-colours CSV`: every point's radiance as prt relights
+/// it.
+fn relight_vertex_colours(scene: &Path, bake: &Path, csv: &Path) {
+    run(prt()
+        .arg("relight")
+        .arg(scene)
+        .arg("--bake")
+        .arg(bake)
+        .arg("--vertex-colours")
+        .arg(csv));
+}
+
 /// `object,point,r,g,b` CSV (`prt relight --vertex-colours`, `tools/gltf_relight.py`) by
-/// object name: each point's radiance.
+/// object name: each point's radiance, every point from 0 in order.
 fn read_colours(path: &Path) -> std::collections::HashMap<String, Vec<[f64; 3]>> {
-    let mut out: std::collections::HashMap<String, Vec<[f64; 3]>> = Default::default();
-    let text = std::fs::read_to_string(path).unwrap();
-    for line in text.lines().skip(1) {
-        let f: Vec<&str> = line.rsplitn(5, ',').collect();
-        let (name, p) = (f[4].to_owned(), f[3].parse::<usize>().unwrap());
-        let rgb = [f[2], f[1], f[0]].map(|x| x.parse::<f64>().unwrap());
-        let points = out.entry(name).or_default();
-        assert_eq!(points.len(), p, "{}: points out of order", path.display());
-        points.push(rgb);
-    }
-    out
+    read_rows(path)
+        .into_iter()
+        .map(|(name, rows)| {
+            for (k, (p, _)) in rows.iter().enumerate() {
+                assert_eq!(*p, k, "{}: points out of order", path.display());
+            }
+            (name, rows.into_iter().map(|(_, rgb)| rgb).collect())
+        })
+        .collect()
 }
 
 /// `tools/gltf_relight.py` on the export `glb` (`None` when there is no Python with numpy and
@@ -438,13 +442,7 @@ fn textured_asset_export_relights_like_prt() {
     );
 
     let prt_csv = dir.path().join("prt.csv");
-    run(prt()
-        .arg("relight")
-        .arg(&scene_path)
-        .arg("--bake")
-        .arg(&bake_path)
-        .arg("--vertex-colours")
-        .arg(&prt_csv));
+    relight_vertex_colours(&scene_path, &bake_path, &prt_csv);
     let Some(theirs) = gltf_relight_agrees(&glb, &prt_csv, 4, dir.path()) else {
         return;
     };
@@ -767,13 +765,7 @@ bounces = 0
     assert!(doc["meshes"][1]["primitives"][0]["extras"]["prt"]["specular"].is_null());
 
     let prt_csv = dir.path().join("prt.csv");
-    run(prt()
-        .arg("relight")
-        .arg(&scene)
-        .arg("--bake")
-        .arg(dir.path().join("rough.prtb"))
-        .arg("--vertex-colours")
-        .arg(&prt_csv));
+    relight_vertex_colours(&scene, &dir.path().join("rough.prtb"), &prt_csv);
     let theirs = gltf_relight_agrees(&glb, &prt_csv, 5, dir.path());
     assert!(theirs.is_none_or(|t| t.len() == 2));
 }
@@ -843,13 +835,7 @@ fn bounced_exports_relight_like_prt() {
             "{name}: no object exported a specular lobe"
         );
         let prt_csv = dir.path().join(format!("{name}.csv"));
-        run(prt()
-            .arg("relight")
-            .arg(scene)
-            .arg("--bake")
-            .arg(&bake_path)
-            .arg("--vertex-colours")
-            .arg(&prt_csv));
+        relight_vertex_colours(scene, &bake_path, &prt_csv);
         gltf_relight_agrees(&glb, &prt_csv, order, dir.path());
     }
 }
@@ -907,13 +893,7 @@ fn bounced_lightmap_exports_relight_like_prt() {
         let coverage = bake.objects[1].coverage.as_ref().expect("floor per texel");
         let covered = coverage.hits.iter().filter(|&&h| h > 0).count();
         let csv = |s: &str| dir.path().join(format!("{name}_{s}.csv"));
-        run(prt()
-            .arg("relight")
-            .arg(&scene)
-            .arg("--bake")
-            .arg(&bake_path)
-            .arg("--vertex-colours")
-            .arg(csv("prt")));
+        relight_vertex_colours(&scene, &bake_path, &csv("prt"));
         run(Command::new(&py)
             .arg(tools().join("gltf_relight.py"))
             .arg(&glb)
