@@ -21,18 +21,12 @@ pub enum ReportError {
         /// Why.
         reason: String,
     },
-    /// From the relighting kernels.
-    #[error(transparent)]
-    Relight(#[from] prt_relight::RelightError),
     /// From scene-level relighting and image formation.
     #[error(transparent)]
     SceneRelight(#[from] prt_scene_relight::SceneRelightError),
     /// From the tracer.
     #[error(transparent)]
     Tracer(#[from] prt_tracer::TracerError),
-    /// From the SH core.
-    #[error(transparent)]
-    Sh(#[from] prt_sh::ShError),
     /// From reflectance fields.
     #[error(transparent)]
     Field(#[from] prt_fields::FieldError),
