@@ -161,12 +161,7 @@ pub fn bake_pass(
     let vertex_mode = settings.points != PointKind::Pixel;
     let lightmaps = lightmaps(scene, &plans, settings, &mut decisions)?;
     let bounces = settings.bounces as usize;
-    // Vertex bounces needed: all B in vertex mode; B − 1 feed the pixels in pixel mode.
-    let vertex_bounces = if vertex_mode {
-        bounces
-    } else {
-        bounces.saturating_sub(1)
-    };
+    let vertex_bounces = settings.vertex_bounces();
     let mut need_vertices = vertex_mode || bounces > 0;
     let mut rays_traced = 0u64;
     let settings_json = serde_json::json!({
@@ -245,7 +240,7 @@ pub fn bake_pass(
             albedo: &gs.albedo,
             environment: &environment,
             bounces: last_pass,
-            gathers_at_vertices: p.index >= 1 && (p.index as usize) <= vertex_bounces,
+            gathers_at_vertices: settings.pass_gathers_at_vertices(p.index),
             shard: settings.shard,
             ranges: plans
                 .iter()

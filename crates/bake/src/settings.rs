@@ -70,6 +70,25 @@ impl Default for BakeSettings {
 }
 
 impl BakeSettings {
+    /// Bounce levels gathered at vertices: all of them per vertex (and per texel); in a
+    /// per-pixel bake all but the last, which the pixels gather from the vertex levels.
+    #[must_use]
+    pub fn vertex_bounces(&self) -> usize {
+        let bounces = self.bounces as usize;
+        if self.points == PointKind::Pixel {
+            bounces.saturating_sub(1)
+        } else {
+            bounces
+        }
+    }
+
+    /// Whether pass `pass` of a distributed bake gathers a bounce at vertices, and so reads
+    /// the shard's own hit records (`--hits`): passes `1 ..= vertex_bounces()`.
+    #[must_use]
+    pub fn pass_gathers_at_vertices(&self, pass: u32) -> bool {
+        pass >= 1 && pass as usize <= self.vertex_bounces()
+    }
+
     /// A quick look: 256 rays, automatic order up to 6, no bounces.
     #[must_use]
     pub fn preview() -> Self {
@@ -184,5 +203,30 @@ impl Default for SubdivideOptions {
             max_levels: 5,
             max_vertices: 1 << 20,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn which_passes_read_the_shards_hits() {
+        let at = |points, bounces| {
+            let s = BakeSettings {
+                points,
+                bounces,
+                ..BakeSettings::preview()
+            };
+            (0..=bounces)
+                .map(|k| s.pass_gathers_at_vertices(k))
+                .collect::<Vec<_>>()
+        };
+        // Per vertex every bounce is gathered at vertices; per pixel the last pass traces the
+        // pixels and gathers from the vertex levels instead (SPEC §3.12).
+        assert_eq!(at(PointKind::Vertex, 2), [false, true, true]);
+        assert_eq!(at(PointKind::Pixel, 2), [false, true, false]);
+        assert_eq!(at(PointKind::Pixel, 1), [false, false]);
+        assert_eq!(at(PointKind::Vertex, 0), [false]);
     }
 }

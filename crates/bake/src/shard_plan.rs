@@ -14,7 +14,7 @@
 //! machine with the same `--threads`; the merged files' sizes do not depend on the rays, so
 //! they are exact.
 
-use crate::{bake_pass, BakeError, BakeSettings, PassInput, PointKind};
+use crate::{bake_pass, BakeError, BakeSettings, PassInput};
 use prt_bakefile::{merge, read_bake, write_bake, ScalarType};
 use prt_scene::Scene;
 use prt_tracer::Accel;
@@ -99,9 +99,7 @@ fn measure(
             merge_seconds: 0.0,
             merged_bytes: 0.0,
         };
-        // Every pass after the first gathers at vertices from the shard's own hits, but the
-        // last of a per-pixel bake, which traces its pixels.
-        let pixel_tracing = settings.points == PointKind::Pixel && index == settings.bounces;
+        let reads_hits = settings.pass_gathers_at_vertices(index);
         let shard_files: Vec<PathBuf> = (0..shards)
             .map(|i| file(format!("pass{index}-shard{i}")))
             .collect();
@@ -116,7 +114,7 @@ fn measure(
             let previous = (index > 0)
                 .then(|| read_bake(&file(format!("pass{}", index - 1))))
                 .transpose()?;
-            let hits = (index > 0 && !pixel_tracing)
+            let hits = reads_hits
                 .then(|| read_bake(&file(format!("pass0-shard{shard}"))))
                 .transpose()?;
             let input = PassInput {
