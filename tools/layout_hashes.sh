@@ -83,9 +83,9 @@ def strip(v):
 json.dump(strip(json.load(open(sys.argv[1]))), sys.stdout, indent=1, sort_keys=True)
 EOF
 
-# OpenEXR files: the header's attributes sorted by name before hashing (the exr crate writes
-# custom attributes in a hash map's order, which differs from process to process), then the
-# rest of the file as it is.
+# OpenEXR files: the header's attributes sorted by name before hashing, then the rest of the
+# file as it is. prt writes them sorted since commit 67d0382; builds before it wrote them in a
+# hash map's order that changed from process to process, and this lets them be compared too.
 find . -type f ! -path './report/cache/*' ! -name report.json ! -name report.csv ! -name '*.md' ! -name '*.html' \
     ! -name '*.png' | sort | python3 -c '
 import hashlib, struct, sys
