@@ -777,7 +777,7 @@ bounces = 0
 /// wall and the Lambert floor of the tiny scene at 1 and 2 bounces, and on the textured `pbr`
 /// asset at 1 bounce: the visibility reads back bit for bit, and `tools/gltf_relight.py`
 /// relights the file alone to `prt relight --vertex-colours` within the f32 bound at every
-/// vertex.
+/// vertex; likewise the 1-bounce bake of the tiny scene compressed by clustered PCA.
 #[test]
 fn bounced_exports_relight_like_prt() {
     let dir = tempfile::tempdir().unwrap();
@@ -838,6 +838,29 @@ fn bounced_exports_relight_like_prt() {
         relight_vertex_colours(scene, &bake_path, &prt_csv);
         gltf_relight_agrees(&glb, &prt_csv, order, dir.path());
     }
+    // A compressed (clustered PCA) bounced bake exports its reconstructed transfer, which prt
+    // relights from the clusters' means and bases: the same radiance within the f32 bound.
+    let compressed = dir.path().join("b1_cpca.prtb");
+    run(prt()
+        .arg("compress")
+        .arg(dir.path().join(format!(
+            "b1_{}.prtb",
+            tiny.file_stem().unwrap().to_string_lossy()
+        )))
+        .args(["--clusters", "2", "--out"])
+        .arg(&compressed));
+    let glb = dir.path().join("b1_cpca.glb");
+    run(prt()
+        .arg("export")
+        .arg(&tiny)
+        .arg("--bake")
+        .arg(&compressed)
+        .arg("--out")
+        .arg(&glb));
+    assert_validates(&glb);
+    let prt_csv = dir.path().join("b1_cpca.csv");
+    relight_vertex_colours(&tiny, &compressed, &prt_csv);
+    gltf_relight_agrees(&glb, &prt_csv, 4, dir.path());
 }
 
 /// `object,point,r,g,b` CSV rows by object name, each with its point index (rows need not be
