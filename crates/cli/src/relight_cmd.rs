@@ -237,27 +237,7 @@ impl RelightArgs {
 
 /// Runs `prt relight`.
 pub fn run(args: &RelightArgs) -> Result<()> {
-    if args.frames == 0 {
-        bail!("--frames must be at least 1");
-    }
-    if !args.threshold.is_finite() || args.threshold < 0.0 {
-        bail!("--threshold must be a finite number ≥ 0");
-    }
-    if !args.rotate_y.is_finite() || !args.rotate_y_step.is_finite() {
-        bail!("--rotate-y and --rotate-y-step must be finite");
-    }
-    if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
-        bail!("--exposure must be a finite number of stops within ±64");
-    }
-    if !(0.0..=MAX_COST_EXPONENT).contains(&args.cost_exponent) {
-        bail!("--cost-exponent must be a number within [0, {MAX_COST_EXPONENT}]");
-    }
-    if args.unit() == ThresholdUnit::Display && !args.adaptive {
-        bail!("--threshold-unit display (--display-threshold) needs --adaptive");
-    }
-    if args.roi_png.is_some() && !args.adaptive {
-        bail!("--roi-png needs --adaptive");
-    }
+    check_args(args)?;
     let scene = crate::common::load_scene(&args.scene)?;
     let bake = prt_bakefile::read_bake(&args.bake)?;
     if bake.reflectance.is_some() {
@@ -277,22 +257,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     // Subdivided objects relight on the bake's refined meshes.
     let scene = prt_scene_relight::baked_scene(&scene, &bake)?;
     let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
-    let adaptive = args.adaptive.then(|| AdaptiveParams {
-        stop: match args.stop {
-            StopArg::Convergence => StopRule::Convergence,
-            StopArg::Significance => StopRule::Significance,
-            StopArg::Either => StopRule::Either,
-        },
-        cost_exponent: args.cost_exponent,
-        ..AdaptiveParams::new(match args.unit() {
-            ThresholdUnit::Mean => Threshold::RelativeToMean(args.threshold),
-            ThresholdUnit::Display => Threshold::Display {
-                t: args.threshold,
-                exposure_ev: args.exposure,
-            },
-            ThresholdUnit::Radiance => Threshold::Absolute(args.threshold),
-        })
-    });
+    let adaptive = args.adaptive.then(|| adaptive_params(args));
     if let Some(target) = args.target_psnr {
         let Some(params) = adaptive else {
             bail!("--target-psnr needs --adaptive");
@@ -313,21 +278,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         warmup_frames: 2,
         rotate_y_step_deg: 0.0,
         points: None,
-        glossy: match args.glossy {
-            GlossyArg::Fitted => prt_scene_relight::GlossyPath::Fitted,
-            GlossyArg::Exact => prt_scene_relight::GlossyPath::Exact,
-            GlossyArg::Hybrid => {
-                if !(args.fit_error >= 0.0 && args.fit_error.is_finite()) {
-                    bail!(
-                        "--fit-error {}: give a relative error of 0 or more",
-                        args.fit_error
-                    );
-                }
-                prt_scene_relight::GlossyPath::Hybrid {
-                    fit_error: args.fit_error,
-                }
-            }
-        },
+        glossy: glossy_path(args)?,
     };
     let relit = prt_scene_relight::relight(&scene, &accel, &bake, &opt)?;
     let full_stats: Option<RelightStats> = if args.adaptive {
@@ -377,7 +328,91 @@ pub fn run(args: &RelightArgs) -> Result<()> {
                 .fps,
         );
     }
-    let s = &relit.stats;
+    print_summary(
+        args,
+        &relit.stats,
+        full_stats.as_ref(),
+        opt.glossy,
+        image_ms,
+        fps,
+    )?;
+    Ok(())
+}
+
+/// Refuses option values and combinations `prt relight` cannot honour, before any file is read.
+fn check_args(args: &RelightArgs) -> Result<()> {
+    if args.frames == 0 {
+        bail!("--frames must be at least 1");
+    }
+    if !args.threshold.is_finite() || args.threshold < 0.0 {
+        bail!("--threshold must be a finite number ≥ 0");
+    }
+    if !args.rotate_y.is_finite() || !args.rotate_y_step.is_finite() {
+        bail!("--rotate-y and --rotate-y-step must be finite");
+    }
+    if !args.exposure.is_finite() || args.exposure.abs() > 64.0 {
+        bail!("--exposure must be a finite number of stops within ±64");
+    }
+    if !(0.0..=MAX_COST_EXPONENT).contains(&args.cost_exponent) {
+        bail!("--cost-exponent must be a number within [0, {MAX_COST_EXPONENT}]");
+    }
+    if args.unit() == ThresholdUnit::Display && !args.adaptive {
+        bail!("--threshold-unit display (--display-threshold) needs --adaptive");
+    }
+    if args.roi_png.is_some() && !args.adaptive {
+        bail!("--roi-png needs --adaptive");
+    }
+    Ok(())
+}
+
+/// The adaptive relighting parameters of `--adaptive` (its threshold in the unit asked for).
+fn adaptive_params(args: &RelightArgs) -> AdaptiveParams {
+    AdaptiveParams {
+        stop: match args.stop {
+            StopArg::Convergence => StopRule::Convergence,
+            StopArg::Significance => StopRule::Significance,
+            StopArg::Either => StopRule::Either,
+        },
+        cost_exponent: args.cost_exponent,
+        ..AdaptiveParams::new(match args.unit() {
+            ThresholdUnit::Mean => Threshold::RelativeToMean(args.threshold),
+            ThresholdUnit::Display => Threshold::Display {
+                t: args.threshold,
+                exposure_ev: args.exposure,
+            },
+            ThresholdUnit::Radiance => Threshold::Absolute(args.threshold),
+        })
+    }
+}
+
+/// The glossy path of `--glossy` (and `--fit-error`).
+fn glossy_path(args: &RelightArgs) -> Result<prt_scene_relight::GlossyPath> {
+    Ok(match args.glossy {
+        GlossyArg::Fitted => prt_scene_relight::GlossyPath::Fitted,
+        GlossyArg::Exact => prt_scene_relight::GlossyPath::Exact,
+        GlossyArg::Hybrid => {
+            if !(args.fit_error >= 0.0 && args.fit_error.is_finite()) {
+                bail!(
+                    "--fit-error {}: give a relative error of 0 or more",
+                    args.fit_error
+                );
+            }
+            prt_scene_relight::GlossyPath::Hybrid {
+                fit_error: args.fit_error,
+            }
+        }
+    })
+}
+
+/// Prints the run's figures: one JSON object with `--json`, else lines for a person.
+fn print_summary(
+    args: &RelightArgs,
+    s: &RelightStats,
+    full_stats: Option<&RelightStats>,
+    glossy: prt_scene_relight::GlossyPath,
+    image_ms: f64,
+    fps: Option<f64>,
+) -> Result<()> {
     if args.json {
         let threshold_kind = match args.unit() {
             ThresholdUnit::Mean => "relative to mean radiance",
@@ -389,7 +424,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             "adaptive": s.adaptive,
             "threshold": s.threshold,
             "shade_ms": s.shade_ms,
-            "full_shade_ms": full_stats.as_ref().map_or(s.shade_ms, |f| f.shade_ms),
+            "full_shade_ms": full_stats.map_or(s.shade_ms, |f| f.shade_ms),
             "image_ms": image_ms,
             "roi_fraction_diffuse": s.roi_fraction_diffuse,
             "roi_fraction_specular": s.roi_fraction_specular,
@@ -402,7 +437,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             "threshold_kind": args.adaptive.then_some(threshold_kind),
             "cost_exponent": args.adaptive.then_some(args.cost_exponent),
             "points": s.points,
-            "glossy": opt.glossy,
+            "glossy": glossy,
             "frames": args.frames,
             "fps": fps,
             "notes": s.notes,
@@ -419,7 +454,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
             s.shade_ms,
             image_ms
         );
-        if let Some(f) = &full_stats {
+        if let Some(f) = full_stats {
             outln!(
                 "adaptive: threshold {:.4}, diffuse ROI {:.1}%, specular ROI {}, full order {:.3} ms ⇒ speed-up {:.2}×",
                 s.threshold.unwrap_or(0.0),

@@ -344,7 +344,6 @@ pub fn export_glb(
         .environment
         .as_ref()
         .ok_or_else(|| invalid("the bake carries no environment coefficients"))?;
-    let en2 = (env.order * env.order) as usize;
     let mut bin = Bin {
         data: Vec::new(),
         views: Vec::new(),
@@ -354,171 +353,12 @@ pub fn export_glb(
     let (mut meshes, mut nodes, mut materials) = (Vec::new(), Vec::new(), Vec::new());
     let (mut vertices, mut attributes) = (0usize, 0usize);
     for (o, obj) in bake.objects.iter().enumerate() {
-        let block = obj
-            .diffuse_block()
-            .ok_or_else(|| invalid(format!("object {} has no diffuse transfer", obj.name)))?;
-        let scene_mesh = &scene.meshes[o];
-        let geometry = obj
-            .mesh
-            .clone()
-            .unwrap_or_else(|| prt_scene::binding::mesh_geometry(scene_mesh));
-        let v = geometry.positions.len();
         let lightmap = lightmaps[o].as_ref();
-        // A lightmapped object's points are its texels, covered or not (SPEC §3.1).
-        let points = match lightmap {
-            Some(lm) => lm.texels.len(),
-            None => v,
-        };
-        if points as u64 != obj.point_count || v == 0 {
-            return Err(invalid(format!(
-                "object {}: {v} vertices ({points} points) for {} points in the bake",
-                obj.name, obj.point_count
-            )));
-        }
-        let (n, c) = (obj.order as usize, obj.channels as usize);
-        let n2 = n * n;
-        let (mut attrs, indices) = add_geometry(&mut bin, &geometry);
-        let mut names = Vec::new();
-        let mut lightmap_extras = Value::Null;
-        if let Some(lm) = lightmap {
-            let uv = &scene_mesh.texcoords[lm.uv_set];
-            let uv_acc = bin.add(
-                &f32_bytes(uv.iter().flatten().copied()),
-                ARRAY_BUFFER,
-                json!({"componentType": FLOAT, "count": v, "type": "VEC2"}),
-            );
-            attrs.insert("TEXCOORD_0".into(), json!(uv_acc));
-            let q = quantise_lightmap(lm, &block.data, c, n2);
-            let mut tex_ids: Vec<Vec<usize>> = Vec::new();
-            for pngs in &q.pngs {
-                tex_ids.push(
-                    pngs.iter()
-                        .map(|png| tex.add_lightmap(&mut bin, png))
-                        .collect(),
-                );
-            }
-            lightmap_extras = json!({
-                "width": lm.width, "height": lm.height, "uv": "TEXCOORD_0",
-                "textures": tex_ids, "offset": q.offset, "scale": q.scale,
-                "covered_texels": lm.covered(),
-                "layout": "coefficient i of channel c is component i mod 4 (RGBA) of texture textures[c][floor(i/4)], sampled bilinearly at TEXCOORD_0 (texel centres at (x + 1/2)/width, image row 0 at v = 0): t = offset[c][i] + scale[c][i] * code / 255",
-            });
-        }
-        for ch in (0..c).filter(|_| lightmap.is_none()) {
-            names.extend(add_coefficient_groups(
-                &mut bin,
-                &mut attrs,
-                &block.data,
-                c * n2,
-                ch * n2,
-                n2,
-                v,
-                |g| attribute_name(ch, g),
-            ));
-        }
-        attributes = attributes.max(names.len());
-        vertices += v;
-        let material = &scene.materials[scene_mesh.material];
-        // The prt diffuse albedo: one, or per vertex where the material varies over the
-        // surface (textures, vertex colours) as `_PRT_ALBEDO`.
-        let varies = scene.material_varies(o) && scene_mesh.positions.len() == v;
-        let albedo = if varies {
-            let colours = (0..v as u32).flat_map(|i| {
-                scene
-                    .material_at(o, prt_scene::SurfacePoint::Vertex(i))
-                    .albedo()
-            });
-            let a = bin.add(
-                &f32_bytes(colours),
-                ARRAY_BUFFER,
-                json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
-            );
-            attrs.insert("_PRT_ALBEDO".into(), json!(a));
-            json!("_PRT_ALBEDO")
-        } else {
-            json!(material.albedo())
-        };
-        // The core glTF material: the scene's own where glTF has it (`pbr`: factors and
-        // textures, with the asset's UV sets and vertex colours), else the diffuse albedo.
-        let uv_shift = usize::from(lightmap.is_some());
-        let pbr = tex.material(
-            &mut bin,
-            &mut attrs,
-            scene,
-            scene_mesh,
-            material,
-            uv_shift,
-            (scene_mesh.positions.len() == v).then_some(v),
-            &obj.name,
-        )?;
-        let same_vertices = scene_mesh.positions.len() == v;
-        // The asset's vertex colours, which core glTF multiplies into the base colour.
-        if same_vertices && !scene_mesh.colors.is_empty() {
-            let a = bin.add(
-                &f32_bytes(scene_mesh.colors.iter().flatten().copied()),
-                ARRAY_BUFFER,
-                json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
-            );
-            attrs.insert("COLOR_0".into(), json!(a));
-        }
-        // The view-dependent terms (SPEC §10.1), per-vertex objects only.
-        let view = if lightmap.is_none() {
-            let points: Option<Vec<prt_scene::Material>> = varies.then(|| {
-                (0..v as u32)
-                    .map(|i| scene.material_at(o, prt_scene::SurfacePoint::Vertex(i)))
-                    .collect()
-            });
-            let order = n.min(env.order as usize);
-            let vd = prt_scene_relight::relit::view_dependent(material, points.as_deref(), order)?;
-            let vis = obj
-                .blocks
-                .iter()
-                .find(|b| b.kind == prt_bakefile::TransferKind::Visibility);
-            view_extras(
-                &vd,
-                vis.map(|b| b.data.as_slice()),
-                v,
-                c,
-                n2,
-                &mut bin,
-                &mut attrs,
-            )
-        } else {
-            json!({
-                "diffuse_fresnel": null, "specular": null,
-                "view_dependent": "not exported for lightmapped objects: the diffuse term only",
-            })
-        };
-        materials.push(json!({
-            "name": scene.material_names.get(scene_mesh.material).cloned().unwrap_or_default(),
-            "pbrMetallicRoughness": pbr,
-        }));
-        let env_rows: Vec<[f64; 3]> = (0..n2.min(en2))
-            .map(|i| [env.values[i], env.values[en2 + i], env.values[2 * en2 + i]])
-            .collect();
-        meshes.push(json!({
-            "name": obj.name,
-            "primitives": [{
-                "attributes": attrs, "indices": indices, "material": o, "mode": 4,
-                "extras": {"prt": {
-                    "format": "prt-transfer", "version": 1,
-                    "kind": block.kind.name(), "order": n, "channels": c,
-                    "storage": if lightmap.is_some() { "lightmap" } else { "vertex" },
-                    "attributes": names,
-                    "lightmap": lightmap_extras,
-                    "layout": if lightmap.is_some() { "see lightmap.layout; SH index l(l+1)+m" } else { "coefficient i (SH index l(l+1)+m) of channel c is component i mod 4 of the FLOAT VEC4 attribute _PRT_C{c}_{floor(i/4)}; unused components are 0" },
-                    "sh": {"basis": "real-orthonormal", "phase": "condon-shortley", "index_order": "l(l+1)+m", "angles": "theta-from-+Z, phi=atan2(y,x)"},
-                    "radiance": "exit radiance of channel c = diffuse + specular (SPEC §10.1); diffuse = albedo_c * k_d / pi * sum_i t[c or 0][i] * environment[i][c], albedo = extras.prt.albedo, or the vertex attribute it names (the scene material's diffuse albedo at the vertex, textures applied)",
-                    "albedo": albedo,
-                    "albedo_in_transfer": false,
-                    "environment": env_rows,
-                    "geometry_hash": format!("0x{:016x}", obj.geometry_hash),
-                    "diffuse_fresnel": view["diffuse_fresnel"],
-                    "specular": view["specular"],
-                    "view_dependent": view["view_dependent"],
-                }},
-            }],
-        }));
+        let done = add_object(scene, env, o, obj, lightmap, &mut bin, &mut tex)?;
+        attributes = attributes.max(done.attributes);
+        vertices += done.vertices;
+        materials.push(done.material);
+        meshes.push(done.mesh);
         nodes.push(json!({"name": obj.name, "mesh": o}));
     }
     while !bin.data.len().is_multiple_of(4) {
@@ -538,6 +378,213 @@ pub fn export_glb(
         vertices,
         attributes,
         bytes: glb.len(),
+    })
+}
+
+/// Adds a lightmapped object's transfer: its lightmap UVs as `TEXCOORD_0` and the quantised
+/// coefficient textures; returns `extras.prt.lightmap` (SPEC §10).
+#[allow(clippy::too_many_arguments)]
+fn add_lightmap(
+    bin: &mut Bin,
+    tex: &mut Textures,
+    attrs: &mut serde_json::Map<String, Value>,
+    lm: &prt_scene::lightmap::Lightmap,
+    uv: &[[f32; 2]],
+    data: &[f32],
+    c: usize,
+    n2: usize,
+) -> Value {
+    let uv_acc = bin.add(
+        &f32_bytes(uv.iter().flatten().copied()),
+        ARRAY_BUFFER,
+        json!({"componentType": FLOAT, "count": uv.len(), "type": "VEC2"}),
+    );
+    attrs.insert("TEXCOORD_0".into(), json!(uv_acc));
+    let q = quantise_lightmap(lm, data, c, n2);
+    let tex_ids: Vec<Vec<usize>> = q
+        .pngs
+        .iter()
+        .map(|pngs| pngs.iter().map(|png| tex.add_lightmap(bin, png)).collect())
+        .collect();
+    json!({
+        "width": lm.width, "height": lm.height, "uv": "TEXCOORD_0",
+        "textures": tex_ids, "offset": q.offset, "scale": q.scale,
+        "covered_texels": lm.covered(),
+        "layout": "coefficient i of channel c is component i mod 4 (RGBA) of texture textures[c][floor(i/4)], sampled bilinearly at TEXCOORD_0 (texel centres at (x + 1/2)/width, image row 0 at v = 0): t = offset[c][i] + scale[c][i] * code / 255",
+    })
+}
+
+/// One object's part of the export: its mesh (with `extras.prt`) and material, and counts for
+/// the summary.
+struct ObjectExport {
+    mesh: Value,
+    material: Value,
+    vertices: usize,
+    attributes: usize,
+}
+
+/// Adds object `o` of the bake to the binary chunk and textures: geometry, transfer (vertex
+/// attributes or a lightmap), albedo, the core glTF material, vertex colours and the
+/// view-dependent terms (SPEC §10).
+fn add_object(
+    scene: &Scene,
+    env: &prt_bakefile::EnvCoefficients,
+    o: usize,
+    obj: &prt_bakefile::ObjectBake,
+    lightmap: Option<&prt_scene::lightmap::Lightmap>,
+    bin: &mut Bin,
+    tex: &mut Textures,
+) -> Result<ObjectExport, SceneRelightError> {
+    let block = obj
+        .diffuse_block()
+        .ok_or_else(|| invalid(format!("object {} has no diffuse transfer", obj.name)))?;
+    let scene_mesh = &scene.meshes[o];
+    let geometry = obj
+        .mesh
+        .clone()
+        .unwrap_or_else(|| prt_scene::binding::mesh_geometry(scene_mesh));
+    let v = geometry.positions.len();
+    // A lightmapped object's points are its texels, covered or not (SPEC §3.1).
+    let points = match lightmap {
+        Some(lm) => lm.texels.len(),
+        None => v,
+    };
+    if points as u64 != obj.point_count || v == 0 {
+        return Err(invalid(format!(
+            "object {}: {v} vertices ({points} points) for {} points in the bake",
+            obj.name, obj.point_count
+        )));
+    }
+    let (n, c) = (obj.order as usize, obj.channels as usize);
+    let n2 = n * n;
+    let (mut attrs, indices) = add_geometry(bin, &geometry);
+    let mut names = Vec::new();
+    let lightmap_extras = match lightmap {
+        Some(lm) => {
+            let uv = &scene_mesh.texcoords[lm.uv_set];
+            add_lightmap(bin, tex, &mut attrs, lm, uv, &block.data, c, n2)
+        }
+        None => Value::Null,
+    };
+    for ch in (0..c).filter(|_| lightmap.is_none()) {
+        names.extend(add_coefficient_groups(
+            bin,
+            &mut attrs,
+            &block.data,
+            c * n2,
+            ch * n2,
+            n2,
+            v,
+            |g| attribute_name(ch, g),
+        ));
+    }
+    let material = &scene.materials[scene_mesh.material];
+    // The prt diffuse albedo: one, or per vertex where the material varies over the
+    // surface (textures, vertex colours) as `_PRT_ALBEDO`.
+    let varies = scene.material_varies(o) && scene_mesh.positions.len() == v;
+    let albedo = if varies {
+        let colours = (0..v as u32).flat_map(|i| {
+            scene
+                .material_at(o, prt_scene::SurfacePoint::Vertex(i))
+                .albedo()
+        });
+        let a = bin.add(
+            &f32_bytes(colours),
+            ARRAY_BUFFER,
+            json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
+        );
+        attrs.insert("_PRT_ALBEDO".into(), json!(a));
+        json!("_PRT_ALBEDO")
+    } else {
+        json!(material.albedo())
+    };
+    // The core glTF material: the scene's own where glTF has it (`pbr`: factors and
+    // textures, with the asset's UV sets and vertex colours), else the diffuse albedo.
+    let uv_shift = usize::from(lightmap.is_some());
+    let pbr = tex.material(
+        bin,
+        &mut attrs,
+        scene,
+        scene_mesh,
+        material,
+        uv_shift,
+        (scene_mesh.positions.len() == v).then_some(v),
+        &obj.name,
+    )?;
+    let same_vertices = scene_mesh.positions.len() == v;
+    // The asset's vertex colours, which core glTF multiplies into the base colour.
+    if same_vertices && !scene_mesh.colors.is_empty() {
+        let a = bin.add(
+            &f32_bytes(scene_mesh.colors.iter().flatten().copied()),
+            ARRAY_BUFFER,
+            json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
+        );
+        attrs.insert("COLOR_0".into(), json!(a));
+    }
+    // The view-dependent terms (SPEC §10.1), per-vertex objects only.
+    let view = if lightmap.is_none() {
+        let points: Option<Vec<prt_scene::Material>> = varies.then(|| {
+            (0..v as u32)
+                .map(|i| scene.material_at(o, prt_scene::SurfacePoint::Vertex(i)))
+                .collect()
+        });
+        let order = n.min(env.order as usize);
+        let vd = prt_scene_relight::relit::view_dependent(material, points.as_deref(), order)?;
+        let vis = obj
+            .blocks
+            .iter()
+            .find(|b| b.kind == prt_bakefile::TransferKind::Visibility);
+        view_extras(
+            &vd,
+            vis.map(|b| b.data.as_slice()),
+            v,
+            c,
+            n2,
+            bin,
+            &mut attrs,
+        )
+    } else {
+        json!({
+            "diffuse_fresnel": null, "specular": null,
+            "view_dependent": "not exported for lightmapped objects: the diffuse term only",
+        })
+    };
+    let material_json = json!({
+        "name": scene.material_names.get(scene_mesh.material).cloned().unwrap_or_default(),
+        "pbrMetallicRoughness": pbr,
+    });
+    let en2 = (env.order * env.order) as usize;
+    let env_rows: Vec<[f64; 3]> = (0..n2.min(en2))
+        .map(|i| [env.values[i], env.values[en2 + i], env.values[2 * en2 + i]])
+        .collect();
+    let mesh = json!({
+        "name": obj.name,
+        "primitives": [{
+            "attributes": attrs, "indices": indices, "material": o, "mode": 4,
+            "extras": {"prt": {
+                "format": "prt-transfer", "version": 1,
+                "kind": block.kind.name(), "order": n, "channels": c,
+                "storage": if lightmap.is_some() { "lightmap" } else { "vertex" },
+                "attributes": names,
+                "lightmap": lightmap_extras,
+                "layout": if lightmap.is_some() { "see lightmap.layout; SH index l(l+1)+m" } else { "coefficient i (SH index l(l+1)+m) of channel c is component i mod 4 of the FLOAT VEC4 attribute _PRT_C{c}_{floor(i/4)}; unused components are 0" },
+                "sh": {"basis": "real-orthonormal", "phase": "condon-shortley", "index_order": "l(l+1)+m", "angles": "theta-from-+Z, phi=atan2(y,x)"},
+                "radiance": "exit radiance of channel c = diffuse + specular (SPEC §10.1); diffuse = albedo_c * k_d / pi * sum_i t[c or 0][i] * environment[i][c], albedo = extras.prt.albedo, or the vertex attribute it names (the scene material's diffuse albedo at the vertex, textures applied)",
+                "albedo": albedo,
+                "albedo_in_transfer": false,
+                "environment": env_rows,
+                "geometry_hash": format!("0x{:016x}", obj.geometry_hash),
+                "diffuse_fresnel": view["diffuse_fresnel"],
+                "specular": view["specular"],
+                "view_dependent": view["view_dependent"],
+            }},
+        }],
+    });
+    Ok(ObjectExport {
+        mesh,
+        material: material_json,
+        vertices: v,
+        attributes: names.len(),
     })
 }
 
