@@ -17,6 +17,7 @@ macro_rules! outln {
 }
 
 mod bake_cmd;
+mod bench_cmd;
 mod common;
 mod compare_cmd;
 mod reflectance_cmd;
@@ -65,6 +66,9 @@ enum Command {
     Report(report_cmd::ReportArgs),
     /// Compare an image with a reference: PSNR (LDR, HDR), RMSE, relative L2, noise.
     Compare(compare_cmd::CompareArgs),
+    /// Timings: `prt bench relight` times `prt relight`'s shading (median of warm frames).
+    #[command(subcommand)]
+    Bench(bench_cmd::BenchCommand),
 }
 
 fn main() -> ExitCode {
@@ -81,6 +85,7 @@ fn main() -> ExitCode {
         Command::Reflectance(args) => reflectance_cmd::run(&args),
         Command::Report(args) => report_cmd::run(&args),
         Command::Compare(args) => compare_cmd::run(args),
+        Command::Bench(cmd) => bench_cmd::run(&cmd),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -74,7 +74,10 @@ pub struct RelightArgs {
         allow_negative_numbers = true
     )]
     pub rotate_y: f64,
-    /// Shade this many frames of a rotating environment and report frames per second.
+    /// Shade this many frames of a rotating environment and report frames per second (SH
+    /// bakes; `prt bench relight` is the timing command, with warm-up, median, fastest and
+    /// slowest frame). With --target-psnr: the frames of the study; for a reflectance field:
+    /// the frames whose flicker is measured.
     #[arg(long, help_heading = "Rotation and frames", default_value_t = 1)]
     pub frames: usize,
     /// Rotation step between frames, degrees.
@@ -243,20 +246,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     if bake.reflectance.is_some() {
         return run_field(args, &scene, &bake);
     }
-    if args.wavelet.is_some()
-        || args.coefficients.is_some()
-        || args.rf_error.is_some()
-        || args.rf_error_pixels.is_some()
-    {
-        bail!(
-            "{}: --wavelet, --coefficients, --rf-error and --rf-error-pixels compress reflectance fields (prt reflectance); this is an SH bake",
-            args.bake.display()
-        );
-    }
-    prt_scene_relight::check_bake(&scene, &bake, &args.bake)?;
-    // Subdivided objects relight on the bake's refined meshes.
-    let scene = prt_scene_relight::baked_scene(&scene, &bake)?;
-    let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
+    let (scene, accel) = prepare_sh(args, &scene, &bake)?;
     let adaptive = args.adaptive.then(|| adaptive_params(args));
     if let Some(target) = args.target_psnr {
         let Some(params) = adaptive else {
@@ -339,8 +329,32 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     Ok(())
 }
 
+/// Checks an SH bake against the scene (and `args` against an SH bake) and returns the scene
+/// it relights on (subdivided objects on the bake's refined meshes) with its BVH.
+pub(crate) fn prepare_sh(
+    args: &RelightArgs,
+    scene: &prt_scene::Scene,
+    bake: &prt_bakefile::Bake,
+) -> Result<(prt_scene::Scene, prt_tracer::Accel)> {
+    if args.wavelet.is_some()
+        || args.coefficients.is_some()
+        || args.rf_error.is_some()
+        || args.rf_error_pixels.is_some()
+    {
+        bail!(
+            "{}: --wavelet, --coefficients, --rf-error and --rf-error-pixels compress reflectance fields (prt reflectance); this is an SH bake",
+            args.bake.display()
+        );
+    }
+    prt_scene_relight::check_bake(scene, bake, &args.bake)?;
+    // Subdivided objects relight on the bake's refined meshes.
+    let scene = prt_scene_relight::baked_scene(scene, bake)?;
+    let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
+    Ok((scene, accel))
+}
+
 /// Refuses option values and combinations `prt relight` cannot honour, before any file is read.
-fn check_args(args: &RelightArgs) -> Result<()> {
+pub(crate) fn check_args(args: &RelightArgs) -> Result<()> {
     if args.frames == 0 {
         bail!("--frames must be at least 1");
     }
@@ -366,7 +380,7 @@ fn check_args(args: &RelightArgs) -> Result<()> {
 }
 
 /// The adaptive relighting parameters of `--adaptive` (its threshold in the unit asked for).
-fn adaptive_params(args: &RelightArgs) -> AdaptiveParams {
+pub(crate) fn adaptive_params(args: &RelightArgs) -> AdaptiveParams {
     AdaptiveParams {
         stop: match args.stop {
             StopArg::Convergence => StopRule::Convergence,
@@ -386,7 +400,7 @@ fn adaptive_params(args: &RelightArgs) -> AdaptiveParams {
 }
 
 /// The glossy path of `--glossy` (and `--fit-error`).
-fn glossy_path(args: &RelightArgs) -> Result<prt_scene_relight::GlossyPath> {
+pub(crate) fn glossy_path(args: &RelightArgs) -> Result<prt_scene_relight::GlossyPath> {
     Ok(match args.glossy {
         GlossyArg::Fitted => prt_scene_relight::GlossyPath::Fitted,
         GlossyArg::Exact => prt_scene_relight::GlossyPath::Exact,

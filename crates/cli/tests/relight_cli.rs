@@ -490,3 +490,66 @@ fn old_relight_command_lines_still_work() {
         "mean",
     ]));
 }
+
+/// `prt bench relight` times what `prt relight` with the same options shades: the order and
+/// point count agree with `prt relight`'s, at least 5 frames are timed after the warm-up, the
+/// median lies between the fastest and slowest frame, and with `--adaptive` the full order is
+/// timed too and the speed-up is the ratio of the two medians. It refuses image outputs.
+#[test]
+fn bench_relight_times_what_relight_shades() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), 3);
+    let b = dir.path().join("scene.prtb");
+    bake(&scene, &b, &[]);
+    let shaded = json(&run(relight(&scene, &b).args(["--order", "4", "--json"])));
+    let bench = |extra: &[&str]| {
+        let mut c = prt();
+        c.args(["bench", "relight"])
+            .arg(&scene)
+            .arg("--bake")
+            .arg(&b)
+            .args(extra);
+        c
+    };
+    let j = json(&run(&mut bench(&["--order", "4", "--json"])));
+    assert_eq!(j["order"], shaded["order"]);
+    assert_eq!(j["points"], shaded["points"]);
+    assert_eq!(j["frames"], 5, "at least 5 timed frames: {j}");
+    assert_eq!(j["warmup"], 2);
+    let (lo, med, hi) = (
+        j["shade_ms_min"].as_f64().unwrap(),
+        j["shade_ms"].as_f64().unwrap(),
+        j["shade_ms_max"].as_f64().unwrap(),
+    );
+    assert!(lo > 0.0 && lo <= med && med <= hi, "{j}");
+    // --order 4 of an order-5 bake: the full order is timed as well.
+    assert_eq!(j["full_order"], 5);
+
+    let j = json(&run(&mut bench(&[
+        "--adaptive",
+        "--threshold",
+        "0.05",
+        "--frames",
+        "7",
+        "--warmup",
+        "1",
+        "--json",
+    ])));
+    assert_eq!(j["adaptive"], true);
+    assert_eq!(j["frames"], 7);
+    assert_eq!(j["warmup"], 1);
+    let ratio = j["full_shade_ms"].as_f64().unwrap() / j["shade_ms"].as_f64().unwrap();
+    assert!(
+        (j["speedup"].as_f64().unwrap() - ratio).abs() <= 1e-9 * ratio,
+        "{j}"
+    );
+    // Full order without --order or --adaptive: nothing to compare with.
+    let j = json(&run(&mut bench(&["--json"])));
+    assert!(
+        j["speedup"].is_null() && j["full_shade_ms"].is_null(),
+        "{j}"
+    );
+
+    let err = fail(bench(&[]).arg("--out").arg(dir.path().join("x.exr")));
+    assert!(err.contains("only times"), "{err}");
+}
