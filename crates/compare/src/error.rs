@@ -1,44 +1,14 @@
 //! The error type of the crate.
 
-use std::path::PathBuf;
-
 /// Everything that can go wrong when reading, checking or comparing images.
 ///
 /// Every message names the file (or the role of the in-memory image: `"test image"`,
 /// `"reference"`, `"mask"`) so that a user comparing many images knows which one is at fault.
 #[derive(Debug, thiserror::Error)]
 pub enum CompareError {
-    /// The file does not exist.
-    #[error("{}: no such file", path.display())]
-    NotFound {
-        /// The path that was asked for.
-        path: PathBuf,
-    },
-    /// The file exists but could not be read or written.
-    #[error("{}: {source}", path.display())]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// The file is neither an OpenEXR nor a PNG file, or it is damaged.
-    #[error("{}: not an image this tool reads: {reason}", path.display())]
-    NotAnImage {
-        /// The file.
-        path: PathBuf,
-        /// What was found instead.
-        reason: String,
-    },
-    /// The image has channels that cannot be read as RGB (for example an EXR without R, G, B).
-    #[error("{}: {reason}", path.display())]
-    UnsupportedChannels {
-        /// The file.
-        path: PathBuf,
-        /// Which channels were found and why they cannot be used.
-        reason: String,
-    },
+    /// Reading or checking an image (prt-image).
+    #[error(transparent)]
+    Image(#[from] prt_image::ImageError),
     /// Two images (or an image and a mask) that must be the same size are not.
     #[error("size mismatch: {first} is {first_width}×{first_height} but {second} is {second_width}×{second_height}; both must have the same size")]
     SizeMismatch {
@@ -67,22 +37,6 @@ pub enum CompareError {
         /// Its channels, described.
         second_channels: String,
     },
-    /// A pixel value is NaN or infinite.
-    #[error(
-        "{what}: pixel (x = {x}, y = {y}) channel {channel} is {value}; every value must be finite"
-    )]
-    NonFinite {
-        /// The file or the role of the image.
-        what: String,
-        /// Column, from the left, starting at 0.
-        x: usize,
-        /// Row, from the top, starting at 0.
-        y: usize,
-        /// `'R'`, `'G'` or `'B'`.
-        channel: char,
-        /// The offending value.
-        value: f32,
-    },
     /// The pixel buffer does not have `width × height` entries.
     #[error("{what}: {len} pixels given for a {width}×{height} image")]
     PixelCount {
@@ -99,12 +53,6 @@ pub enum CompareError {
     #[error("{what}: the mask selects no pixel (every value is zero); masked metrics need at least one pixel")]
     EmptyMask {
         /// The file or the role of the mask.
-        what: String,
-    },
-    /// An image with no pixels at all.
-    #[error("{what}: the image has no pixels (0×0)")]
-    EmptyImage {
-        /// The file or the role of the image.
         what: String,
     },
     /// An option is out of its range.

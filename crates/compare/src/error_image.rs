@@ -3,9 +3,9 @@
 use crate::colormap::viridis_rgb8;
 use crate::error::{CompareError, Result};
 use crate::font::{draw_text, format_number, text_width, GLYPH_HEIGHT};
-use crate::image::Image;
 use crate::mask::Mask;
 use crate::metrics::check_pair;
+use prt_image::Image;
 use std::path::Path;
 
 /// Absolute or relative error per pixel.
@@ -205,25 +205,17 @@ pub fn render_error_picture(
     })
 }
 
-/// Writes RGB8 pixels as a PNG atomically: to a temporary file in the same directory, then
-/// renamed over `path`, so a reader never sees a partial file.
+/// Writes RGB8 pixels as a PNG atomically (prt-image's writer: a temporary file in the same
+/// directory, renamed over `path`, so a reader never sees a partial file).
+///
+/// # Errors
+/// [`CompareError::PixelCount`] when `pixels` is not `width × height` long, and write errors.
 pub fn write_png_atomic(
     path: &Path,
     width: usize,
     height: usize,
     pixels: &[[u8; 3]],
 ) -> Result<()> {
-    use image::ImageEncoder;
-    use std::io::Write;
-    let io_err = |source| CompareError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let (Ok(w32), Ok(h32)) = (u32::try_from(width), u32::try_from(height)) else {
-        return Err(CompareError::InvalidOption(format!(
-            "image {width}×{height} is too large for PNG"
-        )));
-    };
     if pixels.len() != width * height {
         return Err(CompareError::PixelCount {
             what: path.display().to_string(),
@@ -232,33 +224,8 @@ pub fn write_png_atomic(
             height,
         });
     }
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".prt-compare-")
-        .suffix(".png.tmp")
-        .tempfile_in(dir)
-        .map_err(io_err)?;
     let bytes: Vec<u8> = pixels.iter().flatten().copied().collect();
-    {
-        let mut writer = std::io::BufWriter::new(tmp.as_file_mut());
-        image::codecs::png::PngEncoder::new(&mut writer)
-            .write_image(&bytes, w32, h32, image::ExtendedColorType::Rgb8)
-            .map_err(|e| io_err(std::io::Error::other(e)))?;
-        writer.flush().map_err(io_err)?;
-    }
-    tmp.as_file().sync_all().map_err(io_err)?;
-    // Temporary files are created private (0600); give the PNG the usual permissions.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(io_err)?;
-    }
-    tmp.persist(path).map_err(|e| io_err(e.error))?;
+    prt_image::write::write_png_bytes(path, width, height, bytes)?;
     Ok(())
 }
 

@@ -28,7 +28,6 @@ mod colormap;
 mod error;
 mod error_image;
 mod font;
-mod image;
 mod io;
 mod mask;
 mod metrics;
@@ -42,10 +41,7 @@ pub use crate::error_image::{
     ErrorImageOptions, ErrorMeasure, ErrorPicture,
 };
 pub use crate::font::format_number;
-pub use crate::image::{ldr_value, ldr_view, srgb_eotf, srgb_oetf, Image};
-pub use crate::io::{
-    check_same_kind, read_image, read_pair, ColorChannels, ImageFormat, LoadedImage,
-};
+pub use crate::io::{check_same_kind, read_pair};
 pub use crate::mask::Mask;
 pub use crate::metrics::{compare, compare_with, psnr, CompareOptions, ErrorStats, Metrics};
 pub use crate::noise::{
@@ -53,3 +49,7 @@ pub use crate::noise::{
     NoiseReport,
 };
 pub use crate::report::{json_number, report_json, report_table};
+pub use prt_image::{
+    ldr_value, ldr_view, read_image, srgb_eotf, srgb_oetf, ColorChannels, Image, ImageError,
+    ImageFormat, LoadedImage,
+};

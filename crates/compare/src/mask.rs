@@ -26,7 +26,7 @@ impl Mask {
     /// Fails when the file is missing or not an image, or when every pixel is zero.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let (width, height, inside) = crate::io::read_mask_bits(path)?;
+        let (width, height, inside) = prt_image::read::nonzero_mask(path)?;
         Self::build(&path.display().to_string(), width, height, inside)
     }
 

@@ -1,8 +1,8 @@
 //! Error metrics of a test image against a reference (CONVENTIONS "Colour and images").
 
 use crate::error::{CompareError, Result};
-use crate::image::{ldr_value, Image};
 use crate::mask::Mask;
+use prt_image::{ldr_value, Image};
 
 /// Options of [`compare_with`].
 #[derive(Debug, Clone, Copy, PartialEq)]

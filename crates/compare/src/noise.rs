@@ -31,9 +31,9 @@
 //! clamps; it ignores the rounding to 8 bits.
 
 use crate::error::{CompareError, Result};
-use crate::image::{ldr_value, Image};
 use crate::mask::Mask;
 use crate::metrics::{check_pair, psnr, CompareOptions};
+use prt_image::{ldr_value, Image};
 
 /// How the noise was estimated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -6,7 +6,7 @@ use common::{assert_close, data};
 use prt_compare::{
     read_image, read_pair, render_error_picture, srgb_eotf, viridis_rgb8, write_error_png,
     write_png_atomic, ColorChannels, CompareError, ErrorChannel, ErrorImageOptions, ErrorMeasure,
-    Image, Mask,
+    Image, ImageError, Mask,
 };
 
 fn write_exr(
@@ -23,12 +23,12 @@ fn test01_missing_and_not_an_image() {
     let dir = tempfile::tempdir().unwrap();
     let missing = dir.path().join("nope.exr");
     let err = read_image(&missing).unwrap_err();
-    assert!(matches!(err, CompareError::NotFound { .. }));
+    assert!(matches!(err, ImageError::NotFound { .. }));
     assert!(err.to_string().contains("nope.exr"), "{err}");
     let text = dir.path().join("notes.png");
     std::fs::write(&text, "hello").unwrap();
     let err = read_image(&text).unwrap_err();
-    assert!(matches!(err, CompareError::NotAnImage { .. }), "{err}");
+    assert!(matches!(err, ImageError::NotAnImage { .. }), "{err}");
     assert!(err.to_string().contains("notes.png"));
     let empty = dir.path().join("empty.exr");
     std::fs::write(&empty, "").unwrap();
@@ -41,7 +41,7 @@ fn test01_missing_and_not_an_image() {
     std::fs::write(&broken, b"\x89PNG\r\n\x1a\ngarbage").unwrap();
     assert!(matches!(
         read_image(&broken),
-        Err(CompareError::NotAnImage { .. })
+        Err(ImageError::NotAnImage { .. })
     ));
 }
 
@@ -60,7 +60,7 @@ fn test02_exr_nan_names_pixel_and_file() {
     assert!(
         matches!(
             err,
-            CompareError::NonFinite {
+            ImageError::NonFinite {
                 x: 2,
                 y: 1,
                 channel: 'B',

@@ -5,7 +5,7 @@ mod common;
 use common::assert_close;
 use prt_compare::{
     compare, compare_with, ldr_value, srgb_eotf, srgb_oetf, CompareError, CompareOptions, Image,
-    Mask,
+    ImageError, Mask,
 };
 
 fn gray(v: f32) -> [f32; 3] {
@@ -185,7 +185,7 @@ fn test08_errors() {
     nan.pixels[3][1] = f32::NAN;
     let err = compare(&nan, &a, None).unwrap_err();
     match &err {
-        CompareError::NonFinite { x, y, channel, .. } => {
+        CompareError::Image(ImageError::NonFinite { x, y, channel, .. }) => {
             assert_eq!((*x, *y, *channel), (1, 1, 'G'))
         }
         other => panic!("unexpected {other:?}"),
@@ -195,12 +195,12 @@ fn test08_errors() {
     inf.pixels[0][2] = f32::INFINITY;
     assert!(matches!(
         compare(&a, &inf, None),
-        Err(CompareError::NonFinite {
+        Err(CompareError::Image(ImageError::NonFinite {
             x: 0,
             y: 0,
             channel: 'B',
             ..
-        })
+        }))
     ));
 
     assert!(matches!(
@@ -220,7 +220,7 @@ fn test08_errors() {
     let empty = Image::new(0, 0, vec![]).unwrap();
     assert!(matches!(
         compare(&empty, &empty, None),
-        Err(CompareError::EmptyImage { .. })
+        Err(CompareError::Image(ImageError::EmptyImage { .. }))
     ));
     // A hand-built image with an inconsistent pixel count is rejected, not indexed out of range.
     let bad = Image {

@@ -26,7 +26,6 @@
 
 mod accel;
 mod camera;
-mod color;
 mod error;
 mod integrator;
 pub mod output;

@@ -16,28 +16,36 @@
 //! **Atomic writes**: data goes to a hidden temporary file in the destination's directory,
 //! is flushed and fsynced, then renamed over the destination (and the directory is fsynced),
 //! so readers see either the old file or the complete new one.
+//!
+//! The writers, the sRGB curve and the 8-bit view are prt-image's (one of each for the
+//! workspace); this module adds the render's channels and metadata and the tracer's error.
 
-pub use crate::color::{srgb_encode, to_srgb8};
 use crate::{Mode, RenderOutput, TracerError};
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer, LayerAttributes,
-    SmallVec, Text, WritableImage,
+    SmallVec, Text,
 };
 use glam::Vec3;
+pub use prt_image::srgb::srgb_encode;
+pub use prt_image::write::{sort_exr_attributes, ExrImage};
 use std::collections::HashMap;
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-fn write_error(path: &Path, reason: impl std::fmt::Display) -> TracerError {
-    TracerError::Write {
-        path: path.to_path_buf(),
-        reason: reason.to_string(),
+/// Converts prt-image's write error to the tracer's (same path, same reason).
+fn from_image(e: prt_image::ImageError) -> TracerError {
+    match e {
+        prt_image::ImageError::Write { path, reason } => TracerError::Write { path, reason },
+        other => TracerError::Write {
+            path: PathBuf::new(),
+            reason: other.to_string(),
+        },
     }
 }
 
-/// Writes `path` atomically: `fill` writes into a temporary file beside it, which is fsynced and
-/// renamed over `path`.
+/// Writes `path` atomically ([`prt_image::write_atomically`]): `fill` writes into a temporary
+/// file beside it, which is fsynced and renamed over `path`.
 ///
 /// # Errors
 /// Any I/O error, or an error from `fill`; the temporary file is removed on failure.
@@ -45,39 +53,15 @@ pub fn write_atomically(
     path: &Path,
     fill: impl FnOnce(&mut BufWriter<&mut File>) -> Result<(), String>,
 ) -> Result<(), TracerError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| write_error(path, "not a file path"))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}-{:?}",
-        name.to_string_lossy(),
-        std::process::id(),
-        std::thread::current().id()
-    ));
-    let result: Result<(), String> = (|| {
-        let mut file = File::create(&tmp).map_err(|e| e.to_string())?;
-        {
-            let mut w = BufWriter::new(&mut file);
-            fill(&mut w)?;
-            w.flush().map_err(|e| e.to_string())?;
-        }
-        file.sync_all().map_err(|e| e.to_string())?;
-        std::fs::rename(&tmp, path).map_err(|e| e.to_string())?;
-        if let Ok(d) = File::open(&dir) {
-            // Persist the rename; not every platform can fsync a directory, so best effort.
-            let _ = d.sync_all();
-        }
-        Ok(())
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(write_error(path, e));
-    }
-    Ok(())
+    prt_image::write_atomically(path, fill).map_err(from_image)
+}
+
+/// The 8-bit sRGB view of linear radiance ([`prt_image::srgb::to_srgb8`]): `× 2^exposure_ev`,
+/// clamp to [0, 1], sRGB, round.
+#[must_use]
+pub fn to_srgb8(radiance: &[Vec3], exposure_ev: f32) -> Vec<u8> {
+    let pixels: Vec<[f32; 3]> = radiance.iter().map(|v| v.to_array()).collect();
+    prt_image::srgb::to_srgb8(&pixels, exposure_ev)
 }
 
 fn mode_name(mode: Mode) -> String {
@@ -180,65 +164,13 @@ pub fn write_exr(path: &Path, out: &RenderOutput) -> Result<(), TracerError> {
     write_exr_image(path, &Image::from_layer(layer))
 }
 
-/// An EXR image of one layer of f32 or f16 channels, as prt writes them.
-pub type ExrImage = Image<Layer<AnyChannels<FlatSamples>>>;
-
 /// Writes an EXR image atomically with its header's attributes in name order
-/// ([`sort_exr_attributes`]), so that the same image is always the same bytes.
+/// ([`prt_image::write_exr_image`]), so that the same image is always the same bytes.
 ///
 /// # Errors
 /// When the image cannot be encoded or the file cannot be written.
 pub fn write_exr_image(path: &Path, image: &ExrImage) -> Result<(), TracerError> {
-    let mut buffer = std::io::Cursor::new(Vec::new());
-    image
-        .write()
-        .to_buffered(&mut buffer)
-        .map_err(|e| write_error(path, e))?;
-    let mut bytes = buffer.into_inner();
-    sort_exr_attributes(&mut bytes).map_err(|e| write_error(path, e))?;
-    write_atomically(path, |w| w.write_all(&bytes).map_err(|e| e.to_string()))
-}
-
-/// Puts the attributes of a single-part EXR header in name order, in place. The exr crate
-/// keeps custom attributes in a `HashMap` and writes them in its iteration order, which
-/// differs from process to process (and from map to map), so the same image came out as
-/// different bytes. An attribute is `name\0 type\0 size(i32 LE) value`; the header ends with
-/// an empty name. Reordering keeps the header's length, so the chunk offsets after it stay
-/// valid.
-///
-/// # Errors
-/// A multi-part file or a header that does not parse (neither is what the exr crate writes
-/// for prt's images).
-pub fn sort_exr_attributes(bytes: &mut [u8]) -> Result<(), String> {
-    const MULTI_PART: u32 = 0x1000;
-    let bad = || "malformed EXR header".to_string();
-    let version = u32::from_le_bytes(bytes.get(4..8).ok_or_else(bad)?.try_into().unwrap());
-    if version & MULTI_PART != 0 {
-        return Err("multi-part EXR headers are not reordered".into());
-    }
-    let nul = |from: usize| -> Result<usize, String> {
-        let rest = bytes.get(from..).ok_or_else(bad)?;
-        Ok(from + rest.iter().position(|&b| b == 0).ok_or_else(bad)?)
-    };
-    let (start, mut at) = (8, 8);
-    let mut attributes: Vec<(usize, usize)> = Vec::new();
-    while *bytes.get(at).ok_or_else(bad)? != 0 {
-        let type_end = nul(nul(at)? + 1)?;
-        let size = bytes.get(type_end + 1..type_end + 5).ok_or_else(bad)?;
-        let size =
-            usize::try_from(i32::from_le_bytes(size.try_into().unwrap())).map_err(|_| bad())?;
-        let end = type_end + 5 + size;
-        if end > bytes.len() {
-            return Err(bad());
-        }
-        attributes.push((at, end));
-        at = end;
-    }
-    let mut sorted: Vec<&[u8]> = attributes.iter().map(|&(a, b)| &bytes[a..b]).collect();
-    sorted.sort_unstable();
-    let header = sorted.concat();
-    bytes[start..at].copy_from_slice(&header);
-    Ok(())
+    prt_image::write_exr_image(path, image).map_err(from_image)
 }
 
 /// Writes the PNG view of the radiance (exposure in EV, 0 by default), atomically.
@@ -247,10 +179,6 @@ pub fn sort_exr_attributes(bytes: &mut [u8]) -> Result<(), String> {
 /// When the file cannot be written.
 pub fn write_png(path: &Path, out: &RenderOutput, exposure_ev: f32) -> Result<(), TracerError> {
     let bytes = to_srgb8(&out.radiance, exposure_ev);
-    let img = image::RgbImage::from_raw(out.width, out.height, bytes)
-        .ok_or_else(|| write_error(path, "image size does not match the pixel count"))?;
-    write_atomically(path, |w| {
-        img.write_to(w, image::ImageFormat::Png)
-            .map_err(|e| e.to_string())
-    })
+    prt_image::write::write_png_bytes(path, out.width as usize, out.height as usize, bytes)
+        .map_err(from_image)
 }

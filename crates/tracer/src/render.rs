@@ -2,7 +2,7 @@
 
 use crate::accel::{point_offset, Accel, Hit};
 use crate::camera::PinholeCamera;
-use crate::color::srgb_encode;
+use prt_image::srgb::srgb_encode;
 use crate::rng::{stream, PixelKeys, Purpose};
 use crate::settings::{Mode, RenderSettings};
 use crate::vertex::Vertex;

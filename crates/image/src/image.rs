@@ -1,6 +1,6 @@
-//! The in-memory image, the sRGB curves and the PNG view of CONVENTIONS "Colour and images".
+//! The in-memory image: linear RGB, row-major, row 0 at the top.
 
-use crate::error::{CompareError, Result};
+use crate::error::{ImageError, Result};
 
 /// A linear RGB image (Rec.709 primaries), row-major, row 0 at the top.
 #[derive(Debug, Clone, PartialEq)]
@@ -15,9 +15,12 @@ pub struct Image {
 
 impl Image {
     /// An image from its pixels; fails when `pixels.len() != width × height`.
+    ///
+    /// # Errors
+    /// [`ImageError::PixelCount`].
     pub fn new(width: usize, height: usize, pixels: Vec<[f32; 3]>) -> Result<Self> {
         if width.checked_mul(height) != Some(pixels.len()) {
-            return Err(CompareError::PixelCount {
+            return Err(ImageError::PixelCount {
                 what: "image".into(),
                 len: pixels.len(),
                 width,
@@ -62,9 +65,12 @@ impl Image {
     }
 
     /// Checks the pixel count and that every value is finite; `what` names the image in errors.
+    ///
+    /// # Errors
+    /// [`ImageError::PixelCount`], [`ImageError::EmptyImage`] or [`ImageError::NonFinite`].
     pub fn validate(&self, what: &str) -> Result<()> {
         if self.width.checked_mul(self.height) != Some(self.pixels.len()) {
-            return Err(CompareError::PixelCount {
+            return Err(ImageError::PixelCount {
                 what: what.into(),
                 len: self.pixels.len(),
                 width: self.width,
@@ -72,12 +78,12 @@ impl Image {
             });
         }
         if self.pixels.is_empty() {
-            return Err(CompareError::EmptyImage { what: what.into() });
+            return Err(ImageError::EmptyImage { what: what.into() });
         }
         for (i, p) in self.pixels.iter().enumerate() {
             for (c, &v) in p.iter().enumerate() {
                 if !v.is_finite() {
-                    return Err(CompareError::NonFinite {
+                    return Err(ImageError::NonFinite {
                         what: what.into(),
                         x: i % self.width,
                         y: i / self.width,
@@ -89,54 +95,4 @@ impl Image {
         }
         Ok(())
     }
-}
-
-/// The sRGB electro-optical transfer function (IEC 61966-2-1): encoded value in [0, 1] → linear.
-///
-/// `v ≤ 0.04045 → v / 12.92`, otherwise `((v + 0.055) / 1.055)^2.4`.
-#[must_use]
-pub fn srgb_eotf(encoded: f64) -> f64 {
-    if encoded <= 0.04045 {
-        encoded / 12.92
-    } else {
-        ((encoded + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// The sRGB opto-electronic transfer function (the inverse of [`srgb_eotf`]): linear in [0, 1] →
-/// encoded.
-///
-/// `x ≤ 0.0031308 → 12.92 x`, otherwise `1.055 x^(1/2.4) − 0.055`.
-#[must_use]
-pub fn srgb_oetf(linear: f64) -> f64 {
-    if linear <= 0.0031308 {
-        12.92 * linear
-    } else {
-        1.055 * linear.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// One linear value in the 8-bit PNG view of CONVENTIONS "Colour and images": scale by
-/// `2^exposure_ev`, clamp to [0, 1], apply the sRGB curve, round to the nearest of 0…255
-/// (halves away from zero). Computed in f64.
-#[must_use]
-pub fn ldr_value(linear: f32, exposure_ev: f64) -> u8 {
-    let scaled = f64::from(linear) * exposure_ev.exp2();
-    let clamped = if scaled.is_nan() {
-        0.0
-    } else {
-        scaled.clamp(0.0, 1.0)
-    };
-    // In [0, 255] after the clamp, so the cast cannot truncate.
-    (srgb_oetf(clamped) * 255.0).round() as u8
-}
-
-/// The 8-bit sRGB PNG view of an image: [`ldr_value`] of every channel, row-major RGB bytes.
-#[must_use]
-pub fn ldr_view(image: &Image, exposure_ev: f64) -> Vec<[u8; 3]> {
-    image
-        .pixels
-        .iter()
-        .map(|p| p.map(|v| ldr_value(v, exposure_ev)))
-        .collect()
 }
