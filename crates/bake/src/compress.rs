@@ -160,17 +160,49 @@ pub fn cpca(data: &[f32], dimension: usize, opt: &CpcaOptions) -> Cpca {
         data.len()
     );
     let points = data.len() / d;
-    let k = opt.clusters.clamp(1, points.max(1));
-    let row = |p: usize| &data[p * d..(p + 1) * d];
+    let block = Block {
+        data,
+        d,
+        points,
+        k: opt.clusters.clamp(1, points.max(1)),
+        total_energy: data.iter().map(|&v| f64::from(v).powi(2)).sum(),
+    };
+    let mut centres = block.kmeans_pp_start(opt.seed);
+    let assign = block.kmeans(&mut centres, opt.kmeans_iterations);
+    let (assign, models, m) = block.refine(assign, opt);
+    block.stored_form(&models, &assign, m)
+}
 
-    // k-means++ start: the first centre at random, each next one with probability ∝ the
-    // squared distance to the nearest centre chosen so far.
-    let mut rng = Pcg64::seed_from_u64(opt.seed ^ 0x00c0_ffee_c1a5_7e25);
-    let mut centres: Vec<Vec<f64>> = Vec::with_capacity(k);
-    if points > 0 {
+/// One block being compressed: `points` rows of `d` scalars, into `k` clusters.
+struct Block<'a> {
+    data: &'a [f32],
+    d: usize,
+    points: usize,
+    k: usize,
+    /// `Σ x²` over the block: the denominator of its relative error.
+    total_energy: f64,
+}
+
+impl Block<'_> {
+    /// Point `p`'s row.
+    fn row(&self, p: usize) -> &[f32] {
+        &self.data[p * self.d..(p + 1) * self.d]
+    }
+
+    /// The k-means++ start: the first centre at random, each next one with probability ∝ the
+    /// squared distance to the nearest centre chosen so far (a PCG stream keyed by `seed`).
+    fn kmeans_pp_start(&self, seed: u64) -> Vec<Vec<f64>> {
+        let (points, k) = (self.points, self.k);
+        let mut rng = Pcg64::seed_from_u64(seed ^ 0x00c0_ffee_c1a5_7e25);
+        let mut centres: Vec<Vec<f64>> = Vec::with_capacity(k);
+        if points == 0 {
+            return centres;
+        }
         let first = rng.random_range(0..points);
-        centres.push(row(first).iter().map(|&v| f64::from(v)).collect());
-        let mut nearest: Vec<f64> = (0..points).map(|p| sq_dist(row(p), &centres[0])).collect();
+        centres.push(self.row(first).iter().map(|&v| f64::from(v)).collect());
+        let mut nearest: Vec<f64> = (0..points)
+            .map(|p| sq_dist(self.row(p), &centres[0]))
+            .collect();
         while centres.len() < k {
             let total: f64 = nearest.iter().sum();
             let pick = if total > 0.0 {
@@ -187,71 +219,88 @@ pub fn cpca(data: &[f32], dimension: usize, opt: &CpcaOptions) -> Cpca {
             } else {
                 centres.len() % points
             };
-            let c: Vec<f64> = row(pick).iter().map(|&v| f64::from(v)).collect();
+            let c: Vec<f64> = self.row(pick).iter().map(|&v| f64::from(v)).collect();
             nearest
                 .iter_mut()
                 .enumerate()
-                .for_each(|(p, n)| *n = n.min(sq_dist(row(p), &c)));
+                .for_each(|(p, n)| *n = n.min(sq_dist(self.row(p), &c)));
             centres.push(c);
         }
-    }
-    let mut assign: Vec<usize> = vec![0; points];
-    for _ in 0..opt.kmeans_iterations {
-        let next: Vec<usize> = (0..points)
-            .into_par_iter()
-            .with_min_len(256)
-            .map(|p| {
-                let mut best = (f64::INFINITY, 0);
-                for (c, centre) in centres.iter().enumerate() {
-                    let e = sq_dist(row(p), centre);
-                    if e < best.0 {
-                        best = (e, c);
-                    }
-                }
-                best.1
-            })
-            .collect();
-        let changed = next != assign;
-        assign = next;
-        for (c, centre) in centres.iter_mut().enumerate() {
-            let members: Vec<usize> = (0..points).filter(|&p| assign[p] == c).collect();
-            if members.is_empty() {
-                continue;
-            }
-            centre.iter_mut().for_each(|x| *x = 0.0);
-            for &p in &members {
-                for (x, &v) in centre.iter_mut().zip(row(p)) {
-                    *x += f64::from(v);
-                }
-            }
-            centre.iter_mut().for_each(|x| *x /= members.len() as f64);
-        }
-        if !changed {
-            break;
-        }
+        centres
     }
 
-    let members_of = |assign: &[usize]| -> Vec<Vec<usize>> {
-        let mut m = vec![Vec::new(); k];
+    /// Lloyd iterations from `centres` (moved to their members' means) until no point changes
+    /// cluster or `iterations` are done; each point's cluster.
+    fn kmeans(&self, centres: &mut [Vec<f64>], iterations: usize) -> Vec<usize> {
+        let points = self.points;
+        let mut assign: Vec<usize> = vec![0; points];
+        for _ in 0..iterations {
+            let next: Vec<usize> = (0..points)
+                .into_par_iter()
+                .with_min_len(256)
+                .map(|p| {
+                    let mut best = (f64::INFINITY, 0);
+                    for (c, centre) in centres.iter().enumerate() {
+                        let e = sq_dist(self.row(p), centre);
+                        if e < best.0 {
+                            best = (e, c);
+                        }
+                    }
+                    best.1
+                })
+                .collect();
+            let changed = next != assign;
+            assign = next;
+            for (c, centre) in centres.iter_mut().enumerate() {
+                let members: Vec<usize> = (0..points).filter(|&p| assign[p] == c).collect();
+                if members.is_empty() {
+                    continue;
+                }
+                centre.iter_mut().for_each(|x| *x = 0.0);
+                for &p in &members {
+                    for (x, &v) in centre.iter_mut().zip(self.row(p)) {
+                        *x += f64::from(v);
+                    }
+                }
+                centre.iter_mut().for_each(|x| *x /= members.len() as f64);
+            }
+            if !changed {
+                break;
+            }
+        }
+        assign
+    }
+
+    /// The points of each cluster, in index order.
+    fn members_of(&self, assign: &[usize]) -> Vec<Vec<usize>> {
+        let mut m = vec![Vec::new(); self.k];
         for (p, &c) in assign.iter().enumerate() {
             m[c].push(p);
         }
         m
-    };
-    let fit_all = |assign: &[usize]| -> Vec<Model> {
-        members_of(assign)
+    }
+
+    /// Every cluster's model.
+    fn fit_all(&self, assign: &[usize]) -> Vec<Model> {
+        self.members_of(assign)
             .par_iter()
-            .map(|members| fit(data, d, members))
+            .map(|members| fit(self.data, self.d, members))
             .collect()
-    };
-    let total_energy: f64 = data.iter().map(|&v| f64::from(v).powi(2)).sum();
-    // The fewest directions whose discarded variance keeps the block within the target.
-    let choose_m = |models: &[Model], assign: &[usize]| -> usize {
+    }
+
+    /// The fewest directions whose discarded variance keeps the block within the target (or
+    /// the asked number, at most `d`).
+    fn choose_m(&self, models: &[Model], assign: &[usize], opt: &CpcaOptions) -> usize {
+        let d = self.d;
         if let Some(m) = opt.components {
             return m.min(d);
         }
-        let sizes: Vec<f64> = members_of(assign).iter().map(|m| m.len() as f64).collect();
-        let budget = opt.error_target.powi(2) * total_energy;
+        let sizes: Vec<f64> = self
+            .members_of(assign)
+            .iter()
+            .map(|m| m.len() as f64)
+            .collect();
+        let budget = opt.error_target.powi(2) * self.total_energy;
         (0..=d)
             .find(|&m| {
                 let lost: f64 = models
@@ -262,80 +311,91 @@ pub fn cpca(data: &[f32], dimension: usize, opt: &CpcaOptions) -> Cpca {
                 lost <= budget
             })
             .unwrap_or(d)
-    };
-    let mut models = fit_all(&assign);
-    let mut m = choose_m(&models, &assign);
-    for _ in 0..opt.refinements {
-        let next: Vec<usize> = (0..points)
-            .into_par_iter()
-            .with_min_len(256)
-            .map(|p| {
-                let mut best = (f64::INFINITY, assign[p]);
-                for (c, model) in models.iter().enumerate() {
-                    if model.basis.is_empty() {
-                        continue;
-                    }
-                    let e = residual(row(p), model, m);
-                    if e < best.0 {
-                        best = (e, c);
-                    }
-                }
-                best.1
-            })
-            .collect();
-        if next == assign {
-            break;
-        }
-        assign = next;
-        models = fit_all(&assign);
-        m = choose_m(&models, &assign);
     }
 
-    // The stored form, in f32, and its measured error.
-    let mut centres_out = Vec::with_capacity(k * (m + 1) * d);
-    for model in &models {
-        centres_out.extend(model.mean.iter().map(|&v| v as f32));
-        for b in &model.basis[..m] {
-            centres_out.extend(b.iter().map(|&v| v as f32));
-        }
-    }
-    let weights: Vec<f32> = (0..points)
-        .into_par_iter()
-        .with_min_len(256)
-        .flat_map_iter(|p| {
-            let model = &models[assign[p]];
-            let centred: Vec<f64> = row(p)
-                .iter()
-                .zip(&model.mean)
-                .map(|(&v, mu)| f64::from(v) - mu)
+    /// CPCA's refinement of the clusters `assign`: each point moves to the cluster whose mean
+    /// and `m` directions reconstruct it best, and the models are refitted, until nothing
+    /// moves or `opt.refinements` rounds are done; the clusters, their models and `m`.
+    fn refine(&self, mut assign: Vec<usize>, opt: &CpcaOptions) -> (Vec<usize>, Vec<Model>, usize) {
+        let mut models = self.fit_all(&assign);
+        let mut m = self.choose_m(&models, &assign, opt);
+        for _ in 0..opt.refinements {
+            let next: Vec<usize> = (0..self.points)
+                .into_par_iter()
+                .with_min_len(256)
+                .map(|p| {
+                    let mut best = (f64::INFINITY, assign[p]);
+                    for (c, model) in models.iter().enumerate() {
+                        if model.basis.is_empty() {
+                            continue;
+                        }
+                        let e = residual(self.row(p), model, m);
+                        if e < best.0 {
+                            best = (e, c);
+                        }
+                    }
+                    best.1
+                })
                 .collect();
-            model.basis[..m]
-                .iter()
-                .map(move |b| b.iter().zip(&centred).map(|(u, c)| u * c).sum::<f64>() as f32)
-                .collect::<Vec<f32>>()
-        })
-        .collect();
-    let mut out = Cpca {
-        clusters: k as u32,
-        components: m as u32,
-        dimension: d as u32,
-        rel_error: 0.0,
-        centres: centres_out,
-        cluster_of: assign.iter().map(|&c| c as u32).collect(),
-        weights,
-    };
-    let approx = out.reconstruct();
-    let err: f64 = approx
-        .iter()
-        .zip(data)
-        .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
-        .sum();
-    out.rel_error = if total_energy > 0.0 {
-        (err / total_energy).sqrt()
-    } else {
-        0.0
-    };
-    out
+            if next == assign {
+                break;
+            }
+            assign = next;
+            models = self.fit_all(&assign);
+            m = self.choose_m(&models, &assign, opt);
+        }
+        (assign, models, m)
+    }
+
+    /// The stored form, in f32, and its measured error.
+    fn stored_form(&self, models: &[Model], assign: &[usize], m: usize) -> Cpca {
+        let (k, d) = (self.k, self.d);
+        let mut centres_out = Vec::with_capacity(k * (m + 1) * d);
+        for model in models {
+            centres_out.extend(model.mean.iter().map(|&v| v as f32));
+            for b in &model.basis[..m] {
+                centres_out.extend(b.iter().map(|&v| v as f32));
+            }
+        }
+        let weights: Vec<f32> = (0..self.points)
+            .into_par_iter()
+            .with_min_len(256)
+            .flat_map_iter(|p| {
+                let model = &models[assign[p]];
+                let centred: Vec<f64> = self
+                    .row(p)
+                    .iter()
+                    .zip(&model.mean)
+                    .map(|(&v, mu)| f64::from(v) - mu)
+                    .collect();
+                model.basis[..m]
+                    .iter()
+                    .map(move |b| b.iter().zip(&centred).map(|(u, c)| u * c).sum::<f64>() as f32)
+                    .collect::<Vec<f32>>()
+            })
+            .collect();
+        let mut out = Cpca {
+            clusters: k as u32,
+            components: m as u32,
+            dimension: d as u32,
+            rel_error: 0.0,
+            centres: centres_out,
+            cluster_of: assign.iter().map(|&c| c as u32).collect(),
+            weights,
+        };
+        let approx = out.reconstruct();
+        let err: f64 = approx
+            .iter()
+            .zip(self.data)
+            .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
+            .sum();
+        out.rel_error = if self.total_energy > 0.0 {
+            (err / self.total_energy).sqrt()
+        } else {
+            0.0
+        };
+        out
+    }
 }
 
 /// What `prt compress` is asked: the cluster count (`None`: per object, points/256 within

@@ -375,6 +375,38 @@ pub(crate) struct Step<'a> {
     pub object_hits: &'a [u64],
 }
 
+/// One object's newest bounce level for this shard's vertices, with their running totals and
+/// hit records.
+struct ShardLevel {
+    /// Level `k` of this shard's vertices (RGB, f32).
+    level: Vec<f32>,
+    /// Running totals per vertex (per-vertex bakes; empty otherwise).
+    totals: Vec<Vec<f64>>,
+    /// Hit records per vertex.
+    hits: Vec<Vec<HitRecord>>,
+}
+
+/// The hit records and running totals of one object's shard vertices, from the previous file.
+type Own = (Vec<Vec<HitRecord>>, Vec<Vec<f64>>);
+
+/// The previous file's part split into the complete levels `0 … k−1` of every object, by level
+/// (`levels[b][object]`), and each object's own hit records and running totals.
+fn by_level(previous: Vec<Previous>, objects: usize) -> (Vec<Vec<MeshTransfer>>, Vec<Own>) {
+    let mut levels: Vec<Vec<MeshTransfer>> = Vec::new();
+    let mut own = Vec::with_capacity(previous.len());
+    for (o, p) in previous.into_iter().enumerate() {
+        for (b, level) in p.chain.into_iter().enumerate() {
+            if levels.len() <= b {
+                levels.push(Vec::with_capacity(objects));
+            }
+            debug_assert_eq!(levels[b].len(), o);
+            levels[b].push(level);
+        }
+        own.push((p.hits, p.totals));
+    }
+    (levels, own)
+}
+
 impl Step<'_> {
     /// Runs pass `k` on this shard's vertices: `rows` are their direct results (traced now for
     /// pass 0, from the previous file otherwise), `previous` the previous file's part.
@@ -385,22 +417,10 @@ impl Step<'_> {
         previous: Vec<Previous>,
         bar: indicatif::ProgressBar,
     ) -> Result<Outcome, BakeError> {
-        use rayon::prelude::*;
         let last = self.settings.bounces;
         let k = k as usize;
         // Levels 0 … k−1 of every object, by level (moved out of the previous file's part).
-        let mut levels: Vec<Vec<MeshTransfer>> = Vec::new();
-        let mut own = Vec::with_capacity(previous.len());
-        for (o, p) in previous.into_iter().enumerate() {
-            for (b, level) in p.chain.into_iter().enumerate() {
-                if levels.len() <= b {
-                    levels.push(Vec::with_capacity(self.plans.len()));
-                }
-                debug_assert_eq!(levels[b].len(), o);
-                levels[b].push(level);
-            }
-            own.push((p.hits, p.totals));
-        }
+        let (levels, mut own) = by_level(previous, self.plans.len());
         let vertex_pass = self.vertex_mode || k < last as usize;
         if k == last as usize && !self.vertex_mode {
             return Ok(Outcome::Final {
@@ -411,112 +431,16 @@ impl Step<'_> {
         let mut objects = Vec::with_capacity(self.plans.len());
         let mut reports = Vec::with_capacity(self.plans.len());
         let mut final_totals = Vec::with_capacity(self.plans.len());
-        for (o, plan) in self.plans.iter().enumerate() {
-            let n2 = plan.order * plan.order;
-            let (first, count) = self.vertex_ranges[o];
-            let rows_o = &rows[o];
-            // This shard's newest level, and its running totals, hits.
-            let (level, mut totals, hits): (Vec<f32>, Vec<Vec<f64>>, Vec<Vec<HitRecord>>) = if k
-                == 0
-            {
-                // Level 0 is the shadowed transfer, in all three channels (as unsharded).
-                let level = rows_o
-                    .iter()
-                    .flat_map(|d| (0..3).flat_map(move |_| d.shadowed.iter().map(|v| *v as f32)))
-                    .collect();
-                let totals = if self.vertex_mode {
-                    rows_o
-                        .iter()
-                        .map(|d| crate::transfer::level0_totals(&d.shadowed))
-                        .collect()
-                } else {
-                    Vec::new()
-                };
-                (
-                    level,
-                    totals,
-                    rows_o.iter().map(|d| d.hits.clone()).collect(),
-                )
-            } else {
-                let (hits, mut totals) = std::mem::take(&mut own[o]);
-                let level = if self.object_hits[o] == 0 {
-                    vec![0.0; count as usize * 3 * n2]
-                } else {
-                    let prev = &levels[k - 1];
-                    let per_point: Vec<Vec<f64>> = hits
-                        .par_iter()
-                        .with_min_len(64)
-                        .map(|h| {
-                            bar.inc(1);
-                            crate::transfer::gather(
-                                h,
-                                self.settings.rays,
-                                prev,
-                                self.gs,
-                                plan.order,
-                            )
-                        })
-                        .collect();
-                    if self.vertex_mode {
-                        for (tot, g) in totals.iter_mut().zip(&per_point) {
-                            tot.iter_mut().zip(g).for_each(|(t, v)| *t += v);
-                        }
-                    }
-                    per_point.iter().flatten().map(|v| *v as f32).collect()
-                };
-                (level, totals, hits)
-            };
+        for o in 0..self.plans.len() {
+            let shard = self.newest_level(k, o, &rows[o], &mut own, &levels, &bar);
             debug_assert!(vertex_pass);
             if k == last as usize {
-                final_totals.push(std::mem::take(&mut totals));
+                final_totals.push(shard.totals);
                 continue;
             }
-            let mesh = &self.scene.meshes[plan.mesh];
-            let blocks = intermediate_blocks(rows_o, self.vertex_mode && plan.needs_visibility);
-            let hit_refs: Vec<&[HitRecord]> = hits.iter().map(Vec::as_slice).collect();
-            let record = self.vertex_bounces > k;
-            // Pass 0 writes the shard's hit records (later passes read them from this file
-            // with --hits); every pass writes the counts, which merge into the object-wide
-            // figure the next pass needs.
-            let (hit_counts, hit_records) = if record {
-                let (c, r) = file_hits(&hit_refs);
-                (Some(c), if k == 0 { r } else { Vec::new() })
-            } else {
-                (None, Vec::new())
-            };
-            reports.push(crate::report::ObjectReport {
-                name: plan.name.clone(),
-                order: plan.order,
-                points: count,
-                hit_fraction: hit_refs.iter().map(|h| h.len() as f64).sum::<f64>()
-                    / (count.max(1) as f64 * f64::from(self.settings.rays)),
-                backface_fraction: 0.0,
-                inside_fraction: 0.0,
-                kinds: vec![format!("bounce level {k} (pass {k} of {})", last + 1)],
-            });
-            objects.push(prt_bakefile::ObjectBake {
-                name: plan.name.clone(),
-                geometry_hash: crate::geometry_hash(mesh.positions.as_slice(), &mesh.indices),
-                point_count: mesh.positions.len() as u64,
-                point_first: first,
-                points_in_file: count,
-                order: plan.order as u32,
-                channels: 1,
-                blocks,
-                mesh: Some(crate::mesh_geometry(mesh)),
-                coverage: None,
-                material: Some(crate::material_binding(self.scene, plan.mesh)),
-                pass: Some(prt_bakefile::PassState {
-                    levels: levels.iter().map(|l| l[o].data.clone()).collect(),
-                    partial: Some(level),
-                    totals: self
-                        .vertex_mode
-                        .then(|| totals.into_iter().flatten().collect()),
-                    hit_counts,
-                    records: record && k == 0,
-                    hits: hit_records,
-                }),
-            });
+            let (object, report) = self.intermediate_object(k, o, &rows[o], &levels, shard);
+            reports.push(report);
+            objects.push(object);
         }
         bar.finish_and_clear();
         if k == last as usize {
@@ -526,6 +450,136 @@ impl Step<'_> {
             });
         }
         Ok(Outcome::Intermediate(objects, reports))
+    }
+
+    /// Object `o`'s level `k` at this shard's vertices: in pass 0 the shadowed transfer of
+    /// their direct results `rows_o`; later, gathered from level `k − 1` of `levels` through
+    /// the hits in `own` (whose running totals it adds to, per vertex).
+    fn newest_level(
+        &self,
+        k: usize,
+        o: usize,
+        rows_o: &[DirectResult],
+        own: &mut [Own],
+        levels: &[Vec<MeshTransfer>],
+        bar: &indicatif::ProgressBar,
+    ) -> ShardLevel {
+        use rayon::prelude::*;
+        let plan = &self.plans[o];
+        if k == 0 {
+            // Level 0 is the shadowed transfer, in all three channels (as unsharded).
+            let level = rows_o
+                .iter()
+                .flat_map(|d| (0..3).flat_map(move |_| d.shadowed.iter().map(|v| *v as f32)))
+                .collect();
+            let totals = if self.vertex_mode {
+                rows_o
+                    .iter()
+                    .map(|d| crate::transfer::level0_totals(&d.shadowed))
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            let hits = rows_o.iter().map(|d| d.hits.clone()).collect();
+            return ShardLevel {
+                level,
+                totals,
+                hits,
+            };
+        }
+        let n2 = plan.order * plan.order;
+        let (_, count) = self.vertex_ranges[o];
+        let (hits, mut totals) = std::mem::take(&mut own[o]);
+        let level = if self.object_hits[o] == 0 {
+            vec![0.0; count as usize * 3 * n2]
+        } else {
+            let prev = &levels[k - 1];
+            let per_point: Vec<Vec<f64>> = hits
+                .par_iter()
+                .with_min_len(64)
+                .map(|h| {
+                    bar.inc(1);
+                    crate::transfer::gather(h, self.settings.rays, prev, self.gs, plan.order)
+                })
+                .collect();
+            if self.vertex_mode {
+                for (tot, g) in totals.iter_mut().zip(&per_point) {
+                    tot.iter_mut().zip(g).for_each(|(t, v)| *t += v);
+                }
+            }
+            per_point.iter().flatten().map(|v| *v as f32).collect()
+        };
+        ShardLevel {
+            level,
+            totals,
+            hits,
+        }
+    }
+
+    /// Object `o` of the intermediate file of pass `k`: this shard's direct transfer, the
+    /// complete `levels` so far, its newest level, running totals and hits (records in pass 0,
+    /// counts in every pass that still gathers at vertices), and its report row.
+    fn intermediate_object(
+        &self,
+        k: usize,
+        o: usize,
+        rows_o: &[DirectResult],
+        levels: &[Vec<MeshTransfer>],
+        shard: ShardLevel,
+    ) -> (prt_bakefile::ObjectBake, crate::report::ObjectReport) {
+        let last = self.settings.bounces;
+        let plan = &self.plans[o];
+        let (first, count) = self.vertex_ranges[o];
+        let mesh = &self.scene.meshes[plan.mesh];
+        let blocks = intermediate_blocks(rows_o, self.vertex_mode && plan.needs_visibility);
+        let hit_refs: Vec<&[HitRecord]> = shard.hits.iter().map(Vec::as_slice).collect();
+        let record = self.vertex_bounces > k;
+        // Pass 0 writes the shard's hit records (later passes read them from this file
+        // with --hits); every pass writes the counts, which merge into the object-wide
+        // figure the next pass needs.
+        let (hit_counts, hit_records) = if record {
+            let (c, r) = file_hits(&hit_refs);
+            (Some(c), if k == 0 { r } else { Vec::new() })
+        } else {
+            (None, Vec::new())
+        };
+        let report = crate::report::ObjectReport {
+            name: plan.name.clone(),
+            order: plan.order,
+            points: count,
+            hit_fraction: hit_refs.iter().map(|h| h.len() as f64).sum::<f64>()
+                / (count.max(1) as f64 * f64::from(self.settings.rays)),
+            backface_fraction: 0.0,
+            inside_fraction: 0.0,
+            kinds: vec![format!("bounce level {k} (pass {k} of {})", last + 1)],
+        };
+        let object = prt_bakefile::ObjectBake {
+            name: plan.name.clone(),
+            geometry_hash: prt_scene::binding::geometry_hash(
+                mesh.positions.as_slice(),
+                &mesh.indices,
+            ),
+            point_count: mesh.positions.len() as u64,
+            point_first: first,
+            points_in_file: count,
+            order: plan.order as u32,
+            channels: 1,
+            blocks,
+            mesh: Some(prt_scene::binding::mesh_geometry(mesh)),
+            coverage: None,
+            material: Some(crate::material_binding(self.scene, plan.mesh)),
+            pass: Some(prt_bakefile::PassState {
+                levels: levels.iter().map(|l| l[o].data.clone()).collect(),
+                partial: Some(shard.level),
+                totals: self
+                    .vertex_mode
+                    .then(|| shard.totals.into_iter().flatten().collect()),
+                hit_counts,
+                records: record && k == 0,
+                hits: hit_records,
+            }),
+        };
+        (object, report)
     }
 }
 

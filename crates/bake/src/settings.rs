@@ -89,6 +89,24 @@ impl BakeSettings {
         pass >= 1 && pass as usize <= self.vertex_bounces()
     }
 
+    /// This run's part `(first, count)` of `count` points: all of them unsharded, else the
+    /// contiguous range of shard `index` of `shards` (the shards partition the points).
+    pub(crate) fn shard_range(&self, count: u64) -> (u64, u64) {
+        match self.shard {
+            None => (0, count),
+            Some((i, n)) => {
+                let (i, n) = (u64::from(i), u64::from(n));
+                let first = count * i / n;
+                (first, count * (i + 1) / n - first)
+            }
+        }
+    }
+
+    /// A progress bar over `len` steps of `what` (drawn only when `progress` is set).
+    pub(crate) fn progress_bar(&self, len: u64, what: &str) -> indicatif::ProgressBar {
+        prt_tracer::progress_bar(self.progress, len, what)
+    }
+
     /// A quick look: 256 rays, automatic order up to 6, no bounces.
     #[must_use]
     pub fn preview() -> Self {
@@ -228,5 +246,31 @@ mod tests {
         assert_eq!(at(PointKind::Pixel, 2), [false, true, false]);
         assert_eq!(at(PointKind::Pixel, 1), [false, false]);
         assert_eq!(at(PointKind::Vertex, 0), [false]);
+    }
+
+    #[test]
+    fn shards_partition_the_points_contiguously() {
+        for count in [0u64, 1, 5, 7, 1000] {
+            for n in 1..=6u32 {
+                let mut next = 0;
+                for i in 0..n {
+                    let s = BakeSettings {
+                        shard: Some((i, n)),
+                        ..BakeSettings::preview()
+                    };
+                    let (first, len) = s.shard_range(count);
+                    assert_eq!(
+                        first, next,
+                        "shard {i}/{n} of {count} starts where the last ended"
+                    );
+                    // Sizes differ by at most one point.
+                    assert!(len == count / u64::from(n) || len == count / u64::from(n) + 1);
+                    next = first + len;
+                }
+                assert_eq!(next, count, "{n} shards cover all {count} points");
+            }
+            let whole = BakeSettings::preview();
+            assert_eq!(whole.shard_range(count), (0, count));
+        }
     }
 }

@@ -118,9 +118,25 @@ pub fn refine(
     let mut report = Vec::with_capacity(plans.len());
     for plan in plans {
         let mesh: &mut Mesh = &mut refined.meshes[plan.mesh];
-        let basis = Basis::new(plan.order)?;
-        let extent = accel.mesh_extent(plan.mesh);
-        let dopt = DirectOptions {
+        report.push(refine_mesh(mesh, accel, settings, plan, opt)?);
+    }
+    Ok((refined, report))
+}
+
+/// Refines the mesh of one object in place, level by level, until no edge needs splitting,
+/// `opt.max_levels` levels were done or the mesh has `opt.max_vertices` vertices.
+fn refine_mesh(
+    mesh: &mut Mesh,
+    accel: &Accel,
+    settings: &BakeSettings,
+    plan: &ObjectPlan,
+    opt: &SubdivideOptions,
+) -> Result<ObjectRefinement, BakeError> {
+    let basis = Basis::new(plan.order)?;
+    let probe = Probe {
+        accel,
+        extent: accel.mesh_extent(plan.mesh),
+        opt: DirectOptions {
             rays: settings.rays,
             record_hits: false,
             visibility: false,
@@ -128,162 +144,226 @@ pub fn refine(
             object: plan.mesh as u64,
             first_ray: 0,
             basis: &basis,
-        };
-        let point = |p: Vec3, n: Vec3| {
-            let n = n.normalize_or(Vec3::Y);
-            SamplePoint {
-                position: p,
-                normal: n,
-                offset_normal: n,
-                offset: point_offset(p, extent),
-            }
-        };
-        let mut transfer: Vec<Vec<f64>> = (0..mesh.positions.len())
-            .into_par_iter()
-            .map(|v| {
-                direct(
-                    accel,
-                    &point(mesh.positions[v], mesh.normals[v]),
-                    v as u64,
-                    &dopt,
-                )
-                .shadowed
+        },
+    };
+    let mut transfer: Vec<Vec<f64>> = (0..mesh.positions.len())
+        .into_par_iter()
+        .map(|v| probe.at(mesh.positions[v], mesh.normals[v], v as u64))
+        .collect();
+    let mut rays = mesh.positions.len() as u64 * u64::from(settings.rays);
+    let (v0, t0) = (mesh.positions.len(), mesh.indices.len());
+    let mut splits = Vec::new();
+    let mut probe_key = 0u64;
+    for _ in 0..opt.max_levels {
+        if mesh.positions.len() >= opt.max_vertices {
+            break;
+        }
+        let floor = mean_norm(&transfer);
+        let (edges, seen) = unique_edges(&mesh.indices);
+        // Probe transfer at edge midpoints and triangle centroids (their own keys, after
+        // every vertex index; the final bake re-derives kept vertices by their index).
+        let base = u64::MAX / 2 + probe_key;
+        let at_edges: Vec<Vec<f64>> = edges
+            .par_iter()
+            .enumerate()
+            .map(|(i, &e)| {
+                let (p, n) = midpoint(mesh, e);
+                probe.at(p, n, base + i as u64)
             })
             .collect();
-        let mut rays = mesh.positions.len() as u64 * u64::from(settings.rays);
-        let (v0, t0) = (mesh.positions.len(), mesh.indices.len());
-        let mut splits = Vec::new();
-        let mut probe_key = 0u64;
-        for _ in 0..opt.max_levels {
-            if mesh.positions.len() >= opt.max_vertices {
-                break;
-            }
-            let mean_norm = transfer
+        let at_tris: Vec<Vec<f64>> = mesh
+            .indices
+            .par_iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let (p, n) = centroid(mesh, t);
+                probe.at(p, n, base + (edges.len() + i) as u64)
+            })
+            .collect();
+        probe_key += (edges.len() + mesh.indices.len()) as u64;
+        rays += (edges.len() + mesh.indices.len()) as u64 * u64::from(settings.rays);
+        let deviations = Deviations {
+            transfer: &transfer,
+            at_edges: &at_edges,
+            at_tris: &at_tris,
+            floor,
+            error: opt.error,
+        };
+        let chosen = deviations.edges_to_split(&mesh.indices, &edges, &seen);
+        if chosen.is_empty() {
+            break;
+        }
+        splits.push(chosen.len());
+        split_edges(mesh, &edges, &chosen, &at_edges, &mut transfer)?;
+    }
+    Ok(ObjectRefinement {
+        name: plan.name.clone(),
+        vertices: [v0, mesh.positions.len()],
+        triangles: [t0, mesh.indices.len()],
+        splits,
+        rays,
+    })
+}
+
+/// The shadowed transfer of one object at any surface point, with the bake's rays and keys.
+struct Probe<'a> {
+    accel: &'a Accel,
+    /// The object's extent (it sizes the ray offset).
+    extent: f32,
+    opt: DirectOptions<'a>,
+}
+
+impl Probe<'_> {
+    /// The shadowed transfer at `p` with normal `n` (normalised; `+Y` if zero), key `key`.
+    fn at(&self, p: Vec3, n: Vec3, key: u64) -> Vec<f64> {
+        let n = n.normalize_or(Vec3::Y);
+        let point = SamplePoint {
+            position: p,
+            normal: n,
+            offset_normal: n,
+            offset: point_offset(p, self.extent),
+        };
+        direct(self.accel, &point, key, &self.opt).shadowed
+    }
+}
+
+/// The mean over points of `‖t‖` on the compared coefficients: the floor of [`deviation`].
+fn mean_norm(transfer: &[Vec<f64>]) -> f64 {
+    transfer
+        .iter()
+        .map(|t| {
+            t[..t.len().min(COMPARED)]
                 .iter()
-                .map(|t| {
-                    t[..t.len().min(COMPARED)]
-                        .iter()
-                        .map(|x| x * x)
-                        .sum::<f64>()
-                        .sqrt()
-                })
+                .map(|x| x * x)
                 .sum::<f64>()
-                / transfer.len().max(1) as f64;
-            let floor = mean_norm;
-            // Every edge once, in the order triangles first meet it.
-            let mut edges: Vec<(u32, u32)> = Vec::new();
-            let mut seen: HashMap<(u32, u32), usize> = HashMap::new();
-            for t in &mesh.indices {
+                .sqrt()
+        })
+        .sum::<f64>()
+        / transfer.len().max(1) as f64
+}
+
+/// An edge's vertices `(min, max)`.
+type Edge = (u32, u32);
+
+/// Every edge of `indices` once, in the order triangles first meet it, and each edge's index
+/// in that list.
+fn unique_edges(indices: &[[u32; 3]]) -> (Vec<Edge>, HashMap<Edge, usize>) {
+    let mut edges: Vec<(u32, u32)> = Vec::new();
+    let mut seen: HashMap<(u32, u32), usize> = HashMap::new();
+    for t in indices {
+        for e in 0..3 {
+            let (a, b) = (t[e], t[(e + 1) % 3]);
+            let k = (a.min(b), a.max(b));
+            if let std::collections::hash_map::Entry::Vacant(slot) = seen.entry(k) {
+                slot.insert(edges.len());
+                edges.push(k);
+            }
+        }
+    }
+    (edges, seen)
+}
+
+/// The midpoint of edge `(a, b)`: position averaged in f64, normal the normalised sum of its
+/// ends' (`a`'s if they cancel).
+fn midpoint(mesh: &Mesh, (a, b): (u32, u32)) -> (Vec3, Vec3) {
+    let p = ((mesh.positions[a as usize].as_dvec3() + mesh.positions[b as usize].as_dvec3()) * 0.5)
+        .as_vec3();
+    let n = (mesh.normals[a as usize] + mesh.normals[b as usize])
+        .normalize_or(mesh.normals[a as usize]);
+    (p, n)
+}
+
+/// The centroid of triangle `t`: position averaged in f64, normal the normalised sum of its
+/// corners' (the first corner's if they cancel).
+fn centroid(mesh: &Mesh, t: &[u32; 3]) -> (Vec3, Vec3) {
+    let p = (t
+        .iter()
+        .map(|&i| mesh.positions[i as usize].as_dvec3())
+        .sum::<glam::DVec3>()
+        / 3.0)
+        .as_vec3();
+    let n = t
+        .iter()
+        .map(|&i| mesh.normals[i as usize])
+        .sum::<Vec3>()
+        .normalize_or(mesh.normals[t[0] as usize]);
+    (p, n)
+}
+
+/// One level's transfer at the vertices, edge midpoints and triangle centroids, and what
+/// counts as too large a deviation from interpolation.
+struct Deviations<'a> {
+    transfer: &'a [Vec<f64>],
+    at_edges: &'a [Vec<f64>],
+    at_tris: &'a [Vec<f64>],
+    floor: f64,
+    error: f64,
+}
+
+impl Deviations<'_> {
+    /// The edges to split, in edge order: those whose midpoint deviates from the average of
+    /// their ends, and all three of each triangle whose centroid deviates from the average of
+    /// its corners.
+    fn edges_to_split(
+        &self,
+        indices: &[[u32; 3]],
+        edges: &[(u32, u32)],
+        seen: &HashMap<(u32, u32), usize>,
+    ) -> Vec<usize> {
+        let transfer = self.transfer;
+        let mut split = vec![false; edges.len()];
+        for (i, &(a, b)) in edges.iter().enumerate() {
+            let ends = [
+                transfer[a as usize].as_slice(),
+                transfer[b as usize].as_slice(),
+            ];
+            split[i] = deviation(&self.at_edges[i], &ends, self.floor) > self.error;
+        }
+        for (t, at) in indices.iter().zip(self.at_tris) {
+            let corners = t.map(|i| transfer[i as usize].as_slice());
+            if deviation(at, &corners, self.floor) > self.error {
                 for e in 0..3 {
                     let (a, b) = (t[e], t[(e + 1) % 3]);
-                    let k = (a.min(b), a.max(b));
-                    if let std::collections::hash_map::Entry::Vacant(slot) = seen.entry(k) {
-                        slot.insert(edges.len());
-                        edges.push(k);
-                    }
+                    split[seen[&(a.min(b), a.max(b))]] = true;
                 }
             }
-            // Probe transfer at edge midpoints and triangle centroids (their own keys, after
-            // every vertex index; the final bake re-derives kept vertices by their index).
-            let midpoint = |(a, b): (u32, u32)| {
-                let p = ((mesh.positions[a as usize].as_dvec3()
-                    + mesh.positions[b as usize].as_dvec3())
-                    * 0.5)
-                    .as_vec3();
-                let n = (mesh.normals[a as usize] + mesh.normals[b as usize])
-                    .normalize_or(mesh.normals[a as usize]);
-                (p, n)
-            };
-            let centroid = |t: &[u32; 3]| {
-                let p = (t
-                    .iter()
-                    .map(|&i| mesh.positions[i as usize].as_dvec3())
-                    .sum::<glam::DVec3>()
-                    / 3.0)
-                    .as_vec3();
-                let n = t
-                    .iter()
-                    .map(|&i| mesh.normals[i as usize])
-                    .sum::<Vec3>()
-                    .normalize_or(mesh.normals[t[0] as usize]);
-                (p, n)
-            };
-            let base = u64::MAX / 2 + probe_key;
-            let at_edges: Vec<Vec<f64>> = edges
-                .par_iter()
-                .enumerate()
-                .map(|(i, &e)| {
-                    let (p, n) = midpoint(e);
-                    direct(accel, &point(p, n), base + i as u64, &dopt).shadowed
-                })
-                .collect();
-            let at_tris: Vec<Vec<f64>> = mesh
-                .indices
-                .par_iter()
-                .enumerate()
-                .map(|(i, t)| {
-                    let (p, n) = centroid(t);
-                    direct(accel, &point(p, n), base + (edges.len() + i) as u64, &dopt).shadowed
-                })
-                .collect();
-            probe_key += (edges.len() + mesh.indices.len()) as u64;
-            rays += (edges.len() + mesh.indices.len()) as u64 * u64::from(settings.rays);
-            let mut split = vec![false; edges.len()];
-            for (i, &(a, b)) in edges.iter().enumerate() {
-                let ends = [
-                    transfer[a as usize].as_slice(),
-                    transfer[b as usize].as_slice(),
-                ];
-                split[i] = deviation(&at_edges[i], &ends, floor) > opt.error;
-            }
-            for (t, at) in mesh.indices.iter().zip(&at_tris) {
-                let corners = t.map(|i| transfer[i as usize].as_slice());
-                if deviation(at, &corners, floor) > opt.error {
-                    for e in 0..3 {
-                        let (a, b) = (t[e], t[(e + 1) % 3]);
-                        split[seen[&(a.min(b), a.max(b))]] = true;
-                    }
-                }
-            }
-            let chosen: Vec<usize> = (0..edges.len()).filter(|&i| split[i]).collect();
-            if chosen.is_empty() {
-                break;
-            }
-            splits.push(chosen.len());
-            let new_points: Vec<(Vec3, Vec3)> =
-                chosen.iter().map(|&i| midpoint(edges[i])).collect();
-            let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-            for (&i, (p, n)) in chosen.iter().zip(new_points) {
-                let index = u32::try_from(mesh.positions.len()).map_err(|_| {
-                    BakeError::InvalidSettings("subdivision beyond 2^32 vertices".into())
-                })?;
-                mesh.positions.push(p);
-                mesh.normals.push(n);
-                // UVs and vertex colours at the midpoint (the texture is read there).
-                let (a, b) = (edges[i].0 as usize, edges[i].1 as usize);
-                for uv in &mut mesh.texcoords {
-                    uv.push([0.5 * (uv[a][0] + uv[b][0]), 0.5 * (uv[a][1] + uv[b][1])]);
-                }
-                if !mesh.colors.is_empty() {
-                    let (ca, cb) = (mesh.colors[a], mesh.colors[b]);
-                    mesh.colors
-                        .push(std::array::from_fn(|k| 0.5 * (ca[k] + cb[k])));
-                }
-                mid.insert(edges[i], index);
-                // The midpoint's probe is its transfer estimate for the next level.
-                transfer.push(at_edges[i].clone());
-            }
-            mesh.indices = split_triangles(&mesh.indices, &mid);
         }
-        report.push(ObjectRefinement {
-            name: plan.name.clone(),
-            vertices: [v0, mesh.positions.len()],
-            triangles: [t0, mesh.indices.len()],
-            splits,
-            rays,
-        });
+        (0..edges.len()).filter(|&i| split[i]).collect()
     }
-    Ok((refined, report))
+}
+
+/// Splits the `chosen` edges of `mesh`: a new vertex at each one's midpoint (with its UVs and
+/// colour averaged, and its probe `at_edges[i]` as its transfer estimate), then the triangles.
+fn split_edges(
+    mesh: &mut Mesh,
+    edges: &[(u32, u32)],
+    chosen: &[usize],
+    at_edges: &[Vec<f64>],
+    transfer: &mut Vec<Vec<f64>>,
+) -> Result<(), BakeError> {
+    let new_points: Vec<(Vec3, Vec3)> = chosen.iter().map(|&i| midpoint(mesh, edges[i])).collect();
+    let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+    for (&i, (p, n)) in chosen.iter().zip(new_points) {
+        let index = u32::try_from(mesh.positions.len())
+            .map_err(|_| BakeError::InvalidSettings("subdivision beyond 2^32 vertices".into()))?;
+        mesh.positions.push(p);
+        mesh.normals.push(n);
+        // UVs and vertex colours at the midpoint (the texture is read there).
+        let (a, b) = (edges[i].0 as usize, edges[i].1 as usize);
+        for uv in &mut mesh.texcoords {
+            uv.push([0.5 * (uv[a][0] + uv[b][0]), 0.5 * (uv[a][1] + uv[b][1])]);
+        }
+        if !mesh.colors.is_empty() {
+            let (ca, cb) = (mesh.colors[a], mesh.colors[b]);
+            mesh.colors
+                .push(std::array::from_fn(|k| 0.5 * (ca[k] + cb[k])));
+        }
+        mid.insert(edges[i], index);
+        // The midpoint's probe is its transfer estimate for the next level.
+        transfer.push(at_edges[i].clone());
+    }
+    mesh.indices = split_triangles(&mesh.indices, &mid);
+    Ok(())
 }
 
 #[cfg(test)]
@@ -345,5 +425,25 @@ mod tests {
             // The shared edge: split on one side means split on the other (no T-junction).
             assert!(!count.contains_key(&(1, 2)) || !mid.contains_key(&(1, 2)));
         }
+    }
+
+    #[test]
+    fn edges_are_listed_once_in_the_order_triangles_meet_them() {
+        let (edges, seen) = unique_edges(&[[0, 1, 2], [2, 1, 3]]);
+        assert_eq!(edges, [(0, 1), (1, 2), (0, 2), (1, 3), (2, 3)]);
+        for (i, e) in edges.iter().enumerate() {
+            assert_eq!(seen[e], i);
+        }
+    }
+
+    #[test]
+    fn the_noise_floor_is_the_mean_norm_of_the_compared_bands() {
+        // Only the first 9 coefficients count: the tenth is ignored.
+        let t = vec![
+            vec![3.0, 4.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 100.0],
+            vec![0.0; 10],
+        ];
+        assert_eq!(mean_norm(&t), 2.5);
+        assert_eq!(mean_norm(&[]), 0.0);
     }
 }
