@@ -296,6 +296,62 @@ pub fn summary_sentence(rows: &[BudgetRow]) -> String {
     s
 }
 
+/// Every order's budget from a report's images (linear radiance, object pixels `mask`):
+/// `full[k]` the per-vertex relighting `V_n` at `orders[k]`, `pixel` the two per-pixel bakes'
+/// images at the highest order `N` (their mean is `P`), `reference` the path tracer's `R`
+/// with noise `ν_R = reference_noise`, and `relight_second_seed(n)` the second-seed vertex
+/// bake relit at order `n`, `V'_n` (asked for `N` first, then for every other order in turn).
+pub(crate) fn measure_budget<E>(
+    orders: &[usize],
+    full: &[Vec<Vec3>],
+    pixel: [&[Vec3]; 2],
+    reference: &[Vec3],
+    mask: &[bool],
+    reference_noise: f64,
+    mut relight_second_seed: impl FnMut(usize) -> Result<Vec<Vec3>, E>,
+) -> Result<Vec<BudgetRow>, E> {
+    let (bits, r) = (mask, reference);
+    let max_order = *orders.iter().max().expect("non-empty");
+    let top_index = orders
+        .iter()
+        .position(|&o| o == max_order)
+        .expect("the highest order is in the list");
+    let top = &full[top_index];
+    let v2_top = relight_second_seed(max_order)?;
+    // The per-pixel baseline is the mean of the two per-pixel bakes (half the noise of
+    // either); its noise is a quarter of MSE(P, P').
+    let [p1, p2] = pixel;
+    let p_mean: Vec<Vec3> = p1.iter().zip(p2).map(|(a, b)| 0.5 * (*a + *b)).collect();
+    let highest_vs_reference = masked_mse(top, r, bits);
+    let (vertex_vs_pixel, pixel_seeds, pixel_vs_reference, vertex_seeds_highest) = (
+        masked_mse(top, &p_mean, bits),
+        masked_mse(p1, p2, bits) / 2.0,
+        masked_mse(&p_mean, r, bits),
+        masked_mse(top, &v2_top, bits),
+    );
+    let mut rows = Vec::new();
+    for (&order, img) in orders.iter().zip(full) {
+        let v2_n = if order == max_order {
+            v2_top.clone()
+        } else {
+            relight_second_seed(order)?
+        };
+        rows.push(BudgetRow::new(&BudgetInputs {
+            order,
+            total: masked_mse(img, r, bits),
+            vs_highest: masked_mse(img, top, bits),
+            vertex_vs_pixel,
+            highest_vs_reference,
+            vertex_seeds: masked_mse(img, &v2_n, bits),
+            vertex_seeds_highest,
+            pixel_seeds,
+            pixel_vs_reference,
+            reference_noise,
+        }));
+    }
+    Ok(rows)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -409,5 +465,44 @@ mod tests {
         let b = [Vec3::ZERO, Vec3::splat(100.0)];
         assert_eq!(masked_mse(&a, &b, &[true, false]), 1.0);
         assert_eq!(masked_mse(&a, &b, &[false, false]), 0.0);
+    }
+
+    #[test]
+    fn measure_budget_feeds_each_order_its_controlled_differences() {
+        // One object pixel and one background pixel (far off, to show it is left out); every
+        // offset is a power of two, so each MSE below is exact.
+        let image = |v: f32| vec![Vec3::splat(v), Vec3::splat(9.0)];
+        let mask = [true, false];
+        let reference = image(1.0);
+        // V_2 and V_4 (the highest) off by 1/2 and 1/4; V'_n a further 1/8 off; the two
+        // per-pixel bakes 1/8 either side of R, so their mean is R.
+        let full = vec![image(1.5), image(1.25)];
+        let (p1, p2) = (image(1.125), image(0.875));
+        let mut asked = Vec::new();
+        let rows = measure_budget::<()>(&[2, 4], &full, [&p1, &p2], &reference, &mask, 1e-3, |n| {
+            asked.push(n);
+            Ok(image(if n == 4 { 1.375 } else { 1.625 }))
+        })
+        .unwrap();
+        assert_eq!(asked, [4, 2]);
+        let inputs = |order, total, vs_highest| BudgetInputs {
+            order,
+            total,
+            vs_highest,
+            vertex_vs_pixel: 0.0625,
+            highest_vs_reference: 0.0625,
+            vertex_seeds: 0.015625,
+            vertex_seeds_highest: 0.015625,
+            pixel_seeds: 0.03125,
+            pixel_vs_reference: 0.0,
+            reference_noise: 1e-3,
+        };
+        assert_eq!(
+            rows,
+            [
+                BudgetRow::new(&inputs(2, 0.25, 0.0625)),
+                BudgetRow::new(&inputs(4, 0.0625, 0.0)),
+            ]
+        );
     }
 }

@@ -9,13 +9,22 @@
 //! bake, behind `prt bake --target-psnr`; [`plots`] and [`viewer`] write the figures and the
 //! self-contained interactive HDR page.
 
+mod bakes;
 pub mod budget;
 mod cache;
+mod data;
 mod error;
+mod figures;
+mod machine;
+mod markdown;
+mod orders;
+mod outputs;
 pub mod plots;
 pub mod recommend;
+mod reference;
 pub mod report;
 pub mod rf_section;
+mod run;
 pub mod viewer;
 
 pub use error::ReportError;

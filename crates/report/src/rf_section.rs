@@ -18,10 +18,11 @@
 //! image grid with one tile per method, and adds every relit image to the page's viewer.
 
 use crate::error::ReportError;
-use crate::plots::{image_grid, line_chart, ChartOptions, Series};
+use crate::plots::{image_grid, line_chart, ChartOptions, Series, Tile};
 use crate::viewer::ViewerImage;
 use plotters::style::RGBColor;
 use prt_bake::{BakeSettings, PointKind};
+use prt_bakefile::{Bake, ReflectanceField};
 use prt_compare::{compare, Image, Mask};
 use prt_fields::relight::{
     check_field, fine_lighting, flicker, relight_field_frames, relight_field_series, wavelet_name,
@@ -36,7 +37,7 @@ use prt_tracer::Accel;
 use prt_wavelet::Wavelet;
 use serde::Serialize;
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 pub use prt_fields::RECONSTRUCTIONS;
@@ -308,17 +309,87 @@ fn brightest_share(lighting: &[[f64; 3]], fine: [u32; 2]) -> f64 {
 /// # Errors
 /// Impossible settings (a grid too small for a method, `K` beyond the fine grid, fewer than 3
 /// flicker frames), and everything sampling, baking and relighting can fail with.
-#[allow(clippy::too_many_lines)]
 pub fn run_section(
     cx: &RfContext<'_>,
     scene_key: u64,
     s: &RfSettings,
 ) -> Result<RfOutput, ReportError> {
-    let say = |m: &str| {
-        if cx.progress {
-            eprintln!("report: {m}");
-        }
+    check_settings(s)?;
+    let fine_cells = s.fine[0] as usize * s.fine[1] as usize;
+    // 1. The field (cached).
+    let (bake, field_path, field_seconds, field_cached) = cached_field(cx, scene_key, s)?;
+    let field = check_field(cx.scene, &bake, &field_path)?;
+    let field_bytes = std::fs::metadata(&field_path).map(|m| m.len()).unwrap_or(0);
+    let mut sec = Section {
+        cx,
+        s,
+        bake: &bake,
+        field,
+        tiles: vec![crate::plots::srgb_tile(
+            cx.reference,
+            "path traced (reference)".into(),
+        )],
+        viewer_images: Vec::new(),
     };
+    // 2. Every reconstruction, uncompressed, over the rotating map.
+    let reconstructions = sec.reconstructions()?;
+    // 3. Each wavelet at every K, from one ranking per wavelet.
+    let mut ks = s.coefficients.clone();
+    ks.sort_unstable();
+    ks.dedup();
+    let error_stride = field.pixels.len().div_ceil(s.error_pixels.max(1)).max(1);
+    let opt = FieldOptions {
+        reconstruction: s.compress_from,
+        fine: s.fine,
+        rotate_y_deg: 0.0,
+        timing_frames: s.timing_frames,
+        compression: None,
+    };
+    let compressed = sec.compressed(&ks, &opt, error_stride)?;
+    // 4. The compression error against K (the paper's Fig. 9), over the same pixels only.
+    let error_curve = sec.error_curve(&opt, error_stride, fine_cells)?;
+    // 5. Per-pixel SH with the same coefficient counts (one bake at the highest order), and
+    // 5b. SH of the same orders fitted to the field's samples.
+    let orders = sh_orders(&ks);
+    let (sh, sh_path) = sec.per_pixel_sh(&orders)?;
+    let (sh_fit, notes) = sec.sh_fit(&orders)?;
+    // 6. Plots and the image grid.
+    error_charts(cx.out_dir, &error_curve)?;
+    psnr_chart(cx, &reconstructions, &compressed.rows, &sh_fit, &sh)?;
+    image_grid(&cx.out_dir.join("rf_images.png"), &sec.tiles, 4, 240)?;
+    Ok(RfOutput {
+        section: RfSection {
+            directions: s.directions,
+            fine: s.fine,
+            pixel_samples: s.pixel_samples,
+            bounces: cx.bounces,
+            field_file: field_path.display().to_string(),
+            field_bytes,
+            field_pixels: field.pixels.len(),
+            field_seconds,
+            field_cached,
+            brightest_share: brightest_share(&fine_lighting(cx.scene, s.fine, 0.0), s.fine),
+            compress_from: s.compress_from,
+            reconstructions,
+            compressed: compressed.rows,
+            sh,
+            sh_bake_rays: cx.rays,
+            notes,
+            sh_fit,
+            sh_bake_file: sh_path.display().to_string(),
+            error_curve,
+            error_pixels: compressed.error_pixels,
+            compress_ms: compressed.compress_ms,
+            flicker_frames: s.frames,
+            flicker_step_deg: s.rotate_step_deg,
+            peak_rss_bytes: peak_rss_bytes(),
+        },
+        viewer_images: sec.viewer_images,
+    })
+}
+
+/// Refuses settings the section cannot run with.
+fn check_settings(s: &RfSettings) -> Result<(), ReportError> {
     if s.frames < 3 {
         return Err(ReportError::Invalid(
             "--rf-frames: the flicker measure needs at least 3 frames".into(),
@@ -338,10 +409,19 @@ pub fn run_section(
             "--rf-coefficients: at most 1024 (per-pixel SH beside it stops at order 32)".into(),
         ));
     }
-    let (scene, accel, out_dir) = (cx.scene, cx.accel, cx.out_dir);
+    Ok(())
+}
 
-    // 1. The field (cached, f16: half the memory and file; its rounding, 2⁻¹¹ relative, is far
-    // below every error measured here).
+/// The field, read from the cache when it is there and matches the scene, else sampled and
+/// written there (f16: half the memory and file; its rounding, 2⁻¹¹ relative, is far below
+/// every error measured here); with its file, the sampling time (0 from the cache) and
+/// whether it came from the cache.
+fn cached_field(
+    cx: &RfContext<'_>,
+    scene_key: u64,
+    s: &RfSettings,
+) -> Result<(Bake, PathBuf, f64, bool), ReportError> {
+    let scene = cx.scene;
     let rs = ReflectanceSettings {
         directions: s.directions,
         bounces: cx.bounces,
@@ -351,63 +431,111 @@ pub fn run_section(
         progress: cx.progress,
         scalar: prt_bakefile::ScalarType::F16,
     };
-    let field_path = out_dir.join("cache").join(format!(
+    let field_path = cx.out_dir.join("cache").join(format!(
         "field-{:016x}.prtb",
         field_key(scene_key, scene, &rs)
     ));
     let cached = prt_bakefile::read_bake(&field_path)
         .ok()
         .filter(|b| check_field(scene, b, &field_path).is_ok());
-    let (bake, field_seconds, field_cached) = match cached {
-        Some(b) => {
-            say(&format!(
-                "reusing the cached field {}",
-                field_path.display()
-            ));
-            (b, 0.0, true)
-        }
-        None => {
-            say(&format!(
-                "sampling the reflectance field: {}×{} directions, {} footprint samples per pixel, {} bounce(s)",
-                s.directions[0], s.directions[1], s.pixel_samples, cx.bounces
-            ));
-            let t = Instant::now();
-            // f16 (half the memory and file); a value beyond its range (65504 per sr, near-
-            // delta lobes only) samples again in f32.
-            let (field, _, scalar) = match prt_fields::sample::sample_field(scene, accel, &rs) {
-                Err(prt_fields::FieldError::File(prt_bakefile::BakeFileError::OutOfF16Range {
-                    ..
-                })) => {
-                    let rs32 = ReflectanceSettings {
-                        scalar: prt_bakefile::ScalarType::F32,
-                        ..rs.clone()
-                    };
-                    let (f, st) = prt_fields::sample::sample_field(scene, accel, &rs32)?;
-                    (f, st, prt_bakefile::ScalarType::F32)
-                }
-                r => {
-                    let (f, st) = r?;
-                    (f, st, prt_bakefile::ScalarType::F16)
-                }
+    if let Some(b) = cached {
+        say(
+            cx,
+            &format!("reusing the cached field {}", field_path.display()),
+        );
+        return Ok((b, field_path, 0.0, true));
+    }
+    say(cx, &format!(
+        "sampling the reflectance field: {}×{} directions, {} footprint samples per pixel, {} bounce(s)",
+        s.directions[0], s.directions[1], s.pixel_samples, cx.bounces
+    ));
+    let t = Instant::now();
+    let (field, scalar) = sample_field(cx, &rs)?;
+    let seconds = t.elapsed().as_secs_f64();
+    let bake = prt_fields::sample::field_bake(scene, field, &rs);
+    // Held in the file's precision already: relit from exactly what the file holds, as a
+    // later run from the cache and `prt relight` by hand are.
+    prt_bakefile::write_bake(&field_path, &bake, scalar)?;
+    Ok((bake, field_path, seconds, false))
+}
+
+/// Samples the field in f16 (half the memory and file), or again in f32 when a value is
+/// beyond f16's range (65504 per sr, near-delta lobes only); with the precision it took.
+fn sample_field(
+    cx: &RfContext<'_>,
+    rs: &ReflectanceSettings,
+) -> Result<(ReflectanceField, prt_bakefile::ScalarType), ReportError> {
+    let (field, _, scalar) = match prt_fields::sample::sample_field(cx.scene, cx.accel, rs) {
+        Err(prt_fields::FieldError::File(prt_bakefile::BakeFileError::OutOfF16Range {
+            ..
+        })) => {
+            let rs32 = ReflectanceSettings {
+                scalar: prt_bakefile::ScalarType::F32,
+                ..rs.clone()
             };
-            let seconds = t.elapsed().as_secs_f64();
-            let bake = prt_fields::sample::field_bake(scene, field, &rs);
-            // Held in the file's precision already: relit from exactly what the file holds,
-            // as a later run from the cache and `prt relight` by hand are.
-            prt_bakefile::write_bake(&field_path, &bake, scalar)?;
-            (bake, seconds, false)
+            let (f, st) = prt_fields::sample::sample_field(cx.scene, cx.accel, &rs32)?;
+            (f, st, prt_bakefile::ScalarType::F32)
+        }
+        r => {
+            let (f, st) = r?;
+            (f, st, prt_bakefile::ScalarType::F16)
         }
     };
-    let field = check_field(scene, &bake, &field_path)?;
-    let field_bytes = std::fs::metadata(&field_path).map(|m| m.len()).unwrap_or(0);
-    let mask_bits = cx.mask.as_slice();
-    let measure = |img: &RgbImage| -> Result<(f64, f64, f64), ReportError> {
+    Ok((field, scalar))
+}
+
+/// A progress message on stderr (when the report shows progress).
+fn say(cx: &RfContext<'_>, m: &str) {
+    if cx.progress {
+        eprintln!("report: {m}");
+    }
+}
+
+/// What the section's steps share: the report's context, the settings, the field, and the
+/// image grid's tiles and the viewer's images they add to.
+struct Section<'a> {
+    cx: &'a RfContext<'a>,
+    s: &'a RfSettings,
+    /// The field's bake (its file's contents).
+    bake: &'a Bake,
+    /// The field in it.
+    field: &'a ReflectanceField,
+    /// The image grid: the reference first.
+    tiles: Vec<Tile>,
+    /// Every relit image, for the page's viewer.
+    viewer_images: Vec<ViewerImage>,
+}
+
+/// The section's compressed relightings.
+struct Compressed {
+    /// Per wavelet and `K`.
+    rows: Vec<RfCompressedRow>,
+    /// Per wavelet, the time to reconstruct, transform and rank every function once, ms.
+    compress_ms: Vec<(String, f64)>,
+    /// Held pixels the compression errors were measured over.
+    error_pixels: usize,
+}
+
+impl Section<'_> {
+    fn say(&self, m: &str) {
+        say(self.cx, m);
+    }
+
+    /// psnr_ldr and relative L2 against the path tracer on object pixels, and the relative
+    /// error of the object pixels' mean radiance.
+    fn measure(&self, img: &RgbImage) -> Result<(f64, f64, f64), ReportError> {
+        let cx = self.cx;
         let ci = to_compare_image(img);
         let m = compare(&ci, cx.reference, Some(cx.mask))?
             .masked
             .expect("mask given");
         let (mut a, mut r) = (0.0f64, 0.0f64);
-        for ((p, q), &on) in ci.pixels.iter().zip(&cx.reference.pixels).zip(mask_bits) {
+        for ((p, q), &on) in ci
+            .pixels
+            .iter()
+            .zip(&cx.reference.pixels)
+            .zip(cx.mask.as_slice())
+        {
             if on {
                 a += p.iter().map(|v| f64::from(*v)).sum::<f64>();
                 r += q.iter().map(|v| f64::from(*v)).sum::<f64>();
@@ -418,8 +546,11 @@ pub fn run_section(
             m.rel_l2,
             if r > 0.0 { a / r - 1.0 } else { 0.0 },
         ))
-    };
-    let save = |name: &str, img: &RgbImage, kind: &str| -> Result<(), ReportError> {
+    }
+
+    /// Writes `images/NAME.exr` and `images/NAME.png`.
+    fn save(&self, name: &str, img: &RgbImage, kind: &str) -> Result<(), ReportError> {
+        let out_dir = self.cx.out_dir;
         write_exr(
             &out_dir.join(format!("images/{name}.exr")),
             img,
@@ -430,258 +561,309 @@ pub fn run_section(
             img,
             0.0,
         )?)
-    };
-    let mut tiles = vec![crate::plots::srgb_tile(
-        cx.reference,
-        "path traced (reference)".into(),
-    )];
-    let mut viewer_images = Vec::new();
-
-    // 2. Every reconstruction, uncompressed, over the rotating map.
-    let angles: Vec<f64> = (0..s.frames)
-        .map(|k| k as f64 * s.rotate_step_deg)
-        .collect();
-    let mut reconstructions = Vec::new();
-    for m in RECONSTRUCTIONS {
-        let name = reconstruction_name(m);
-        say(&format!("relighting the field: {name} reconstruction"));
-        let opt = FieldOptions {
-            reconstruction: m,
-            fine: s.fine,
-            rotate_y_deg: 0.0,
-            timing_frames: s.timing_frames,
-            compression: None,
-        };
-        let (frames, stats) = relight_field_frames(scene, accel, &bake, field, &opt, &angles)?;
-        let (psnr_ldr, rel_l2, mean_error) = measure(&frames[0])?;
-        save(&format!("rf_{name}"), &frames[0], "reflectance field")?;
-        tiles.push(crate::plots::srgb_tile(
-            &to_compare_image(&frames[0]),
-            format!("field, {name}: {psnr_ldr:.2} dB"),
-        ));
-        viewer_images.push(ViewerImage {
-            id: format!("rf_{name}"),
-            label: format!("reflectance field, {name} reconstruction"),
-            rgb: frames[0].pixels.clone(),
-        });
-        reconstructions.push(RfMethodRow {
-            method: m,
-            shade_ms: stats.shade_ms,
-            lighting_ms: stats.lighting_ms,
-            psnr_ldr,
-            rel_l2,
-            mean_error,
-            flicker: flicker(&frames, mask_bits),
-        });
     }
 
-    // 3. Each wavelet at every K, from one ranking per wavelet.
-    let mut ks = s.coefficients.clone();
-    ks.sort_unstable();
-    ks.dedup();
-    let error_stride = field.pixels.len().div_ceil(s.error_pixels.max(1)).max(1);
-    let opt = FieldOptions {
-        reconstruction: s.compress_from,
-        fine: s.fine,
-        rotate_y_deg: 0.0,
-        timing_frames: s.timing_frames,
-        compression: None,
-    };
-    let mut compressed = Vec::new();
-    let mut compress_ms = Vec::new();
-    let mut error_pixels = 0;
-    for wav in WAVELETS {
-        let wname = wavelet_name(wav);
-        say(&format!(
-            "compressing the field with {wname} to {ks:?} coefficients"
-        ));
-        let series =
-            relight_field_series(scene, accel, &bake, field, &opt, wav, &ks, error_stride)?;
-        for (&k, (img, st)) in ks.iter().zip(&series) {
-            let (psnr_ldr, rel_l2, _) = measure(img)?;
-            save(
-                &format!("rf_{wname}_{k}"),
-                img,
-                "compressed reflectance field",
-            )?;
-            viewer_images.push(ViewerImage {
-                id: format!("rf_{wname}_{k}"),
-                label: format!("reflectance field, {wname}, {k} coefficients"),
-                rgb: img.pixels.clone(),
-            });
-            if k == *ks.last().expect("non-empty") {
-                tiles.push(crate::plots::srgb_tile(
-                    &to_compare_image(img),
-                    format!("{wname}, K = {k}: {psnr_ldr:.2} dB"),
-                ));
-            }
-            error_pixels = st.rf_error_pixels.unwrap_or(0);
-            compressed.push(RfCompressedRow {
-                wavelet: wname.into(),
-                coefficients: k,
-                mean_coefficients: st.mean_coefficients.unwrap_or(0.0),
-                shade_ms: st.shade_ms,
-                psnr_ldr,
-                rel_l2,
-                rf_rel_l2: st.rf_rel_l2.unwrap_or(0.0),
-                rf_rel_h1: st.rf_rel_h1.unwrap_or(0.0),
-            });
-        }
-        compress_ms.push((
-            wname.to_string(),
-            series.first().and_then(|s| s.1.compress_ms).unwrap_or(0.0),
-        ));
-    }
-
-    // 4. The compression error against K (the paper's Fig. 9), over the same pixels only.
-    let curve_ks: Vec<usize> = std::iter::successors(Some(16usize), |k| Some(k * 2))
-        .take_while(|&k| k <= fine_cells.min(4096))
-        .collect();
-    let mut error_curve = Vec::new();
-    for wav in WAVELETS {
-        let wname = wavelet_name(wav);
-        say(&format!(
-            "{wname}: compression error against coefficient count"
-        ));
-        for (k, e2, h1) in
-            prt_fields::relight::compression_errors(field, &opt, wav, &curve_ks, error_stride)?
-        {
-            error_curve.push(RfErrorPoint {
-                wavelet: wname.into(),
-                coefficients: k,
-                rf_rel_l2: e2,
-                rf_rel_h1: h1,
-            });
-        }
-    }
-
-    // 5. Per-pixel SH with the same coefficient counts (one bake at the highest order).
-    let orders: Vec<usize> = {
-        let mut o: Vec<usize> = ks.iter().map(|&k| (k as f64).sqrt() as usize).collect();
-        o.dedup();
-        o
-    };
-    let top = *orders.last().expect("non-empty");
-    let bs = BakeSettings {
-        order: Some(top),
-        rays: cx.rays,
-        bounces: cx.bounces,
-        seed: cx.seed,
-        points: PointKind::Pixel,
-        pixel_samples: s.pixel_samples,
-        progress: cx.progress,
-        ..BakeSettings::final_quality()
-    };
-    let (sh_bake, sh_path, _) = crate::cache::cached_bake(
-        scene,
-        accel,
-        out_dir,
-        &bs,
-        "per-pixel SH bake (reflectance section)",
-        cx.progress,
-    )?;
-    let mut sh = Vec::new();
-    for &order in &orders {
-        say(&format!("per-pixel SH at order {order}"));
-        let r = relight(
-            scene,
-            accel,
-            &sh_bake,
-            &RelightOptions {
-                order: Some(order),
-                adaptive: None,
-                timing_frames: cx.sh_timing_frames,
-                warmup_frames: 2,
-                points: None,
-                ..Default::default()
-            },
-        )?;
-        let img = prt_scene_relight::imaging::form_image(scene, accel, &r, 0.0)?;
-        let (psnr_ldr, rel_l2, _) = measure(&img)?;
-        save(&format!("rf_sh_{order:02}"), &img, "per-pixel SH")?;
-        viewer_images.push(ViewerImage {
-            id: format!("rf_sh_{order:02}"),
-            label: format!("per-pixel SH, order {order}"),
+    /// Adds an image to the page's viewer.
+    fn show(&mut self, id: String, label: String, img: &RgbImage) {
+        self.viewer_images.push(ViewerImage {
+            id,
+            label,
             rgb: img.pixels.clone(),
         });
-        if order == top {
-            tiles.insert(
-                1,
-                crate::plots::srgb_tile(
-                    &to_compare_image(&img),
-                    format!("per-pixel SH {order}: {psnr_ldr:.2} dB"),
-                ),
-            );
-        }
-        sh.push(RfShRow {
-            order,
-            coefficients: order * order,
-            shade_ms: r.stats.shade_ms,
-            psnr_ldr,
-            rel_l2,
-        });
     }
 
-    // 5b. SH of the same orders fitted to the field's samples.
-    let mut sh_fit = Vec::new();
-    let mut notes = Vec::new();
-    for &order in &orders {
-        let [dw, dh] = s.directions;
-        if 2 * order > dw as usize + 1 || order > dh as usize {
-            notes.push(format!(
-                "SH of order {order} cannot be fitted to {dw}×{dh} samples (it needs W ≥ 2n − 1 and H ≥ n): no fitted row"
+    /// Step 2: every reconstruction, uncompressed, over the rotating map (its first frame
+    /// measured and shown, all of them for the flicker).
+    fn reconstructions(&mut self) -> Result<Vec<RfMethodRow>, ReportError> {
+        let (cx, s) = (self.cx, self.s);
+        let angles: Vec<f64> = (0..s.frames)
+            .map(|k| k as f64 * s.rotate_step_deg)
+            .collect();
+        let mut reconstructions = Vec::new();
+        for m in RECONSTRUCTIONS {
+            let name = reconstruction_name(m);
+            self.say(&format!("relighting the field: {name} reconstruction"));
+            let opt = FieldOptions {
+                reconstruction: m,
+                fine: s.fine,
+                rotate_y_deg: 0.0,
+                timing_frames: s.timing_frames,
+                compression: None,
+            };
+            let (frames, stats) =
+                relight_field_frames(cx.scene, cx.accel, self.bake, self.field, &opt, &angles)?;
+            let (psnr_ldr, rel_l2, mean_error) = self.measure(&frames[0])?;
+            self.save(&format!("rf_{name}"), &frames[0], "reflectance field")?;
+            self.tiles.push(crate::plots::srgb_tile(
+                &to_compare_image(&frames[0]),
+                format!("field, {name}: {psnr_ldr:.2} dB"),
             ));
-            continue;
-        }
-        say(&format!("the field fitted with SH of order {order}"));
-        let opt = FieldOptions {
-            reconstruction: Reconstruction::ShFit(order),
-            fine: s.fine,
-            rotate_y_deg: 0.0,
-            timing_frames: s.timing_frames,
-            compression: None,
-        };
-        let (frames, stats) = relight_field_frames(scene, accel, &bake, field, &opt, &[0.0])?;
-        let (psnr_ldr, rel_l2, _) = measure(&frames[0])?;
-        save(
-            &format!("rf_sh_fit_{order:02}"),
-            &frames[0],
-            "SH fitted to the field",
-        )?;
-        viewer_images.push(ViewerImage {
-            id: format!("rf_sh_fit_{order:02}"),
-            label: format!("SH order {order} fitted to the field's samples"),
-            rgb: frames[0].pixels.clone(),
-        });
-        if order == top {
-            tiles.insert(
-                2,
-                crate::plots::srgb_tile(
-                    &to_compare_image(&frames[0]),
-                    format!("SH {order} fitted to the field: {psnr_ldr:.2} dB"),
-                ),
+            self.show(
+                format!("rf_{name}"),
+                format!("reflectance field, {name} reconstruction"),
+                &frames[0],
             );
+            reconstructions.push(RfMethodRow {
+                method: m,
+                shade_ms: stats.shade_ms,
+                lighting_ms: stats.lighting_ms,
+                psnr_ldr,
+                rel_l2,
+                mean_error,
+                flicker: flicker(&frames, cx.mask.as_slice()),
+            });
         }
-        sh_fit.push(RfShRow {
-            order,
-            coefficients: order * order,
-            shade_ms: stats.shade_ms,
-            psnr_ldr,
-            rel_l2,
-        });
+        Ok(reconstructions)
     }
 
-    // 6. Plots and the image grid.
-    let colours = [
-        RGBColor(31, 119, 180),
-        RGBColor(255, 127, 14),
-        RGBColor(44, 160, 44),
-        RGBColor(214, 39, 40),
-    ];
+    /// Step 3: each wavelet at every `K` of `ks` (sorted), from one ranking per wavelet; the
+    /// compression errors over every `error_stride`-th held pixel.
+    fn compressed(
+        &mut self,
+        ks: &[usize],
+        opt: &FieldOptions,
+        error_stride: usize,
+    ) -> Result<Compressed, ReportError> {
+        let cx = self.cx;
+        let mut out = Compressed {
+            rows: Vec::new(),
+            compress_ms: Vec::new(),
+            error_pixels: 0,
+        };
+        for wav in WAVELETS {
+            let wname = wavelet_name(wav);
+            self.say(&format!(
+                "compressing the field with {wname} to {ks:?} coefficients"
+            ));
+            let series = relight_field_series(
+                cx.scene,
+                cx.accel,
+                self.bake,
+                self.field,
+                opt,
+                wav,
+                ks,
+                error_stride,
+            )?;
+            for (&k, (img, st)) in ks.iter().zip(&series) {
+                let (psnr_ldr, rel_l2, _) = self.measure(img)?;
+                self.save(
+                    &format!("rf_{wname}_{k}"),
+                    img,
+                    "compressed reflectance field",
+                )?;
+                self.show(
+                    format!("rf_{wname}_{k}"),
+                    format!("reflectance field, {wname}, {k} coefficients"),
+                    img,
+                );
+                if k == *ks.last().expect("non-empty") {
+                    self.tiles.push(crate::plots::srgb_tile(
+                        &to_compare_image(img),
+                        format!("{wname}, K = {k}: {psnr_ldr:.2} dB"),
+                    ));
+                }
+                out.error_pixels = st.rf_error_pixels.unwrap_or(0);
+                out.rows.push(RfCompressedRow {
+                    wavelet: wname.into(),
+                    coefficients: k,
+                    mean_coefficients: st.mean_coefficients.unwrap_or(0.0),
+                    shade_ms: st.shade_ms,
+                    psnr_ldr,
+                    rel_l2,
+                    rf_rel_l2: st.rf_rel_l2.unwrap_or(0.0),
+                    rf_rel_h1: st.rf_rel_h1.unwrap_or(0.0),
+                });
+            }
+            out.compress_ms.push((
+                wname.to_string(),
+                series.first().and_then(|s| s.1.compress_ms).unwrap_or(0.0),
+            ));
+        }
+        Ok(out)
+    }
+
+    /// Step 4: the compression error against `K = 16, 32, …` up to the fine grid (at most
+    /// 4096; the paper's Fig. 9), over the same pixels as step 3.
+    fn error_curve(
+        &self,
+        opt: &FieldOptions,
+        error_stride: usize,
+        fine_cells: usize,
+    ) -> Result<Vec<RfErrorPoint>, ReportError> {
+        let curve_ks: Vec<usize> = std::iter::successors(Some(16usize), |k| Some(k * 2))
+            .take_while(|&k| k <= fine_cells.min(4096))
+            .collect();
+        let mut error_curve = Vec::new();
+        for wav in WAVELETS {
+            let wname = wavelet_name(wav);
+            self.say(&format!(
+                "{wname}: compression error against coefficient count"
+            ));
+            for (k, e2, h1) in prt_fields::relight::compression_errors(
+                self.field,
+                opt,
+                wav,
+                &curve_ks,
+                error_stride,
+            )? {
+                error_curve.push(RfErrorPoint {
+                    wavelet: wname.into(),
+                    coefficients: k,
+                    rf_rel_l2: e2,
+                    rf_rel_h1: h1,
+                });
+            }
+        }
+        Ok(error_curve)
+    }
+
+    /// Step 5: per-pixel SH at every order of `orders` (ascending), from one per-pixel bake
+    /// (cached) at the highest; with the bake's file.
+    fn per_pixel_sh(&mut self, orders: &[usize]) -> Result<(Vec<RfShRow>, PathBuf), ReportError> {
+        let (cx, s) = (self.cx, self.s);
+        let top = *orders.last().expect("non-empty");
+        let bs = BakeSettings {
+            order: Some(top),
+            rays: cx.rays,
+            bounces: cx.bounces,
+            seed: cx.seed,
+            points: PointKind::Pixel,
+            pixel_samples: s.pixel_samples,
+            progress: cx.progress,
+            ..BakeSettings::final_quality()
+        };
+        let (sh_bake, sh_path, _) = crate::cache::cached_bake(
+            cx.scene,
+            cx.accel,
+            cx.out_dir,
+            &bs,
+            "per-pixel SH bake (reflectance section)",
+            cx.progress,
+        )?;
+        let mut sh = Vec::new();
+        for &order in orders {
+            self.say(&format!("per-pixel SH at order {order}"));
+            let r = relight(
+                cx.scene,
+                cx.accel,
+                &sh_bake,
+                &RelightOptions {
+                    order: Some(order),
+                    adaptive: None,
+                    timing_frames: cx.sh_timing_frames,
+                    warmup_frames: 2,
+                    points: None,
+                    ..Default::default()
+                },
+            )?;
+            let img = prt_scene_relight::imaging::form_image(cx.scene, cx.accel, &r, 0.0)?;
+            let (psnr_ldr, rel_l2, _) = self.measure(&img)?;
+            self.save(&format!("rf_sh_{order:02}"), &img, "per-pixel SH")?;
+            self.show(
+                format!("rf_sh_{order:02}"),
+                format!("per-pixel SH, order {order}"),
+                &img,
+            );
+            if order == top {
+                self.tiles.insert(
+                    1,
+                    crate::plots::srgb_tile(
+                        &to_compare_image(&img),
+                        format!("per-pixel SH {order}: {psnr_ldr:.2} dB"),
+                    ),
+                );
+            }
+            sh.push(RfShRow {
+                order,
+                coefficients: order * order,
+                shade_ms: r.stats.shade_ms,
+                psnr_ldr,
+                rel_l2,
+            });
+        }
+        Ok((sh, sh_path))
+    }
+
+    /// Step 5b: SH of every order of `orders` fitted to the field's samples (where the
+    /// sampled grid is fine enough; a note for the others).
+    fn sh_fit(&mut self, orders: &[usize]) -> Result<(Vec<RfShRow>, Vec<String>), ReportError> {
+        let (cx, s) = (self.cx, self.s);
+        let top = *orders.last().expect("non-empty");
+        let mut sh_fit = Vec::new();
+        let mut notes = Vec::new();
+        for &order in orders {
+            let [dw, dh] = s.directions;
+            if 2 * order > dw as usize + 1 || order > dh as usize {
+                notes.push(format!(
+                    "SH of order {order} cannot be fitted to {dw}×{dh} samples (it needs W ≥ 2n − 1 and H ≥ n): no fitted row"
+                ));
+                continue;
+            }
+            self.say(&format!("the field fitted with SH of order {order}"));
+            let opt = FieldOptions {
+                reconstruction: Reconstruction::ShFit(order),
+                fine: s.fine,
+                rotate_y_deg: 0.0,
+                timing_frames: s.timing_frames,
+                compression: None,
+            };
+            let (frames, stats) =
+                relight_field_frames(cx.scene, cx.accel, self.bake, self.field, &opt, &[0.0])?;
+            let (psnr_ldr, rel_l2, _) = self.measure(&frames[0])?;
+            self.save(
+                &format!("rf_sh_fit_{order:02}"),
+                &frames[0],
+                "SH fitted to the field",
+            )?;
+            self.show(
+                format!("rf_sh_fit_{order:02}"),
+                format!("SH order {order} fitted to the field's samples"),
+                &frames[0],
+            );
+            if order == top {
+                self.tiles.insert(
+                    2,
+                    crate::plots::srgb_tile(
+                        &to_compare_image(&frames[0]),
+                        format!("SH {order} fitted to the field: {psnr_ldr:.2} dB"),
+                    ),
+                );
+            }
+            sh_fit.push(RfShRow {
+                order,
+                coefficients: order * order,
+                shade_ms: stats.shade_ms,
+                psnr_ldr,
+                rel_l2,
+            });
+        }
+        Ok((sh_fit, notes))
+    }
+}
+
+/// The SH orders beside coefficient counts `ks` (ascending): `⌊√K⌋`, without repeats.
+fn sh_orders(ks: &[usize]) -> Vec<usize> {
+    let mut o: Vec<usize> = ks.iter().map(|&k| (k as f64).sqrt() as usize).collect();
+    o.dedup();
+    o
+}
+
+/// The colours of the section's charts, one per wavelet and then the per-pixel SH bake.
+const COLOURS: [RGBColor; 4] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+];
+
+/// `rf_error_vs_coefficients.png` and `rf_h1_vs_coefficients.png`: each wavelet's
+/// compression error (relative L2, relative H¹) against coefficient count.
+fn error_charts(out_dir: &Path, error_curve: &[RfErrorPoint]) -> Result<(), ReportError> {
     let curve = |f: fn(&RfErrorPoint) -> f64| -> Vec<Series> {
         WAVELETS
             .iter()
-            .zip(colours)
+            .zip(COLOURS)
             .map(|(&wv, colour)| Series {
                 label: wavelet_name(wv).into(),
                 points: error_curve
@@ -715,9 +897,22 @@ pub fn run_section(
         },
         &curve(|p| p.rf_rel_h1),
     )?;
+    Ok(())
+}
+
+/// `rf_psnr_vs_coefficients.png`: PSNR against the path tracer per coefficient count of the
+/// wavelet fields, SH fitted to the field and the per-pixel SH bake, with the reference's
+/// noise ceiling and the best uncompressed reconstruction as lines.
+fn psnr_chart(
+    cx: &RfContext<'_>,
+    reconstructions: &[RfMethodRow],
+    compressed: &[RfCompressedRow],
+    sh_fit: &[RfShRow],
+    sh: &[RfShRow],
+) -> Result<(), ReportError> {
     let mut series: Vec<Series> = WAVELETS
         .iter()
-        .zip(colours)
+        .zip(COLOURS)
         .map(|(&wv, colour)| Series {
             label: format!("field, {} wavelet", wavelet_name(wv)),
             points: compressed
@@ -742,14 +937,14 @@ pub fn run_section(
             .iter()
             .map(|r| (r.coefficients as f64, r.psnr_ldr))
             .collect(),
-        colour: colours[3],
+        colour: COLOURS[3],
     });
     let best = reconstructions
         .iter()
         .max_by(|a, b| a.psnr_ldr.total_cmp(&b.psnr_ldr))
         .expect("eight rows");
     line_chart(
-        &out_dir.join("rf_psnr_vs_coefficients.png"),
+        &cx.out_dir.join("rf_psnr_vs_coefficients.png"),
         "Relit against the path tracer: wavelet fields and per-pixel SH",
         "coefficients per pixel and channel, log scale",
         "PSNR vs path-traced reference (dB, 8-bit sRGB, object pixels)",
@@ -767,37 +962,7 @@ pub fn run_section(
         },
         &series,
     )?;
-    image_grid(&out_dir.join("rf_images.png"), &tiles, 4, 240)?;
-
-    Ok(RfOutput {
-        section: RfSection {
-            directions: s.directions,
-            fine: s.fine,
-            pixel_samples: s.pixel_samples,
-            bounces: cx.bounces,
-            field_file: field_path.display().to_string(),
-            field_bytes,
-            field_pixels: field.pixels.len(),
-            field_seconds,
-            field_cached,
-            brightest_share: brightest_share(&fine_lighting(scene, s.fine, 0.0), s.fine),
-            compress_from: s.compress_from,
-            reconstructions,
-            compressed,
-            sh,
-            sh_bake_rays: cx.rays,
-            notes,
-            sh_fit,
-            sh_bake_file: sh_path.display().to_string(),
-            error_curve,
-            error_pixels,
-            compress_ms,
-            flicker_frames: s.frames,
-            flicker_step_deg: s.rotate_step_deg,
-            peak_rss_bytes: peak_rss_bytes(),
-        },
-        viewer_images,
-    })
+    Ok(())
 }
 
 /// The `--reconstruct` name of a reconstruction.
@@ -821,6 +986,15 @@ fn pct(v: f64) -> String {
 #[must_use]
 pub fn markdown(r: &RfSection) -> String {
     let mut s = String::new();
+    field_paragraph(&mut s, r);
+    reconstructions_table(&mut s, r);
+    compression_table(&mut s, r);
+    error_curve_table(&mut s, r);
+    s
+}
+
+/// The section's heading and what the field is.
+fn field_paragraph(s: &mut String, r: &RfSection) {
     let _ = writeln!(s, "\n## Reflectance fields (Masselus et al. 2004)\n");
     let _ = writeln!(
         s,
@@ -848,6 +1022,10 @@ pub fn markdown(r: &RfSection) -> String {
             b as f64 / 1e9
         );
     }
+}
+
+/// The uncompressed reconstructions against the path tracer, with their flicker.
+fn reconstructions_table(s: &mut String, r: &RfSection) {
     let _ = writeln!(
         s,
         "\n### Reconstructions, uncompressed\n\nAgainst the path tracer on object pixels; flicker: relative RMS of the second difference in time over {} frames of the map turned {}° per frame (0 for steady change).\n",
@@ -870,6 +1048,11 @@ pub fn markdown(r: &RfSection) -> String {
             m.flicker.map_or("—".into(), |f| format!("{f:.4}"))
         );
     }
+}
+
+/// Per `K`, each wavelet beside per-pixel and fitted SH with as many coefficients; then the
+/// notes and the compression times.
+fn compression_table(s: &mut String, r: &RfSection) {
     let _ = writeln!(
         s,
         "\n### Wavelet compression beside per-pixel SH\n\nK coefficients per pixel and channel ({} reconstruction, then the K largest by their L2 contribution); `rf_rel_l2`, `rf_rel_h1`: the compressed functions against the uncompressed ones over {} pixels. SH of order n has n² coefficients: the per-pixel SH bake ({} rays per pixel over {} footprint samples, its Monte Carlo noise included) and SH fitted by least squares to the field's own samples (the basis alone; shaded through the samples, so its time is the uncompressed field's).\n",
@@ -931,6 +1114,10 @@ pub fn markdown(r: &RfSection) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     );
+}
+
+/// The compression error against `K`, per wavelet.
+fn error_curve_table(s: &mut String, r: &RfSection) {
     let _ = writeln!(
         s,
         "### Compression error against coefficient count (the paper's Fig. 9)\n\nOver {} pixels' functions; relative L2 / relative Sobolev H¹.\n",
@@ -963,5 +1150,50 @@ pub fn markdown(r: &RfSection) -> String {
             .collect();
         let _ = writeln!(s, "| {name} | {} |", cells.join(" | "));
     }
-    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn refusal(s: &RfSettings) -> String {
+        match check_settings(s) {
+            Err(ReportError::Invalid(m)) => m,
+            other => panic!("expected a refusal, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn impossible_section_settings_are_refused() {
+        assert!(check_settings(&RfSettings::default()).is_ok());
+        let s = RfSettings {
+            frames: 2,
+            ..RfSettings::default()
+        };
+        assert!(refusal(&s).starts_with("--rf-frames"));
+        // The fine grid of 8×4 holds 32 coefficients per function.
+        for coefficients in [vec![], vec![0], vec![33]] {
+            let s = RfSettings {
+                fine: [8, 4],
+                coefficients,
+                ..RfSettings::default()
+            };
+            assert_eq!(
+                refusal(&s),
+                "--rf-coefficients: give between 1 and the fine grid's 32 coefficients"
+            );
+        }
+        // √1089 = 33: beyond the per-pixel SH beside it.
+        let s = RfSettings {
+            coefficients: vec![1024, 1089],
+            ..RfSettings::default()
+        };
+        assert!(refusal(&s).contains("at most 1024"));
+    }
+
+    #[test]
+    fn sh_beside_k_coefficients_has_order_floor_sqrt_k() {
+        assert_eq!(sh_orders(&[16, 17, 24, 25, 64]), [4, 5, 8]);
+        assert_eq!(sh_orders(&[1]), [1]);
+    }
 }
