@@ -6,14 +6,17 @@ use crate::error::BakeFileError;
 use crate::field::{extend_f32_le, f32_to_f16_le, CHUNK};
 use crate::layout::{
     align_up, Tag, BLKT_RECORD, BRDF_RECORD, GLSY_RECORD, HEADER_SIZE, MAGIC, NO_SECTION,
-    OBJT_RECORD, PAYLOAD_ALIGNMENT, RFLD_HEADER, SECTION_ENTRY_SIZE, SECTION_FLAG_REQUIRED,
-    TABLE_HEADER_SIZE, VERSION_MAJOR, VERSION_MINOR,
+    OBJT_RECORD, PAYLOAD_ALIGNMENT, RFLD_HEADER, SCALAR_CPCA, SECTION_ENTRY_SIZE,
+    SECTION_FLAG_REQUIRED, TABLE_HEADER_SIZE, VERSION_MAJOR, VERSION_MINOR,
 };
 use crate::meta::{
     hash_string, BlockJson, BrdfJson, CoverageJson, EnvJson, GlossyJson, MeshJson, MetaJson,
     ObjectJson, ShConvention, COLOUR_SPACE, FORMAT_NAME,
 };
-use crate::model::{Bake, BrdfLobe, EnvPrecision, ReflectanceField, SampleKind, ScalarType};
+use crate::model::{
+    Bake, BakeMeta, BrdfLobe, BrdfProjection, Coverage, EnvCoefficients, EnvPrecision,
+    GlossyBrdfTable, ObjectBake, ReflectanceField, SampleKind, ScalarType, TransferBlock,
+};
 
 fn u32_of(x: usize, what: &str) -> Result<u32, BakeFileError> {
     u32::try_from(x).map_err(|_| BakeFileError::InvalidBake(format!("{what} exceeds u32")))
@@ -109,6 +112,8 @@ impl<'b> Plan<'b> {
     }
 }
 
+/// Validates `bake` and lays out its file (SPEC.md §2, §3; canonical layout, §7): the small
+/// payloads built, every section in canonical order, every offset known.
 fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
     bake.validate()?;
     let m = &bake.meta;
@@ -118,13 +123,111 @@ fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
         ));
     }
     let mut strings = Strings::default();
-
     let fixed_sections = 5
         + usize::from(bake.environment.is_some())
         + usize::from(!bake.brdfs.is_empty())
         + usize::from(!bake.glossy.is_empty());
+    let binf = binf_bytes(m);
+    let objects = ObjectTables::new(bake, scalar, fixed_sections, &mut strings)?;
+    let envl = bake.environment.as_ref().map(envl_bytes);
+    let brdf = brdf_bytes(&bake.brdfs, &mut strings)?;
+    let glsy = glsy_bytes(&bake.glossy, &mut strings)?;
+    let meta = meta_json(bake, scalar, objects.json);
+    let meta_bytes = serde_json::to_vec_pretty(&meta)
+        .map_err(|e| BakeFileError::Metadata(format!("cannot serialise: {e}")))?;
 
-    // BINF
+    // Section plan, in canonical order.
+    let mut plan = vec![
+        planned_bytes(Tag::BINF, binf),
+        planned_bytes(Tag::STRS, strings.0),
+        planned_bytes(Tag::OBJT, objects.objt.0),
+        planned_bytes(Tag::BLKT, objects.blkt.0),
+    ];
+    if let Some(v) = envl {
+        plan.push(planned_bytes(Tag::ENVL, v));
+    }
+    if let Some(v) = brdf {
+        plan.push(planned_bytes(Tag::BRDF, v));
+    }
+    if let Some(v) = glsy {
+        plan.push(planned_bytes(Tag::GLSY, v));
+    }
+    plan.push(planned_bytes(Tag::META, meta_bytes));
+    debug_assert_eq!(plan.len(), fixed_sections);
+    plan.extend(objects.xfer);
+    plan.extend(
+        objects
+            .meshes
+            .into_iter()
+            .map(|v| planned_bytes(Tag::MESH, v)),
+    );
+    plan.extend(
+        objects
+            .coverages
+            .into_iter()
+            .map(|v| planned_bytes(Tag::CVRG, v)),
+    );
+    for (oi, o) in bake.objects.iter().enumerate() {
+        if let Some(p) = &o.pass {
+            plan.push(planned_bytes(Tag::PASS, bytes_of_pass(oi as u32, o, p)));
+        }
+    }
+    if let Some(r) = &bake.reflectance {
+        plan.push(planned_field(r, scalar)?);
+    }
+    u32_of(plan.len(), "section count")?;
+    let (offsets, file_size) = lay_out(&plan)?;
+    Ok(Plan {
+        bake,
+        scalar,
+        sections: plan,
+        offsets,
+        file_size,
+    })
+}
+
+/// A section whose payload is built in memory.
+fn planned_bytes(tag: Tag, v: Vec<u8>) -> Planned {
+    Planned {
+        tag,
+        length: v.len() as u64,
+        payload: Payload::Bytes(v),
+    }
+}
+
+/// The `RFLD` section (SPEC.md §3.14): its head built, its values left in the field.
+fn planned_field(r: &ReflectanceField, scalar: ScalarType) -> Result<Planned, BakeFileError> {
+    let head = reflectance_head(r);
+    let length = (r.values.len() as u64)
+        .checked_mul(scalar.size() as u64)
+        .and_then(|v| v.checked_add(head.len() as u64))
+        .ok_or_else(|| BakeFileError::InvalidBake("reflectance field too large".into()))?;
+    Ok(Planned {
+        tag: Tag::RFLD,
+        payload: Payload::Field(head),
+        length,
+    })
+}
+
+/// Every payload's offset, each the first multiple of the payload alignment after the one
+/// before it, the first after the header and table (SPEC.md §2); and the file's size.
+fn lay_out(plan: &[Planned]) -> Result<(Vec<u64>, u64), BakeFileError> {
+    let align = PAYLOAD_ALIGNMENT as u64;
+    let table_end = (HEADER_SIZE + plan.len() * SECTION_ENTRY_SIZE) as u64;
+    let mut cursor = table_end;
+    let mut offsets = Vec::with_capacity(plan.len());
+    for p in plan {
+        let off = align_up(cursor, align);
+        offsets.push(off);
+        cursor = off
+            .checked_add(p.length)
+            .ok_or_else(|| BakeFileError::InvalidBake("file too large".into()))?;
+    }
+    Ok((offsets, cursor))
+}
+
+/// The `BINF` payload (SPEC.md §3.1).
+fn binf_bytes(m: &BakeMeta) -> Vec<u8> {
     let mut binf = Buf::default();
     let (width, height) = match m.sample_kind {
         SampleKind::Vertex => (0, 0),
@@ -141,20 +244,72 @@ fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
     binf.u32(m.shard.count);
     binf.u32(0);
     binf.u64(m.seed);
+    binf.0
+}
 
-    // OBJT and BLKT
-    let block_count: usize = bake.objects.iter().map(|o| o.blocks.len()).sum();
-    let mesh_count = bake.objects.iter().filter(|o| o.mesh.is_some()).count();
-    let mut meshes = Vec::with_capacity(mesh_count);
-    let mut coverages = Vec::new();
-    let mut objt = Buf::default();
-    objt.table_header(bake.objects.len(), OBJT_RECORD)?;
-    let mut blkt = Buf::default();
-    blkt.table_header(block_count, BLKT_RECORD)?;
-    let mut objects_json = Vec::with_capacity(bake.objects.len());
-    let mut xfer = Vec::with_capacity(block_count);
-    for (oi, o) in bake.objects.iter().enumerate() {
+/// The object and block tables (SPEC.md §3.3, §3.4) being built, with what they reference:
+/// the `XFER`/`CPCA` sections, `MESH` and `CVRG` payloads, and the objects' JSON entries.
+struct ObjectTables {
+    objt: Buf,
+    blkt: Buf,
+    json: Vec<ObjectJson>,
+    /// One section per block, in block order.
+    xfer: Vec<Planned>,
+    meshes: Vec<Vec<u8>>,
+    coverages: Vec<Vec<u8>>,
+}
+
+/// Where the sections that objects reference start in the canonical order: after the
+/// `fixed` ones come the blocks', then the meshes, then the coverages.
+#[derive(Clone, Copy)]
+struct SectionCounts {
+    fixed: usize,
+    blocks: usize,
+    meshes: usize,
+}
+
+impl ObjectTables {
+    /// The tables of `bake`'s objects, names added to `strings`.
+    fn new(
+        bake: &Bake,
+        scalar: ScalarType,
+        fixed_sections: usize,
+        strings: &mut Strings,
+    ) -> Result<Self, BakeFileError> {
+        let counts = SectionCounts {
+            fixed: fixed_sections,
+            blocks: bake.objects.iter().map(|o| o.blocks.len()).sum(),
+            meshes: bake.objects.iter().filter(|o| o.mesh.is_some()).count(),
+        };
+        let mut objt = Buf::default();
+        objt.table_header(bake.objects.len(), OBJT_RECORD)?;
+        let mut blkt = Buf::default();
+        blkt.table_header(counts.blocks, BLKT_RECORD)?;
+        let mut t = ObjectTables {
+            objt,
+            blkt,
+            json: Vec::with_capacity(bake.objects.len()),
+            xfer: Vec::with_capacity(counts.blocks),
+            meshes: Vec::with_capacity(counts.meshes),
+            coverages: Vec::new(),
+        };
+        for (oi, o) in bake.objects.iter().enumerate() {
+            t.add_object(oi, o, scalar, counts, strings)?;
+        }
+        Ok(t)
+    }
+
+    /// Object `oi`'s record, its MESH and CVRG payloads, its blocks and its JSON entry.
+    fn add_object(
+        &mut self,
+        oi: usize,
+        o: &ObjectBake,
+        scalar: ScalarType,
+        counts: SectionCounts,
+        strings: &mut Strings,
+    ) -> Result<(), BakeFileError> {
         let (name_off, name_len) = strings.add(&o.name)?;
+        let objt = &mut self.objt;
         objt.u32(name_off);
         objt.u32(name_len);
         objt.u64(o.geometry_hash);
@@ -163,13 +318,13 @@ fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
         objt.u64(o.points_in_file);
         objt.u32(o.order);
         objt.u32(o.channels);
-        objt.u32(u32_of(xfer.len(), "block count")?);
+        objt.u32(u32_of(self.xfer.len(), "block count")?);
         objt.u32(u32_of(o.blocks.len(), "block count")?);
         let object_index = u32_of(oi, "object count")?;
         let mesh_json = match &o.mesh {
             Some(m) => {
-                let section = u32_of(fixed_sections + block_count + meshes.len(), "sections")?;
-                meshes.push(bytes_of_mesh(object_index, m));
+                let section = u32_of(counts.fixed + counts.blocks + self.meshes.len(), "sections")?;
+                self.meshes.push(bytes_of_mesh(object_index, m));
                 Some(MeshJson {
                     section,
                     vertices: m.positions.len() as u32,
@@ -181,15 +336,10 @@ fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
         let coverage_json = match &o.coverage {
             Some(c) => {
                 let section = u32_of(
-                    fixed_sections + block_count + mesh_count + coverages.len(),
+                    counts.fixed + counts.blocks + counts.meshes + self.coverages.len(),
                     "sections",
                 )?;
-                let mut b = Buf::default();
-                b.u32(object_index);
-                b.u32(c.pixel_samples);
-                b.u64(c.hits.len() as u64);
-                c.hits.iter().for_each(|&h| b.u32(h));
-                coverages.push(b.0);
+                self.coverages.push(bytes_of_coverage(object_index, c));
                 Some(CoverageJson {
                     section,
                     pixel_samples: c.pixel_samples,
@@ -197,54 +347,15 @@ fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
             }
             None => None,
         };
-        objt.u32(mesh_json.as_ref().map_or(NO_SECTION, |m| m.section));
-        objt.u32(coverage_json.as_ref().map_or(NO_SECTION, |c| c.section));
+        self.objt
+            .u32(mesh_json.as_ref().map_or(NO_SECTION, |m| m.section));
+        self.objt
+            .u32(coverage_json.as_ref().map_or(NO_SECTION, |c| c.section));
         let mut blocks_json = Vec::with_capacity(o.blocks.len());
         for (bi, b) in o.blocks.iter().enumerate() {
-            let section = u32_of(fixed_sections + xfer.len(), "section count")?;
-            let cpca_bytes = b.cpca.as_ref().map(|c| bytes_of_cpca(oi as u32, c));
-            let length = match &cpca_bytes {
-                Some(v) => v.len() as u64,
-                None => (b.data.len() as u64)
-                    .checked_mul(scalar.size() as u64)
-                    .ok_or_else(|| BakeFileError::InvalidBake("block too large".into()))?,
-            };
-            blkt.u32(u32_of(oi, "object count")?);
-            blkt.u32(b.kind.code());
-            blkt.u32(b.kind.bounces());
-            blkt.u32(o.channels);
-            blkt.u32(o.order);
-            blkt.u32(if cpca_bytes.is_some() {
-                crate::layout::SCALAR_CPCA
-            } else {
-                scalar.code()
-            });
-            blkt.u64(o.points_in_file);
-            blkt.u32(section);
-            blkt.u32(0);
-            blkt.u64(length);
-            blocks_json.push(BlockJson {
-                kind: b.kind.name().to_owned(),
-                bounces: b.kind.bounces(),
-                section,
-            });
-            xfer.push(match cpca_bytes {
-                Some(v) => Planned {
-                    tag: Tag::CPCA,
-                    payload: Payload::Bytes(v),
-                    length,
-                },
-                None => Planned {
-                    tag: Tag::XFER,
-                    payload: Payload::Block {
-                        object: oi,
-                        block: bi,
-                    },
-                    length,
-                },
-            });
+            blocks_json.push(self.add_block(oi, bi, o, b, scalar, counts.fixed)?);
         }
-        objects_json.push(ObjectJson {
+        self.json.push(ObjectJson {
             name: o.name.clone(),
             geometry_hash: hash_string(o.geometry_hash),
             point_count: o.point_count,
@@ -257,79 +368,151 @@ fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
             coverage: coverage_json,
             material: o.material.clone(),
         });
+        Ok(())
     }
 
-    // ENVL
-    let envl = bake.environment.as_ref().map(|env| {
-        let mut b = Buf::default();
-        b.u32(env.order);
-        b.u32(3);
-        b.u32(env.precision.code());
-        b.u32(0);
-        for &v in &env.values {
-            match env.precision {
-                EnvPrecision::F32 => b.0.extend_from_slice(&(v as f32).to_le_bytes()),
-                EnvPrecision::F64 => b.f64(v),
-            }
-        }
-        b.0
-    });
-
-    // BRDF
-    let mut brdf = None;
-    if !bake.brdfs.is_empty() {
-        let mut b = Buf::default();
-        b.table_header(bake.brdfs.len(), BRDF_RECORD)?;
-        let mut values_off = (TABLE_HEADER_SIZE + bake.brdfs.len() * BRDF_RECORD) as u64;
-        for p in &bake.brdfs {
-            let (off, len) = strings.add(&p.material)?;
-            let (code, exponent) = match p.lobe {
-                BrdfLobe::ClampedCosine => (1, 0.0),
-                BrdfLobe::Phong { exponent } => (2, exponent),
-            };
-            b.u32(off);
-            b.u32(len);
-            b.u32(code);
-            b.u32(p.order);
-            b.f64(exponent);
-            b.u64(values_off);
-            values_off += 8 * p.values.len() as u64;
-        }
-        for p in &bake.brdfs {
-            p.values.iter().for_each(|&v| b.f64(v));
-        }
-        brdf = Some(b.0);
+    /// Block `bi` of object `oi`: its `BLKT` record and its section — an `XFER` referencing
+    /// the coefficients in the bake, or a built `CPCA` payload (SPEC.md §3.13).
+    fn add_block(
+        &mut self,
+        oi: usize,
+        bi: usize,
+        o: &ObjectBake,
+        b: &TransferBlock,
+        scalar: ScalarType,
+        fixed_sections: usize,
+    ) -> Result<BlockJson, BakeFileError> {
+        let section = u32_of(fixed_sections + self.xfer.len(), "section count")?;
+        let cpca_bytes = b.cpca.as_ref().map(|c| bytes_of_cpca(oi as u32, c));
+        let length = match &cpca_bytes {
+            Some(v) => v.len() as u64,
+            None => (b.data.len() as u64)
+                .checked_mul(scalar.size() as u64)
+                .ok_or_else(|| BakeFileError::InvalidBake("block too large".into()))?,
+        };
+        let blkt = &mut self.blkt;
+        blkt.u32(u32_of(oi, "object count")?);
+        blkt.u32(b.kind.code());
+        blkt.u32(b.kind.bounces());
+        blkt.u32(o.channels);
+        blkt.u32(o.order);
+        blkt.u32(if cpca_bytes.is_some() {
+            SCALAR_CPCA
+        } else {
+            scalar.code()
+        });
+        blkt.u64(o.points_in_file);
+        blkt.u32(section);
+        blkt.u32(0);
+        blkt.u64(length);
+        self.xfer.push(match cpca_bytes {
+            Some(v) => Planned {
+                tag: Tag::CPCA,
+                payload: Payload::Bytes(v),
+                length,
+            },
+            None => Planned {
+                tag: Tag::XFER,
+                payload: Payload::Block {
+                    object: oi,
+                    block: bi,
+                },
+                length,
+            },
+        });
+        Ok(BlockJson {
+            kind: b.kind.name().to_owned(),
+            bounces: b.kind.bounces(),
+            section,
+        })
     }
+}
 
-    // GLSY
-    let mut glsy = None;
-    if !bake.glossy.is_empty() {
-        let mut b = Buf::default();
-        b.table_header(bake.glossy.len(), GLSY_RECORD)?;
-        let mut off = (TABLE_HEADER_SIZE + bake.glossy.len() * GLSY_RECORD) as u64;
-        for g in &bake.glossy {
-            let (name_off, name_len) = strings.add(&g.material)?;
-            b.u32(name_off);
-            b.u32(name_len);
-            b.u32(u32_of(g.elevations.len(), "elevation count")?);
-            b.u32(g.order);
-            b.u64(off);
-            off += 8 * g.elevations.len() as u64;
-            b.u64(off);
-            off += 8 * g.values.len() as u64;
-            b.u64(off);
-            off += 8 * g.projection_error.len() as u64;
+/// The `ENVL` payload (SPEC.md §3.6).
+fn envl_bytes(env: &EnvCoefficients) -> Vec<u8> {
+    let mut b = Buf::default();
+    b.u32(env.order);
+    b.u32(3);
+    b.u32(env.precision.code());
+    b.u32(0);
+    for &v in &env.values {
+        match env.precision {
+            EnvPrecision::F32 => b.0.extend_from_slice(&(v as f32).to_le_bytes()),
+            EnvPrecision::F64 => b.f64(v),
         }
-        for g in &bake.glossy {
-            g.elevations.iter().for_each(|&v| b.f64(v));
-            g.values.iter().for_each(|&v| b.f64(v));
-            g.projection_error.iter().for_each(|&v| b.f64(v));
-        }
-        glsy = Some(b.0);
     }
+    b.0
+}
 
-    // META
-    let meta = MetaJson {
+/// The `BRDF` payload (SPEC.md §3.7), `None` without projections; material names added to
+/// `strings`.
+fn brdf_bytes(
+    brdfs: &[BrdfProjection],
+    strings: &mut Strings,
+) -> Result<Option<Vec<u8>>, BakeFileError> {
+    if brdfs.is_empty() {
+        return Ok(None);
+    }
+    let mut b = Buf::default();
+    b.table_header(brdfs.len(), BRDF_RECORD)?;
+    let mut values_off = (TABLE_HEADER_SIZE + brdfs.len() * BRDF_RECORD) as u64;
+    for p in brdfs {
+        let (off, len) = strings.add(&p.material)?;
+        let (code, exponent) = match p.lobe {
+            BrdfLobe::ClampedCosine => (1, 0.0),
+            BrdfLobe::Phong { exponent } => (2, exponent),
+        };
+        b.u32(off);
+        b.u32(len);
+        b.u32(code);
+        b.u32(p.order);
+        b.f64(exponent);
+        b.u64(values_off);
+        values_off += 8 * p.values.len() as u64;
+    }
+    for p in brdfs {
+        p.values.iter().for_each(|&v| b.f64(v));
+    }
+    Ok(Some(b.0))
+}
+
+/// The `GLSY` payload (SPEC.md §3.8), `None` without tables; material names added to
+/// `strings`.
+fn glsy_bytes(
+    glossy: &[GlossyBrdfTable],
+    strings: &mut Strings,
+) -> Result<Option<Vec<u8>>, BakeFileError> {
+    if glossy.is_empty() {
+        return Ok(None);
+    }
+    let mut b = Buf::default();
+    b.table_header(glossy.len(), GLSY_RECORD)?;
+    let mut off = (TABLE_HEADER_SIZE + glossy.len() * GLSY_RECORD) as u64;
+    for g in glossy {
+        let (name_off, name_len) = strings.add(&g.material)?;
+        b.u32(name_off);
+        b.u32(name_len);
+        b.u32(u32_of(g.elevations.len(), "elevation count")?);
+        b.u32(g.order);
+        b.u64(off);
+        off += 8 * g.elevations.len() as u64;
+        b.u64(off);
+        off += 8 * g.values.len() as u64;
+        b.u64(off);
+        off += 8 * g.projection_error.len() as u64;
+    }
+    for g in glossy {
+        g.elevations.iter().for_each(|&v| b.f64(v));
+        g.values.iter().for_each(|&v| b.f64(v));
+        g.projection_error.iter().for_each(|&v| b.f64(v));
+    }
+    Ok(Some(b.0))
+}
+
+/// The `META` JSON (SPEC.md §3.9) of `bake` stored as `scalar`, with the objects' entries.
+fn meta_json(bake: &Bake, scalar: ScalarType, objects: Vec<ObjectJson>) -> MetaJson {
+    let m = &bake.meta;
+    MetaJson {
         format: FORMAT_NAME.to_owned(),
         format_version: [VERSION_MAJOR, VERSION_MINOR],
         sh: ShConvention::current(),
@@ -346,7 +529,7 @@ fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
         decisions: m.decisions.clone(),
         ray_stats: m.ray_stats.clone(),
         pass: m.pass.clone(),
-        objects: objects_json,
+        objects,
         environment: bake.environment.as_ref().map(|e| EnvJson {
             order: e.order,
             precision: e.precision,
@@ -376,74 +559,7 @@ fn plan(bake: &Bake, scalar: ScalarType) -> Result<Plan<'_>, BakeFileError> {
                 order: g.order,
             })
             .collect(),
-    };
-    let meta_bytes = serde_json::to_vec_pretty(&meta)
-        .map_err(|e| BakeFileError::Metadata(format!("cannot serialise: {e}")))?;
-
-    // Section plan, in canonical order.
-    let bytes = |tag, v: Vec<u8>| Planned {
-        tag,
-        length: v.len() as u64,
-        payload: Payload::Bytes(v),
-    };
-    let mut plan = vec![
-        bytes(Tag::BINF, binf.0),
-        bytes(Tag::STRS, strings.0),
-        bytes(Tag::OBJT, objt.0),
-        bytes(Tag::BLKT, blkt.0),
-    ];
-    if let Some(v) = envl {
-        plan.push(bytes(Tag::ENVL, v));
     }
-    if let Some(v) = brdf {
-        plan.push(bytes(Tag::BRDF, v));
-    }
-    if let Some(v) = glsy {
-        plan.push(bytes(Tag::GLSY, v));
-    }
-    plan.push(bytes(Tag::META, meta_bytes));
-    debug_assert_eq!(plan.len(), fixed_sections);
-    plan.extend(xfer);
-    plan.extend(meshes.into_iter().map(|v| bytes(Tag::MESH, v)));
-    plan.extend(coverages.into_iter().map(|v| bytes(Tag::CVRG, v)));
-    for (oi, o) in bake.objects.iter().enumerate() {
-        if let Some(p) = &o.pass {
-            plan.push(bytes(Tag::PASS, bytes_of_pass(oi as u32, o, p)));
-        }
-    }
-    if let Some(r) = &bake.reflectance {
-        let head = reflectance_head(r);
-        let length = (r.values.len() as u64)
-            .checked_mul(scalar.size() as u64)
-            .and_then(|v| v.checked_add(head.len() as u64))
-            .ok_or_else(|| BakeFileError::InvalidBake("reflectance field too large".into()))?;
-        plan.push(Planned {
-            tag: Tag::RFLD,
-            payload: Payload::Field(head),
-            length,
-        });
-    }
-    u32_of(plan.len(), "section count")?;
-
-    // Offsets.
-    let align = PAYLOAD_ALIGNMENT as u64;
-    let table_end = (HEADER_SIZE + plan.len() * SECTION_ENTRY_SIZE) as u64;
-    let mut cursor = table_end;
-    let mut offsets = Vec::with_capacity(plan.len());
-    for p in &plan {
-        let off = align_up(cursor, align);
-        offsets.push(off);
-        cursor = off
-            .checked_add(p.length)
-            .ok_or_else(|| BakeFileError::InvalidBake("file too large".into()))?;
-    }
-    Ok(Plan {
-        bake,
-        scalar,
-        sections: plan,
-        offsets,
-        file_size: cursor,
-    })
 }
 
 impl Plan<'_> {
@@ -580,6 +696,16 @@ fn bytes_of_cpca(object: u32, c: &crate::model::Cpca) -> Vec<u8> {
     for &v in &c.weights {
         b.0.extend_from_slice(&v.to_le_bytes());
     }
+    b.0
+}
+
+/// The payload of a CVRG section (SPEC.md §3.11).
+fn bytes_of_coverage(object: u32, c: &Coverage) -> Vec<u8> {
+    let mut b = Buf::default();
+    b.u32(object);
+    b.u32(c.pixel_samples);
+    b.u64(c.hits.len() as u64);
+    c.hits.iter().for_each(|&h| b.u32(h));
     b.0
 }
 

@@ -53,10 +53,18 @@ mod field;
 mod hash;
 mod io;
 mod layout;
+mod located;
 mod material;
 mod merge;
 mod meta;
 mod model;
+mod read_bytes;
+mod read_geometry;
+mod read_header;
+mod read_meta;
+mod read_objects;
+mod read_pass;
+mod read_scene;
 mod scalar;
 mod summary;
 mod view;
@@ -70,6 +78,7 @@ pub use layout::{
     Tag, HEADER_SIZE, MAGIC, MUST_UNDERSTAND_FLAGS, PAYLOAD_ALIGNMENT, SECTION_ENTRY_SIZE,
     SECTION_FLAG_REQUIRED, VERSION_MAJOR, VERSION_MINOR,
 };
+pub use located::{BlockInfo, ObjectInfo, SectionEntry};
 pub use material::{
     material_line, CookTorranceParams, LambertParams, LobeParams, MaterialBinding, MaterialModel,
     MaterialSource, MirrorParams, PbrParams, RoughParams, Variation,
@@ -86,4 +95,4 @@ pub use summary::{
     camera_line, summary, BlockSummary, CoverageSummary, FileSummary, MeshSummary, ObjectSummary,
     SectionSummary, Summary,
 };
-pub use view::{decode, decode_owned, BakeView, BlockInfo, Coefficients, ObjectInfo, SectionEntry};
+pub use view::{decode, decode_owned, BakeView, Coefficients};

@@ -1,7 +1,9 @@
 //! Sharded bakes: splitting a bake into shards and merging shards back.
 
 use crate::error::BakeFileError;
-use crate::model::{Bake, Coverage, ObjectBake, PassState, RayStats, ShardInfo, TransferBlock};
+use crate::model::{
+    Bake, BakeMeta, Coverage, ObjectBake, PassState, RayStats, ShardInfo, TransferBlock,
+};
 
 fn fail(msg: impl Into<String>) -> BakeFileError {
     BakeFileError::Merge(msg.into())
@@ -21,6 +23,30 @@ fn fail(msg: impl Into<String>) -> BakeFileError {
 /// [`BakeFileError::Merge`] naming the first disagreement; validation errors of a shard.
 pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
     let first = shards.first().ok_or_else(|| fail("no shards"))?;
+    check_mergeable(shards)?;
+    check_shard_indices(shards, first.meta.shard.count)?;
+    let mut meta = shared_meta(shards, first)?;
+    let objects = first
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(oi, o0)| merge_object(shards, oi, o0))
+        .collect::<Result<Vec<_>, _>>()?;
+    meta.ray_stats = merged_ray_stats(shards, first)?;
+    let merged = Bake {
+        reflectance: None,
+        meta,
+        objects,
+        environment: first.environment.clone(),
+        brdfs: first.brdfs.clone(),
+        glossy: first.glossy.clone(),
+    };
+    merged.validate()?;
+    Ok(merged)
+}
+
+/// Shards that can be merged: no reflectance field, no compressed block, each valid.
+fn check_mergeable(shards: &[Bake]) -> Result<(), BakeFileError> {
     if shards.iter().any(|s| s.reflectance.is_some()) {
         return Err(fail(
             "a reflectance field (prt reflectance) is made whole, not in shards",
@@ -39,7 +65,11 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
         s.validate()
             .map_err(|e| fail(format!("shard at position {i} is invalid: {e}")))?;
     }
-    let count = first.meta.shard.count;
+    Ok(())
+}
+
+/// `count` shards, all saying there are `count`, each index once.
+fn check_shard_indices(shards: &[Bake], count: u32) -> Result<(), BakeFileError> {
     if shards.len() as u64 != u64::from(count) {
         return Err(fail(format!(
             "{} shards given, the shards say there are {count}",
@@ -60,6 +90,12 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
         }
         *slot = true;
     }
+    Ok(())
+}
+
+/// The metadata all shards share (all but the shard and the ray statistics, which must be
+/// the same in every shard), once every shard has the same global sections and object count.
+fn shared_meta(shards: &[Bake], first: &Bake) -> Result<BakeMeta, BakeFileError> {
     let mut meta = first.meta.clone();
     meta.shard = ShardInfo::default();
     meta.ray_stats.clear();
@@ -87,96 +123,110 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
             )));
         }
     }
-    let mut objects = Vec::with_capacity(first.objects.len());
-    for (oi, o0) in first.objects.iter().enumerate() {
-        let mut parts: Vec<&ObjectBake> = Vec::with_capacity(shards.len());
-        for s in shards {
-            let o = &s.objects[oi];
-            let same = o.name == o0.name
-                && o.geometry_hash == o0.geometry_hash
-                && o.point_count == o0.point_count
-                && o.order == o0.order
-                && o.channels == o0.channels
-                && o.blocks.len() == o0.blocks.len()
-                && o.blocks
-                    .iter()
-                    .zip(&o0.blocks)
-                    .all(|(a, b)| a.kind == b.kind)
-                && o.mesh == o0.mesh
-                && o.coverage.as_ref().map(|c| c.pixel_samples)
-                    == o0.coverage.as_ref().map(|c| c.pixel_samples)
-                && o.pass.as_ref().map(pass_shape) == o0.pass.as_ref().map(pass_shape);
-            if !same {
-                return Err(fail(format!(
-                    "object {oi} ({:?}) differs between shards (name, geometry, mesh, counts, order, channels, kinds or coverage)",
-                    o0.name
-                )));
-            }
-            parts.push(o);
-        }
-        parts.sort_by_key(|o| (o.point_first, o.points_in_file));
-        let mut next = 0u64;
-        for p in &parts {
-            if p.point_first != next {
-                return Err(fail(format!(
-                    "object {:?}: points {}..{} are {}",
-                    o0.name,
-                    next.min(p.point_first),
-                    next.max(p.point_first),
-                    if p.point_first > next {
-                        "in no shard"
-                    } else {
-                        "in two shards"
-                    }
-                )));
-            }
-            next += p.points_in_file;
-        }
-        if next != o0.point_count {
+    Ok(meta)
+}
+
+/// Object `oi` (`o0` in the first shard) made whole: the same object in every shard, their
+/// point ranges tiling the object; transfer, coverage and pass state concatenated in point
+/// order.
+fn merge_object(shards: &[Bake], oi: usize, o0: &ObjectBake) -> Result<ObjectBake, BakeFileError> {
+    let mut parts: Vec<&ObjectBake> = Vec::with_capacity(shards.len());
+    for s in shards {
+        let o = &s.objects[oi];
+        let same = o.name == o0.name
+            && o.geometry_hash == o0.geometry_hash
+            && o.point_count == o0.point_count
+            && o.order == o0.order
+            && o.channels == o0.channels
+            && o.blocks.len() == o0.blocks.len()
+            && o.blocks
+                .iter()
+                .zip(&o0.blocks)
+                .all(|(a, b)| a.kind == b.kind)
+            && o.mesh == o0.mesh
+            && o.coverage.as_ref().map(|c| c.pixel_samples)
+                == o0.coverage.as_ref().map(|c| c.pixel_samples)
+            && o.pass.as_ref().map(pass_shape) == o0.pass.as_ref().map(pass_shape);
+        if !same {
             return Err(fail(format!(
-                "object {:?}: shards cover {next} of {} points",
-                o0.name, o0.point_count
+                "object {oi} ({:?}) differs between shards (name, geometry, mesh, counts, order, channels, kinds or coverage)",
+                o0.name
             )));
         }
-        let blocks = o0
-            .blocks
-            .iter()
-            .enumerate()
-            .map(|(bi, b)| TransferBlock {
-                cpca: None,
-                kind: b.kind,
-                data: parts
-                    .iter()
-                    .flat_map(|p| p.blocks[bi].data.iter().copied())
-                    .collect(),
-            })
-            .collect();
-        // Every shard carries the whole mesh (checked equal above); coverage is per point,
-        // concatenated like the transfer.
-        let coverage = o0.coverage.as_ref().map(|c| Coverage {
-            pixel_samples: c.pixel_samples,
-            hits: parts
-                .iter()
-                .flat_map(|p| p.coverage.iter().flat_map(|c| c.hits.iter().copied()))
-                .collect(),
-        });
-        objects.push(ObjectBake {
-            name: o0.name.clone(),
-            geometry_hash: o0.geometry_hash,
-            point_count: o0.point_count,
-            point_first: 0,
-            points_in_file: o0.point_count,
-            order: o0.order,
-            channels: o0.channels,
-            blocks,
-            mesh: o0.mesh.clone(),
-            coverage,
-            material: o0.material.clone(),
-            pass: o0.pass.as_ref().map(|p0| merge_pass(p0, &parts)),
-        });
+        parts.push(o);
     }
-    // Ray statistics are counts over each shard's points: they add up (all shards or none
-    // carry them, for every object).
+    parts.sort_by_key(|o| (o.point_first, o.points_in_file));
+    check_tiling(o0, &parts)?;
+    let blocks = o0
+        .blocks
+        .iter()
+        .enumerate()
+        .map(|(bi, b)| TransferBlock {
+            cpca: None,
+            kind: b.kind,
+            data: parts
+                .iter()
+                .flat_map(|p| p.blocks[bi].data.iter().copied())
+                .collect(),
+        })
+        .collect();
+    // Every shard carries the whole mesh (checked equal above); coverage is per point,
+    // concatenated like the transfer.
+    let coverage = o0.coverage.as_ref().map(|c| Coverage {
+        pixel_samples: c.pixel_samples,
+        hits: parts
+            .iter()
+            .flat_map(|p| p.coverage.iter().flat_map(|c| c.hits.iter().copied()))
+            .collect(),
+    });
+    Ok(ObjectBake {
+        name: o0.name.clone(),
+        geometry_hash: o0.geometry_hash,
+        point_count: o0.point_count,
+        point_first: 0,
+        points_in_file: o0.point_count,
+        order: o0.order,
+        channels: o0.channels,
+        blocks,
+        mesh: o0.mesh.clone(),
+        coverage,
+        material: o0.material.clone(),
+        pass: o0.pass.as_ref().map(|p0| merge_pass(p0, &parts)),
+    })
+}
+
+/// The shards' parts of object `o0`, sorted by first point, cover its points without gap or
+/// overlap.
+fn check_tiling(o0: &ObjectBake, parts: &[&ObjectBake]) -> Result<(), BakeFileError> {
+    let mut next = 0u64;
+    for p in parts {
+        if p.point_first != next {
+            return Err(fail(format!(
+                "object {:?}: points {}..{} are {}",
+                o0.name,
+                next.min(p.point_first),
+                next.max(p.point_first),
+                if p.point_first > next {
+                    "in no shard"
+                } else {
+                    "in two shards"
+                }
+            )));
+        }
+        next += p.points_in_file;
+    }
+    if next != o0.point_count {
+        return Err(fail(format!(
+            "object {:?}: shards cover {next} of {} points",
+            o0.name, o0.point_count
+        )));
+    }
+    Ok(())
+}
+
+/// The merged ray statistics: counts over each shard's points, they add up (all shards or
+/// none carry them, for every object); empty when none does.
+fn merged_ray_stats(shards: &[Bake], first: &Bake) -> Result<Vec<RayStats>, BakeFileError> {
     let with_stats = shards
         .iter()
         .filter(|s| !s.meta.ray_stats.is_empty())
@@ -184,33 +234,24 @@ pub fn merge(shards: &[Bake]) -> Result<Bake, BakeFileError> {
     if with_stats != 0 && with_stats != shards.len() {
         return Err(fail("some shards carry ray statistics and some do not"));
     }
-    if with_stats != 0 {
-        let mut total: Vec<RayStats> = first
-            .meta
-            .ray_stats
-            .iter()
-            .map(|r| RayStats {
-                object: r.object.clone(),
-                ..RayStats::default()
-            })
-            .collect();
-        for s in shards {
-            for (t, r) in total.iter_mut().zip(&s.meta.ray_stats) {
-                t.add(r);
-            }
-        }
-        meta.ray_stats = total;
+    if with_stats == 0 {
+        return Ok(Vec::new());
     }
-    let merged = Bake {
-        reflectance: None,
-        meta,
-        objects,
-        environment: first.environment.clone(),
-        brdfs: first.brdfs.clone(),
-        glossy: first.glossy.clone(),
-    };
-    merged.validate()?;
-    Ok(merged)
+    let mut total: Vec<RayStats> = first
+        .meta
+        .ray_stats
+        .iter()
+        .map(|r| RayStats {
+            object: r.object.clone(),
+            ..RayStats::default()
+        })
+        .collect();
+    for s in shards {
+        for (t, r) in total.iter_mut().zip(&s.meta.ray_stats) {
+            t.add(r);
+        }
+    }
+    Ok(total)
 }
 
 /// Splits an unsharded bake into `shard_count` shards: shard `k` holds points

@@ -1236,7 +1236,30 @@ impl Bake {
         Ok(())
     }
 
+    /// Every rule of [`Bake::validate`], in the order of SPEC.md §4.1 step 4; `with_data`
+    /// false skips the transfer data and the field's values (a view's skeleton).
     fn check(&self, with_data: bool) -> Result<(), BakeFileError> {
+        self.check_bake_fields()?;
+        self.check_camera()?;
+        self.check_reflectance_field(with_data)?;
+        self.check_pass_info()?;
+        let mut names = BTreeSet::new();
+        for (oi, o) in self.objects.iter().enumerate() {
+            self.check_object(oi, o, &mut names, with_data)?;
+        }
+        self.check_coverage_sums().map_err(|e| e.in_rule(9))?;
+        self.check_lightmaps().map_err(|e| e.in_rule(9))?;
+        self.check_reflectance_settings()?;
+        self.check_settings()?;
+        self.check_environment()?;
+        self.check_brdfs()?;
+        self.check_glossy()
+    }
+
+    /// The bake-wide fields (SPEC.md §4 rule 11): a shard of a known count, `settings` an
+    /// object, one ray statistic per object with its name and counts within their totals, a
+    /// non-empty image.
+    fn check_bake_fields(&self) -> Result<(), BakeFileError> {
         let m = &self.meta;
         if m.shard.count == 0 || m.shard.index >= m.shard.count {
             return Err(bad(format!(
@@ -1275,28 +1298,39 @@ impl Bake {
                 return Err(bad("pixel or texel bake with an empty image"));
             }
         }
-        self.check_camera()?;
-        if let Some(r) = &self.reflectance {
-            // (A view's skeleton carries the field's structure without its values.)
-            r.check(m.sample_kind, with_data)
-                .map_err(|e| e.in_rule(9))?;
-            if with_data {
-                // On the stored bits: no f32 copy of an f16 field.
-                if let Some(i) = r.values.first_breaking(Rule::Finite) {
-                    return Err(BakeFileError::NonFinite {
-                        section: "RFLD".to_owned(),
-                        index: i as u64,
-                    });
-                }
-                if let Some(i) = r.values.first_breaking(Rule::NonNegative) {
-                    return Err(bad(format!(
-                        "reflectance value {i} is negative ({})",
-                        r.values.get(i).unwrap_or(f32::NAN)
-                    )));
-                }
+        Ok(())
+    }
+
+    /// The reflectance field's structure (SPEC.md §3.14, rule 9) and, `with_data`, its values
+    /// finite and non-negative (rule 10).
+    fn check_reflectance_field(&self, with_data: bool) -> Result<(), BakeFileError> {
+        let Some(r) = &self.reflectance else {
+            return Ok(());
+        };
+        // (A view's skeleton carries the field's structure without its values.)
+        r.check(self.meta.sample_kind, with_data)
+            .map_err(|e| e.in_rule(9))?;
+        if with_data {
+            // On the stored bits: no f32 copy of an f16 field.
+            if let Some(i) = r.values.first_breaking(Rule::Finite) {
+                return Err(BakeFileError::NonFinite {
+                    section: "RFLD".to_owned(),
+                    index: i as u64,
+                });
+            }
+            if let Some(i) = r.values.first_breaking(Rule::NonNegative) {
+                return Err(bad(format!(
+                    "reflectance value {i} is negative ({})",
+                    r.values.get(i).unwrap_or(f32::NAN)
+                )));
             }
         }
-        if let Some(p) = &m.pass {
+        Ok(())
+    }
+
+    /// The `pass` field (SPEC.md §3.12): a pass before the last, one albedo per object.
+    fn check_pass_info(&self) -> Result<(), BakeFileError> {
+        if let Some(p) = &self.meta.pass {
             if p.index >= p.last || p.albedo.len() != self.objects.len() {
                 return Err(bad(format!(
                     "pass {} of a {}-pass bake with {} albedos for {} objects",
@@ -1307,131 +1341,153 @@ impl Bake {
                 )));
             }
         }
-        let mut names = BTreeSet::new();
-        for (oi, o) in self.objects.iter().enumerate() {
-            let what = format!("object {oi} ({:?})", o.name);
-            if o.name.is_empty() || !names.insert(o.name.as_str()) {
-                return Err(bad(format!("{what}: name empty or not unique")));
-            }
-            if o.order == 0 || o.order > u32::from(u16::MAX) {
-                return Err(bad(format!("{what}: order {} out of 1..=65535", o.order)));
-            }
-            if o.channels != 1 && o.channels != 3 {
-                return Err(bad(format!("{what}: {} channels (1 or 3)", o.channels)));
-            }
-            let image = match m.sample_kind {
-                SampleKind::Pixel { width, height } => Some((width, height)),
-                SampleKind::Texel { width, height } if o.coverage.is_some() => {
-                    Some((width, height))
-                }
-                _ => None,
-            };
-            if let Some((width, height)) = image {
-                if o.point_count != u64::from(width) * u64::from(height) {
-                    return Err(bad(format!(
-                        "{what}: {} points in a {width}×{height} pixel bake",
-                        o.point_count
-                    )));
-                }
-            }
-            let end = o.point_first.checked_add(o.points_in_file);
-            if end.is_none_or(|e| e > o.point_count) {
+        Ok(())
+    }
+
+    /// Object `oi` (SPEC.md §4.1 step 4, per object): its name (unique among `names`), order,
+    /// channels and point ranges (rule 11); its mesh, pass state and coverage (rule 9);
+    /// its material; its blocks; and, `with_data`, its coverage mask (rule 10).
+    fn check_object<'b>(
+        &self,
+        oi: usize,
+        o: &'b ObjectBake,
+        names: &mut BTreeSet<&'b str>,
+        with_data: bool,
+    ) -> Result<(), BakeFileError> {
+        let m = &self.meta;
+        let what = format!("object {oi} ({:?})", o.name);
+        if o.name.is_empty() || !names.insert(o.name.as_str()) {
+            return Err(bad(format!("{what}: name empty or not unique")));
+        }
+        if o.order == 0 || o.order > u32::from(u16::MAX) {
+            return Err(bad(format!("{what}: order {} out of 1..=65535", o.order)));
+        }
+        if o.channels != 1 && o.channels != 3 {
+            return Err(bad(format!("{what}: {} channels (1 or 3)", o.channels)));
+        }
+        self.check_object_points(o, &what)?;
+        // Cross-references and counts (SPEC.md §4 rule 9; values: rule 10).
+        check_mesh(o, m.sample_kind, &what).map_err(|e| e.in_rule(9))?;
+        check_pass(o, m, &what, with_data).map_err(|e| e.in_rule(9))?;
+        check_object_coverage(o, m.sample_kind, &what).map_err(|e| e.in_rule(9))?;
+        if let Some(material) = &o.material {
+            material.check(&o.name)?;
+        }
+        self.check_blocks(o, &what, with_data)?;
+        if with_data {
+            check_coverage_mask(o, &what)?;
+        }
+        Ok(())
+    }
+
+    /// An object's point counts: an image's worth where its points are pixels or texels, the
+    /// points held within the object's, all of them in an unsharded bake.
+    fn check_object_points(&self, o: &ObjectBake, what: &str) -> Result<(), BakeFileError> {
+        let m = &self.meta;
+        let image = match m.sample_kind {
+            SampleKind::Pixel { width, height } => Some((width, height)),
+            SampleKind::Texel { width, height } if o.coverage.is_some() => Some((width, height)),
+            _ => None,
+        };
+        if let Some((width, height)) = image {
+            if o.point_count != u64::from(width) * u64::from(height) {
                 return Err(bad(format!(
-                    "{what}: points {}+{} beyond {}",
-                    o.point_first, o.points_in_file, o.point_count
+                    "{what}: {} points in a {width}×{height} pixel bake",
+                    o.point_count
                 )));
             }
-            if m.shard.count == 1 && (o.point_first != 0 || o.points_in_file != o.point_count) {
-                return Err(bad(format!("{what}: unsharded bake holds a partial range")));
+        }
+        let end = o.point_first.checked_add(o.points_in_file);
+        if end.is_none_or(|e| e > o.point_count) {
+            return Err(bad(format!(
+                "{what}: points {}+{} beyond {}",
+                o.point_first, o.points_in_file, o.point_count
+            )));
+        }
+        if m.shard.count == 1 && (o.point_first != 0 || o.points_in_file != o.point_count) {
+            return Err(bad(format!("{what}: unsharded bake holds a partial range")));
+        }
+        Ok(())
+    }
+
+    /// An object's blocks: each kind (each bounce count) once, interreflection within the
+    /// bake's bounces, a clustered-PCA form's structure (rule 9); `with_data`, the data's
+    /// length, finiteness, and agreement with its clustered-PCA form.
+    fn check_blocks(
+        &self,
+        o: &ObjectBake,
+        what: &str,
+        with_data: bool,
+    ) -> Result<(), BakeFileError> {
+        let expected_len = o.points_in_file.checked_mul(o.scalars_per_point());
+        let mut kinds = BTreeSet::new();
+        for (bi, b) in o.blocks.iter().enumerate() {
+            if !kinds.insert(b.kind) {
+                return Err(bad(format!("{what}: kind {:?} twice", b.kind)));
             }
-            // Cross-references and counts (SPEC.md §4 rule 9; values: rule 10).
-            check_mesh(o, m.sample_kind, &what).map_err(|e| e.in_rule(9))?;
-            check_pass(o, m, &what, with_data).map_err(|e| e.in_rule(9))?;
-            check_object_coverage(o, m.sample_kind, &what).map_err(|e| e.in_rule(9))?;
-            if let Some(material) = &o.material {
-                material.check(&o.name)?;
-            }
-            let expected_len = o.points_in_file.checked_mul(o.scalars_per_point());
-            let mut kinds = BTreeSet::new();
-            for (bi, b) in o.blocks.iter().enumerate() {
-                if !kinds.insert(b.kind) {
-                    return Err(bad(format!("{what}: kind {:?} twice", b.kind)));
-                }
-                if let TransferKind::InterreflectedDiffuse { bounces } = b.kind {
-                    if bounces == 0 || bounces > m.bounces {
-                        return Err(bad(format!(
-                            "{what}: interreflected block with {bounces} bounces in a {}-bounce bake",
-                            m.bounces
-                        )));
-                    }
-                }
-                if let Some(c) = &b.cpca {
-                    c.check(
-                        o.points_in_file,
-                        o.scalars_per_point(),
-                        &format!("{what} block {bi}"),
-                    )
-                    .map_err(|e| e.in_rule(9))?;
-                }
-                if !with_data {
-                    continue;
-                }
-                if expected_len != Some(b.data.len() as u64) {
-                    return Err(BakeFileError::InconsistentCounts {
-                        what: format!("{what} block {bi}: points × channels × order² scalars"),
-                        expected: expected_len.unwrap_or(u64::MAX),
-                        found: b.data.len() as u64,
-                    });
-                }
-                check_finite32(&format!("{what} block {bi}"), &b.data)?;
-                if b.cpca.as_ref().is_some_and(|c| c.reconstruct() != b.data) {
+            if let TransferKind::InterreflectedDiffuse { bounces } = b.kind {
+                if bounces == 0 || bounces > self.meta.bounces {
                     return Err(bad(format!(
-                        "{what} block {bi}: its data is not the reconstruction of its clustered PCA"
+                        "{what}: interreflected block with {bounces} bounces in a {}-bounce bake",
+                        self.meta.bounces
                     )));
                 }
             }
-            if with_data {
-                let per = o.scalars_per_point() as usize;
-                // Compressed blocks only approximate the zeros (SPEC.md §3.11).
-                let zero = |bi: usize, p: usize| {
-                    o.blocks[bi].cpca.is_some()
-                        || o.blocks[bi].data[p * per..(p + 1) * per]
-                            .iter()
-                            .all(|&v| v == 0.0)
-                };
-                let found = o
-                    .coverage
-                    .as_ref()
-                    .and_then(|c| uncovered_nonzero(o.point_first, o.blocks.len(), c, zero));
-                if let Some((bi, p)) = found {
-                    return Err(bad(format!(
-                        "{what} block {bi}: transfer at point {p}, which its coverage says no sample hit"
-                    ))
-                    .in_rule(10));
-                }
+            if let Some(c) = &b.cpca {
+                c.check(
+                    o.points_in_file,
+                    o.scalars_per_point(),
+                    &format!("{what} block {bi}"),
+                )
+                .map_err(|e| e.in_rule(9))?;
+            }
+            if !with_data {
+                continue;
+            }
+            if expected_len != Some(b.data.len() as u64) {
+                return Err(BakeFileError::InconsistentCounts {
+                    what: format!("{what} block {bi}: points × channels × order² scalars"),
+                    expected: expected_len.unwrap_or(u64::MAX),
+                    found: b.data.len() as u64,
+                });
+            }
+            check_finite32(&format!("{what} block {bi}"), &b.data)?;
+            if b.cpca.as_ref().is_some_and(|c| c.reconstruct() != b.data) {
+                return Err(bad(format!(
+                    "{what} block {bi}: its data is not the reconstruction of its clustered PCA"
+                )));
             }
         }
-        self.check_coverage_sums().map_err(|e| e.in_rule(9))?;
-        self.check_lightmaps().map_err(|e| e.in_rule(9))?;
-        self.check_reflectance_settings()?;
-        self.check_settings()?;
-        if let Some(env) = &self.environment {
-            if env.order == 0 || env.order > u32::from(u16::MAX) {
-                return Err(bad(format!("environment order {}", env.order)));
-            }
-            if env.values.len() as u64 != 3 * sq(env.order) {
-                return Err(bad("environment: values.len() != 3 × order²"));
-            }
-            check_finite64("environment", &env.values)?;
-            if env.precision == EnvPrecision::F32 {
-                if let Some(i) = env.values.iter().position(|&v| !(v as f32).is_finite()) {
-                    return Err(BakeFileError::NonFinite {
-                        section: "environment (as f32)".into(),
-                        index: i as u64,
-                    });
-                }
+        Ok(())
+    }
+
+    /// The environment (SPEC.md §3.6): order 1 … 65535, `3n²` finite values, finite also as
+    /// f32 when stored so.
+    fn check_environment(&self) -> Result<(), BakeFileError> {
+        let Some(env) = &self.environment else {
+            return Ok(());
+        };
+        if env.order == 0 || env.order > u32::from(u16::MAX) {
+            return Err(bad(format!("environment order {}", env.order)));
+        }
+        if env.values.len() as u64 != 3 * sq(env.order) {
+            return Err(bad("environment: values.len() != 3 × order²"));
+        }
+        check_finite64("environment", &env.values)?;
+        if env.precision == EnvPrecision::F32 {
+            if let Some(i) = env.values.iter().position(|&v| !(v as f32).is_finite()) {
+                return Err(BakeFileError::NonFinite {
+                    section: "environment (as f32)".into(),
+                    index: i as u64,
+                });
             }
         }
+        Ok(())
+    }
+
+    /// The BRDF projections (SPEC.md §3.7): unique non-empty materials, a valid Phong
+    /// exponent, order ≥ 1 with as many finite values.
+    fn check_brdfs(&self) -> Result<(), BakeFileError> {
         let mut names = BTreeSet::new();
         for b in &self.brdfs {
             let what = format!("BRDF projection {:?}", b.material);
@@ -1452,6 +1508,12 @@ impl Bake {
             }
             check_finite64(&what, &b.values)?;
         }
+        Ok(())
+    }
+
+    /// The glossy tables (SPEC.md §3.8): unique non-empty materials, order 1 … 65535, at
+    /// least one elevation, array lengths as order and elevations say, finite values.
+    fn check_glossy(&self) -> Result<(), BakeFileError> {
         let mut names = BTreeSet::new();
         for g in &self.glossy {
             let what = format!("glossy table {:?}", g.material);
@@ -1478,4 +1540,27 @@ impl Bake {
         }
         Ok(())
     }
+}
+
+/// No transfer where an object's coverage says no sample hit (SPEC.md §3.11, §4 rule 10);
+/// compressed blocks only approximate the zeros and are exempt.
+fn check_coverage_mask(o: &ObjectBake, what: &str) -> Result<(), BakeFileError> {
+    let per = o.scalars_per_point() as usize;
+    let zero = |bi: usize, p: usize| {
+        o.blocks[bi].cpca.is_some()
+            || o.blocks[bi].data[p * per..(p + 1) * per]
+                .iter()
+                .all(|&v| v == 0.0)
+    };
+    let found = o
+        .coverage
+        .as_ref()
+        .and_then(|c| uncovered_nonzero(o.point_first, o.blocks.len(), c, zero));
+    if let Some((bi, p)) = found {
+        return Err(bad(format!(
+            "{what} block {bi}: transfer at point {p}, which its coverage says no sample hit"
+        ))
+        .in_rule(10));
+    }
+    Ok(())
 }
