@@ -94,9 +94,12 @@ mod adaptive;
 mod adjacency;
 mod compressed;
 mod error;
+mod filter;
 mod input;
 mod kernel;
+mod levels;
 mod relighter;
+mod roi;
 
 pub use adaptive::{
     AdaptiveFrame, AdaptiveInput, AdaptiveParams, FrameStats, StopRule, TermStats, Threshold,

@@ -341,3 +341,218 @@ pub fn roi_image(
     }
     Ok(img)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::relit::RelightStats;
+    use glam::DVec3;
+    use prt_scene::test_util::floor_quad;
+    use prt_scene::{Camera, EnvImage, Environment, Mapping, Material};
+
+    const B: [f32; 3] = [0.25, 0.5, 1.0];
+
+    /// A 2 × 2 floor at `y = 0` seen straight down from 4 above (image x along +X, image y
+    /// along +Z), 16 × 16 pixels with a margin of background, under a uniform environment `B`.
+    fn floor_scene() -> (Scene, Accel) {
+        let cam = Camera {
+            eye: DVec3::new(0.0, 4.0, 0.0),
+            target: DVec3::ZERO,
+            up: DVec3::NEG_Z,
+            fov_y_deg: 40.0,
+            width: 16,
+            height: 16,
+        };
+        let mut scene = Scene::new(cam, Environment::uniform(B));
+        let m = scene.add_material("grey", Material::Lambert { albedo: [0.5; 3] });
+        scene.add_mesh(floor_quad(1.0, 0.0), m);
+        let accel = Accel::build(&scene).unwrap();
+        (scene, accel)
+    }
+
+    fn relit(radiance: Vec<Vec<[f32; 3]>>, roi: Vec<Vec<bool>>) -> Relit {
+        Relit {
+            radiance,
+            roi,
+            stats: RelightStats::default(),
+            footprints: None,
+            lightmaps: Vec::new(),
+        }
+    }
+
+    /// Where the floor `y = 0` is hit through image point `(x, y)` (pixel units).
+    fn floor_hit(cam: &PinholeCamera, x: f64, y: f64) -> Vec3 {
+        let d = cam.direction(x, y);
+        let eye = cam.eye();
+        eye + d * (-eye.y / d.y)
+    }
+
+    #[test]
+    fn a_linear_field_is_formed_exactly_and_the_background_is_the_environment() {
+        // Per-vertex radiance linear in position: Gouraud interpolation reproduces it at every
+        // hit, and with the image plane parallel to the floor the sub-pixel hits are an affine
+        // image of the symmetric sub-pixel grid, so a pixel that sees only floor shows the
+        // field at its centre ray's hit. A pixel that sees none of it shows the environment.
+        let (scene, accel) = floor_scene();
+        let field = |p: Vec3| {
+            [
+                0.5 + 0.2 * p.x - 0.1 * p.z,
+                0.3 * p.z + 0.4,
+                1.0 - 0.25 * p.x,
+            ]
+        };
+        let r: Vec<[f32; 3]> = scene.meshes[0]
+            .positions
+            .iter()
+            .map(|p| field(*p))
+            .collect();
+        let image = form_image(&scene, &accel, &relit(vec![r], vec![Vec::new()]), 0.0).unwrap();
+        let cam = PinholeCamera::new(&scene.camera).unwrap();
+        let (mut inside, mut outside) = (0, 0);
+        for y in 0..16u32 {
+            for x in 0..16u32 {
+                let got = image.pixels[(y * 16 + x) as usize];
+                // The pixel's square on the floor, from two opposite corners.
+                let a = floor_hit(&cam, f64::from(x), f64::from(y));
+                let b = floor_hit(&cam, f64::from(x + 1), f64::from(y + 1));
+                let (lo, hi) = (a.min(b), a.max(b));
+                if lo.x > -1.0 && hi.x < 1.0 && lo.z > -1.0 && hi.z < 1.0 {
+                    inside += 1;
+                    let c = field(floor_hit(&cam, f64::from(x) + 0.5, f64::from(y) + 0.5));
+                    for ch in 0..3 {
+                        assert!(
+                            (got[ch] - c[ch]).abs() < 1e-5,
+                            "({x}, {y}): {got:?} vs {c:?}"
+                        );
+                    }
+                } else if lo.x > 1.0 || hi.x < -1.0 || lo.z > 1.0 || hi.z < -1.0 {
+                    outside += 1;
+                    for ch in 0..3 {
+                        assert!((got[ch] - B[ch]).abs() < 1e-6, "({x}, {y}): {got:?}");
+                    }
+                }
+            }
+        }
+        assert!(
+            inside > 50 && outside > 50,
+            "{inside} inside, {outside} outside"
+        );
+    }
+
+    #[test]
+    fn a_per_pixel_image_sums_the_objects_and_the_background_share() {
+        // Two pixels of four footprint samples: the first with three hits, the second with
+        // none. Each object's value is already the footprint's mean; the misses add `B / 4`.
+        let (mut scene, accel) = floor_scene();
+        scene.camera.width = 2;
+        scene.camera.height = 1;
+        let point = prt_tracer::points::SamplePoint {
+            position: Vec3::ZERO,
+            normal: Vec3::Y,
+            offset_normal: Vec3::Y,
+            offset: 0.0,
+        };
+        let sample = |hit: bool| prt_tracer::points::PixelSample {
+            dir: Vec3::NEG_Y,
+            hit: hit.then_some((0, point)),
+            at: None,
+        };
+        let samples = [true, true, false, true, false, false, false, false].map(sample);
+        let mut r = relit(
+            vec![
+                vec![[0.3, 0.2, 0.1], [0.0; 3]],
+                vec![[0.01, 0.02, 0.03], [0.0; 3]],
+            ],
+            vec![Vec::new(); 2],
+        );
+        r.footprints = Some(prt_tracer::points::PixelFootprints {
+            width: 2,
+            height: 1,
+            samples_per_pixel: 4,
+            samples: samples.to_vec(),
+        });
+        let image = form_image(&scene, &accel, &r, 0.0).unwrap();
+        let want = [
+            [
+                0.3 + 0.01 + 0.25 * B[0],
+                0.2 + 0.02 + 0.25 * B[1],
+                0.1 + 0.03 + 0.25 * B[2],
+            ],
+            B,
+        ];
+        for (got, want) in image.pixels.iter().zip(want) {
+            for ch in 0..3 {
+                assert!((got[ch] - want[ch]).abs() < 1e-6, "{got:?} vs {want:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_background_turns_with_the_environment() {
+        // A 4 × 2 lat-long map of distinct texels: rotated by 90° about +Y, what was seen along
+        // `a` is seen along R_y(90°)·a (the sense of the SH rotation of the lighting).
+        let texels: Vec<[f32; 3]> = (0..8).map(|i| [i as f32, 0.0, 1.0]).collect();
+        let mut scene = Scene::new(Camera::default(), Environment::uniform([0.0; 3]));
+        scene.environment = Environment {
+            image: EnvImage {
+                width: 4,
+                height: 2,
+                texels,
+            },
+            mapping: Mapping::LatLong,
+            rotation_y_deg: 0.0,
+        };
+        let turn = glam::Mat3::from_rotation_y(90f32.to_radians());
+        let mut seen = Vec::new();
+        for k in 0..4 {
+            for y in [0.5f32, -0.5] {
+                let a = glam::Mat3::from_rotation_y(k as f32 * 90f32.to_radians())
+                    * Vec3::new(0.6, y, 0.3).normalize();
+                let before = background_radiance(&scene, a, 0.0);
+                assert_eq!(background_radiance(&scene, turn * a, 90.0), before);
+                assert_eq!(background_radiance(&scene, a, 360.0), before);
+                seen.push(before[0]);
+            }
+        }
+        seen.sort_by(f32::total_cmp);
+        seen.dedup();
+        assert_eq!(
+            seen.len(),
+            8,
+            "the directions see every texel once: {seen:?}"
+        );
+    }
+
+    #[test]
+    fn edges_are_told_by_objects_misses_and_depth_steps() {
+        let same = [Some((0, 2.0)), Some((0, 2.09)), Some((0, 2.05))];
+        assert!(!holds_edge(same.into_iter()));
+        assert!(holds_edge([Some((0, 2.0)), Some((0, 2.2))].into_iter()));
+        assert!(holds_edge([Some((0, 2.0)), Some((1, 2.0))].into_iter()));
+        assert!(holds_edge([Some((0, 2.0)), None].into_iter()));
+        assert!(holds_edge([None, Some((0, 2.0))].into_iter()));
+        assert!(!holds_edge([None, None].into_iter()));
+    }
+
+    #[test]
+    fn the_roi_picture_and_the_object_mask() {
+        let (scene, accel) = floor_scene();
+        let r = relit(vec![vec![[9.0; 3]; 4]], vec![vec![true; 4]]);
+        let roi = roi_image(&scene, &accel, &r).unwrap();
+        let mask = object_mask(&scene, &accel).unwrap();
+        // The centre sees the floor, the corner the background.
+        assert!(mask[8 * 16 + 8] && !mask[0]);
+        assert_eq!(roi.pixels[0], [0.0; 3]);
+        let centre = roi.pixels[8 * 16 + 8];
+        for (got, want) in centre.iter().zip([1.0, 0.05, 0.05]) {
+            assert!((got - want).abs() < 1e-6, "{centre:?}");
+        }
+        for (p, m) in roi.pixels.iter().zip(&mask) {
+            if !m {
+                assert_eq!(*p, [0.0; 3]);
+            }
+        }
+        let ids = object_ids(&scene, &accel).unwrap();
+        assert_eq!((ids[0], ids[8 * 16 + 8]), (None, Some(0)));
+    }
+}

@@ -13,12 +13,17 @@
 //! `prt-relight`'s, and, for Blinn–Phong, Ward and Cook–Torrance, Kautz, Sloan & Snyder 2002
 //! (per-view-elevation BRDF projections, `prt_shading::projection`).
 
+mod binding;
 mod error;
 pub mod footprint;
+mod frames;
 pub mod glossy;
 pub mod imaging;
 pub mod io;
+mod lobe;
+mod points;
 pub mod relit;
+mod specular;
 pub mod target;
 
 pub use error::SceneRelightError;

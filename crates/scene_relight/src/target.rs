@@ -28,7 +28,7 @@
 
 use crate::error::SceneRelightError;
 use crate::imaging::{background_radiance, pixel_samples, RgbImage};
-use crate::relit::{relight, RelightOptions};
+use crate::relit::{relight, RelightOptions, Relit};
 use glam::Vec3;
 use prt_bakefile::Bake;
 use prt_relight::{AdaptiveParams, Threshold};
@@ -302,6 +302,80 @@ pub fn relight_to_target(
     bake: &Bake,
     opt: &TargetOptions,
 ) -> Result<TargetStudy, SceneRelightError> {
+    check_options(bake, opt)?;
+    let probe = build_probe(scene, accel, opt.probe_pixels, opt.seed)?;
+    let target_mse = 255.0f64 * 255.0 * 10f64.powf(-opt.target_psnr / 10.0);
+    let run = TargetRun {
+        scene,
+        accel,
+        bake,
+        opt,
+        probe: &probe,
+        target_mse,
+        aim_mse: target_mse * 10f64.powf(-0.1),
+    };
+    let mut t = threshold_value(&opt.adaptive);
+    let mut frames = Vec::new();
+    let mut full_images: Vec<FullImage> = Vec::new();
+    // Frames shaded straight at full order since adaptive last had to fall back to it.
+    let mut full_streak: Option<usize> = None;
+    let mut last_frame = None;
+    for &deg in &opt.rotations {
+        // Adaptive did not pay on the last attempt: stay at full order (no probe needed, it
+        // is exact) and try adaptive again every `RETRY_ADAPTIVE_EVERY` frames.
+        if let Some(k) = full_streak.filter(|&k| k + 1 < RETRY_ADAPTIVE_EVERY) {
+            let f = relight(scene, accel, bake, &run.base(deg))?;
+            full_streak = Some(k + 1);
+            let ms = f.stats.shade_ms;
+            frames.push(TargetFrame::full_order(deg, ms, opt.verify));
+            if opt.verify {
+                let fi = crate::imaging::form_image(scene, accel, &f, deg)?;
+                full_images.push((fi, ms));
+            }
+            last_frame = Some(f);
+            continue;
+        }
+        let (frame, adaptive, full) = run.adaptive_frame(deg, &mut t)?;
+        full_streak = (frame.threshold == 0.0).then_some(0);
+        full_images.extend(full);
+        frames.push(frame);
+        last_frame = Some(adaptive);
+    }
+    let median_shade_ms = median(frames.iter().map(|f| f.shade_ms).collect());
+    let (mut speedup, mut min_psnr_actual, mut uniform, mut uniform_speedup) =
+        (None, None, None, None);
+    if opt.verify {
+        let full_ms = median(full_images.iter().map(|(_, ms)| *ms).collect());
+        speedup = Some(full_ms / median_shade_ms.max(1e-9));
+        min_psnr_actual = frames
+            .iter()
+            .filter_map(|f| f.psnr_actual)
+            .min_by(f64::total_cmp);
+        let (baseline, baseline_speedup) = run.uniform_baseline(&full_images, full_ms)?;
+        uniform = Some(baseline);
+        uniform_speedup = Some(baseline_speedup);
+    }
+    Ok(TargetStudy {
+        target_psnr: opt.target_psnr,
+        probe_pixels: probe.pixels.len(),
+        candidate_pixels: probe.candidates,
+        probe_points: probe.points.iter().map(Vec::len).sum(),
+        frames,
+        median_shade_ms,
+        speedup,
+        min_psnr_actual,
+        uniform,
+        uniform_speedup,
+        last_frame,
+    })
+}
+
+/// Checks the settings of a target-quality run against the bake.
+///
+/// # Errors
+/// A target that is not a positive, finite number of dB; a per-pixel bake; no frame or no
+/// probe pixel.
+fn check_options(bake: &Bake, opt: &TargetOptions) -> Result<(), SceneRelightError> {
     if !(opt.target_psnr.is_finite() && opt.target_psnr > 0.0) {
         return Err(SceneRelightError::Invalid(format!(
             "--target-psnr {} must be a positive, finite number of dB (against full order, every frame can reach any finite target: at threshold 0 it is full order)",
@@ -321,205 +395,543 @@ pub fn relight_to_target(
             "a target-quality run needs at least one frame and one probe pixel".into(),
         ));
     }
-    let probe = build_probe(scene, accel, opt.probe_pixels, opt.seed)?;
-    let target_mse = 255.0f64 * 255.0 * 10f64.powf(-opt.target_psnr / 10.0);
-    let aim_mse = target_mse * 10f64.powf(-0.1);
-    let base = |deg: f64| RelightOptions {
-        order: opt.order,
-        adaptive: None,
-        rotate_y_deg: deg,
-        timing_frames: 1,
-        warmup_frames: opt.warmup_frames,
-        rotate_y_step_deg: 0.0,
-        points: None,
-        ..Default::default()
-    };
-    let mut t = threshold_value(&opt.adaptive);
-    let mut frames = Vec::new();
-    let mut full_images: Vec<(RgbImage, f64)> = Vec::new();
-    // Frames shaded straight at full order since adaptive last had to fall back to it.
-    let mut full_streak: Option<usize> = None;
-    let mut last_frame = None;
-    for &deg in &opt.rotations {
-        // Adaptive did not pay on the last attempt: stay at full order (no probe needed, it
-        // is exact) and try adaptive again every `RETRY_ADAPTIVE_EVERY` frames.
-        if let Some(k) = full_streak.filter(|&k| k + 1 < RETRY_ADAPTIVE_EVERY) {
-            let f = relight(scene, accel, bake, &base(deg))?;
-            full_streak = Some(k + 1);
-            let ms = f.stats.shade_ms;
-            frames.push(TargetFrame {
-                rotate_y_deg: deg,
+    Ok(())
+}
+
+/// The median of `v` (the upper one for an even count).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+impl TargetFrame {
+    /// A frame shaded straight at full order, in `ms` (exact: no probe, no tries).
+    fn full_order(deg: f64, ms: f64, verify: bool) -> Self {
+        Self {
+            rotate_y_deg: deg,
+            threshold: 0.0,
+            tries: 0,
+            psnr_estimate: f64::INFINITY,
+            psnr_lower: f64::INFINITY,
+            shade_ms: ms,
+            probe_ms: 0.0,
+            psnr_actual: verify.then_some(f64::INFINITY),
+            full_ms: verify.then_some(ms),
+        }
+    }
+}
+
+/// `--verify`: a frame's full-order image and its shading time, ms.
+type FullImage = (RgbImage, f64);
+
+/// What every frame of a target-quality run shares.
+struct TargetRun<'a> {
+    scene: &'a Scene,
+    accel: &'a prt_tracer::Accel,
+    bake: &'a Bake,
+    opt: &'a TargetOptions,
+    probe: &'a Probe,
+    /// The MSE of the target PSNR.
+    target_mse: f64,
+    /// The MSE a new threshold aims at: 1 dB above the target.
+    aim_mse: f64,
+}
+
+/// One adaptive try of a frame, as the controller sees it.
+struct Try<R> {
+    /// The probe's estimate of the frame's MSE against full order, and its standard error.
+    mse: f64,
+    se: f64,
+    /// Shading time, ms.
+    shade_ms: f64,
+    /// Coefficient products spent, and those full order spends (the relighter's figures).
+    products: Option<u64>,
+    full_order_products: Option<u64>,
+    /// The frame as shaded.
+    relit: R,
+}
+
+/// The frame a controller's tries ended with (see [`control`]).
+struct Accepted<R> {
+    /// The threshold it was accepted at (0: shaded at full order).
+    threshold: f32,
+    tries: usize,
+    psnr_estimate: f64,
+    psnr_lower: f64,
+    /// Shading time of every try, plus what was spent before them, ms.
+    shade_ms: f64,
+    /// The frame as shaded.
+    relit: R,
+}
+
+/// The controller of one frame (see the module docs): `attempt(t)` shades the frame at
+/// threshold `t`, from `*t` on, accepted once the bound `MSE + 2σ` meets `target_mse`, the
+/// threshold otherwise scaled by `√(aim_mse / bound)` (kept within ×0.25…×0.8); once another
+/// try would take the frame's products past full order's, or after [`MAX_TRIES`], the frame is
+/// shaded by `full_order()` (`(frame, ms)`) instead. `*t` is left at the last threshold tried;
+/// `shade_ms` is the time already spent on the frame.
+fn control<R>(
+    t: &mut f32,
+    target_mse: f64,
+    aim_mse: f64,
+    mut shade_ms: f64,
+    mut attempt: impl FnMut(f32) -> Result<Try<R>, SceneRelightError>,
+    full_order: impl FnOnce() -> Result<(R, f64), SceneRelightError>,
+) -> Result<Accepted<R>, SceneRelightError> {
+    let mut tries = 0;
+    // Coefficient products spent on this frame's tries (a deterministic cost measure).
+    let mut spent = 0u64;
+    loop {
+        tries += 1;
+        let a = attempt(*t)?;
+        shade_ms += a.shade_ms;
+        let upper = a.mse + 2.0 * a.se;
+        if upper <= target_mse {
+            return Ok(Accepted {
+                threshold: *t,
+                tries,
+                psnr_estimate: psnr(a.mse),
+                psnr_lower: psnr(upper),
+                shade_ms,
+                relit: a.relit,
+            });
+        }
+        // Another try costs about as much as this one: past full order's cost (in
+        // coefficient products, so the decision does not depend on the machine's load),
+        // or out of tries, shade the frame at full order.
+        let (products, full_products) = (
+            a.products.unwrap_or(0),
+            a.full_order_products.unwrap_or(u64::MAX),
+        );
+        spent += products;
+        if tries >= MAX_TRIES || spent.saturating_add(products) > full_products {
+            let (f, ms) = full_order()?;
+            shade_ms += ms;
+            return Ok(Accepted {
                 threshold: 0.0,
-                tries: 0,
+                tries,
                 psnr_estimate: f64::INFINITY,
                 psnr_lower: f64::INFINITY,
-                shade_ms: ms,
-                probe_ms: 0.0,
-                psnr_actual: opt.verify.then_some(f64::INFINITY),
-                full_ms: opt.verify.then_some(ms),
+                shade_ms,
+                relit: f,
             });
-            if opt.verify {
-                let fi = crate::imaging::form_image(scene, accel, &f, deg)?;
-                full_images.push((fi, ms));
-            }
-            last_frame = Some(f);
-            continue;
         }
-        let full_probe = relight(
-            scene,
-            accel,
-            bake,
-            &RelightOptions {
-                points: Some(probe.points.clone()),
-                ..base(deg)
+        *t *= ((aim_mse / upper).sqrt() as f32).clamp(0.25, 0.8);
+    }
+}
+
+impl TargetRun<'_> {
+    /// The relighting of a frame rotated by `deg`: one timed frame at full order.
+    fn base(&self, deg: f64) -> RelightOptions {
+        RelightOptions {
+            order: self.opt.order,
+            adaptive: None,
+            rotate_y_deg: deg,
+            timing_frames: 1,
+            warmup_frames: self.opt.warmup_frames,
+            rotate_y_step_deg: 0.0,
+            points: None,
+            ..Default::default()
+        }
+    }
+
+    /// Relights the scene with `opt`.
+    fn relight(&self, opt: &RelightOptions) -> Result<Relit, SceneRelightError> {
+        relight(self.scene, self.accel, self.bake, opt)
+    }
+
+    /// Shades frame `deg` adaptively to the target from threshold `t` (which the controller
+    /// leaves where the next frame starts): the frame's figures, its radiance and, with
+    /// `--verify`, its full-order image and time.
+    fn adaptive_frame(
+        &self,
+        deg: f64,
+        t: &mut f32,
+    ) -> Result<(TargetFrame, Relit, Option<FullImage>), SceneRelightError> {
+        let full_probe = self.relight(&RelightOptions {
+            points: Some(self.probe.points.clone()),
+            ..self.base(deg)
+        })?;
+        let probe_ms = full_probe.stats.shade_ms;
+        let accepted = control(
+            t,
+            self.target_mse,
+            self.aim_mse,
+            probe_ms,
+            |t| self.attempt(deg, t, &full_probe),
+            || {
+                let f = self.relight(&self.base(deg))?;
+                let ms = f.stats.shade_ms;
+                Ok((f, ms))
             },
         )?;
-        let probe_ms = full_probe.stats.shade_ms;
-        let mut shade_ms = probe_ms;
-        let mut tries = 0;
-        // Coefficient products spent on this frame's tries (a deterministic cost measure).
-        let mut spent = 0u64;
-        let (accepted_t, est, lower, adaptive) = loop {
-            tries += 1;
-            let params = with_threshold(&opt.adaptive, t);
-            let a = relight(
-                scene,
-                accel,
-                bake,
-                &RelightOptions {
-                    adaptive: Some(params),
-                    ..base(deg)
-                },
-            )?;
-            shade_ms += a.stats.shade_ms;
-            let (mse, se) = estimate(scene, &probe, &a.radiance, &full_probe.radiance, deg);
-            let upper = mse + 2.0 * se;
-            if upper <= target_mse {
-                break (t, psnr(mse), psnr(upper), a);
-            }
-            // Another try costs about as much as this one: past full order's cost (in
-            // coefficient products, so the decision does not depend on the machine's load),
-            // or out of tries, shade the frame at full order.
-            let (products, full_products) = (
-                a.stats.products.unwrap_or(0),
-                a.stats.full_order_products.unwrap_or(u64::MAX),
-            );
-            spent += products;
-            if tries >= MAX_TRIES || spent.saturating_add(products) > full_products {
-                let f = relight(scene, accel, bake, &base(deg))?;
-                shade_ms += f.stats.shade_ms;
-                break (0.0, f64::INFINITY, f64::INFINITY, f);
-            }
-            t *= ((aim_mse / upper).sqrt() as f32).clamp(0.25, 0.8);
-        };
         let mut frame = TargetFrame {
             rotate_y_deg: deg,
-            threshold: accepted_t,
-            tries,
-            psnr_estimate: est,
-            psnr_lower: lower,
-            shade_ms,
+            threshold: accepted.threshold,
+            tries: accepted.tries,
+            psnr_estimate: accepted.psnr_estimate,
+            psnr_lower: accepted.psnr_lower,
+            shade_ms: accepted.shade_ms,
             probe_ms,
             psnr_actual: None,
             full_ms: None,
         };
-        if accepted_t > 0.0 && est > opt.target_psnr + 3.0 {
-            t = accepted_t * 1.5;
+        if accepted.threshold > 0.0 && accepted.psnr_estimate > self.opt.target_psnr + 3.0 {
+            *t = accepted.threshold * 1.5;
         }
-        full_streak = (accepted_t == 0.0).then_some(0);
-        if opt.verify {
-            let full = relight(scene, accel, bake, &base(deg))?;
-            let fi = crate::imaging::form_image(scene, accel, &full, deg)?;
-            let ai = crate::imaging::form_image(scene, accel, &adaptive, deg)?;
-            let m = prt_compare::compare(
-                &crate::io::to_compare_image(&ai),
-                &crate::io::to_compare_image(&fi),
-                None,
-            )?;
-            frame.psnr_actual = Some(m.whole.psnr_ldr);
-            frame.full_ms = Some(full.stats.shade_ms);
-            full_images.push((fi, full.stats.shade_ms));
+        let mut full = None;
+        if self.opt.verify {
+            let (psnr, image, ms) = self.verify(deg, &accepted.relit)?;
+            frame.psnr_actual = Some(psnr);
+            frame.full_ms = Some(ms);
+            full = Some((image, ms));
         }
-        frames.push(frame);
-        last_frame = Some(adaptive);
+        Ok((frame, accepted.relit, full))
     }
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
-    let median_shade_ms = median(frames.iter().map(|f| f.shade_ms).collect());
-    let (mut speedup, mut min_psnr_actual, mut uniform, mut uniform_speedup) =
-        (None, None, None, None);
-    if opt.verify {
-        let full_ms = median(full_images.iter().map(|(_, ms)| *ms).collect());
-        speedup = Some(full_ms / median_shade_ms.max(1e-9));
-        min_psnr_actual = frames
-            .iter()
-            .filter_map(|f| f.psnr_actual)
-            .min_by(f64::total_cmp);
-        let top = bake
+
+    /// Frame `deg` shaded adaptively at threshold `t`, with the probe's estimate of its error
+    /// against `full_probe` (the probe's vertices at full order).
+    fn attempt(
+        &self,
+        deg: f64,
+        t: f32,
+        full_probe: &Relit,
+    ) -> Result<Try<Relit>, SceneRelightError> {
+        let params = with_threshold(&self.opt.adaptive, t);
+        let a = self.relight(&RelightOptions {
+            adaptive: Some(params),
+            ..self.base(deg)
+        })?;
+        let (mse, se) = estimate(
+            self.scene,
+            self.probe,
+            &a.radiance,
+            &full_probe.radiance,
+            deg,
+        );
+        Ok(Try {
+            mse,
+            se,
+            shade_ms: a.stats.shade_ms,
+            products: a.stats.products,
+            full_order_products: a.stats.full_order_products,
+            relit: a,
+        })
+    }
+
+    /// `--verify`: frame `deg` at full order, and the PSNR `adaptive` reaches against it:
+    /// `(PSNR, full-order image, full-order time in ms)`.
+    fn verify(
+        &self,
+        deg: f64,
+        adaptive: &Relit,
+    ) -> Result<(f64, RgbImage, f64), SceneRelightError> {
+        let (scene, accel) = (self.scene, self.accel);
+        let full = self.relight(&self.base(deg))?;
+        let fi = crate::imaging::form_image(scene, accel, &full, deg)?;
+        let ai = crate::imaging::form_image(scene, accel, adaptive, deg)?;
+        let m = prt_compare::compare(
+            &crate::io::to_compare_image(&ai),
+            &crate::io::to_compare_image(&fi),
+            None,
+        )?;
+        Ok((m.whole.psnr_ldr, fi, full.stats.shade_ms))
+    }
+
+    /// `--verify`: the lowest uniform order whose every frame reaches the target against the
+    /// full-order images `full_images` (median time `full_ms`), and its speedup; full order
+    /// itself (speedup 1) if no lower order does.
+    fn uniform_baseline(
+        &self,
+        full_images: &[FullImage],
+        full_ms: f64,
+    ) -> Result<(UniformBaseline, f64), SceneRelightError> {
+        let top = self
+            .bake
             .objects
             .iter()
             .map(|o| o.order as usize)
             .max()
             .unwrap_or(1);
-        let top = opt.order.map_or(top, |o| o.min(top));
+        let top = self.opt.order.map_or(top, |o| o.min(top));
         for order in 1..top {
-            let mut worst = f64::INFINITY;
-            let mut times = Vec::new();
-            for (&deg, (fi, _)) in opt.rotations.iter().zip(&full_images) {
-                let r = relight(
-                    scene,
-                    accel,
-                    bake,
-                    &RelightOptions {
-                        order: Some(order),
-                        ..base(deg)
-                    },
-                )?;
-                let img = crate::imaging::form_image(scene, accel, &r, deg)?;
-                let m = prt_compare::compare(
-                    &crate::io::to_compare_image(&img),
-                    &crate::io::to_compare_image(fi),
-                    None,
-                )?;
-                worst = worst.min(m.whole.psnr_ldr);
-                times.push(r.stats.shade_ms);
-                if worst < opt.target_psnr {
-                    break;
-                }
-            }
-            if worst >= opt.target_psnr {
+            let (worst, times) = self.uniform_order(order, full_images)?;
+            if worst >= self.opt.target_psnr {
                 let ms = median(times);
-                uniform_speedup = Some(full_ms / ms.max(1e-9));
-                uniform = Some(UniformBaseline {
+                let baseline = UniformBaseline {
                     order,
                     ms,
                     min_psnr: worst,
-                });
+                };
+                return Ok((baseline, full_ms / ms.max(1e-9)));
+            }
+        }
+        let baseline = UniformBaseline {
+            order: top,
+            ms: full_ms,
+            min_psnr: f64::INFINITY,
+        };
+        Ok((baseline, 1.0))
+    }
+
+    /// The frames relit uniformly at `order`, until one misses the target: the lowest PSNR
+    /// against `full_images` and the shading times.
+    fn uniform_order(
+        &self,
+        order: usize,
+        full_images: &[FullImage],
+    ) -> Result<(f64, Vec<f64>), SceneRelightError> {
+        let mut worst = f64::INFINITY;
+        let mut times = Vec::new();
+        for (&deg, (fi, _)) in self.opt.rotations.iter().zip(full_images) {
+            let r = self.relight(&RelightOptions {
+                order: Some(order),
+                ..self.base(deg)
+            })?;
+            let img = crate::imaging::form_image(self.scene, self.accel, &r, deg)?;
+            let m = prt_compare::compare(
+                &crate::io::to_compare_image(&img),
+                &crate::io::to_compare_image(fi),
+                None,
+            )?;
+            worst = worst.min(m.whole.psnr_ldr);
+            times.push(r.stats.shade_ms);
+            if worst < self.opt.target_psnr {
                 break;
             }
         }
-        if uniform.is_none() {
-            uniform = Some(UniformBaseline {
-                order: top,
-                ms: full_ms,
-                min_psnr: f64::INFINITY,
-            });
-            uniform_speedup = Some(1.0);
+        Ok((worst, times))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+    use prt_scene::test_util::floor_quad;
+    use prt_scene::{Camera, Environment, Material};
+
+    /// The aim of the controller: 1 dB above a target of MSE 1.
+    fn aim() -> f64 {
+        10f64.powf(-0.1)
+    }
+
+    /// A try whose error follows `mse(t)`, with standard error `se(mse)`, costing `products` of
+    /// full order's `full` and 2 ms; its "frame" is the threshold it was shaded at.
+    fn synthetic(
+        mse: impl Fn(f32) -> f64,
+        se: impl Fn(f64) -> f64,
+        products: Option<u64>,
+        full: Option<u64>,
+    ) -> impl FnMut(f32) -> Result<Try<f32>, SceneRelightError> {
+        move |t| {
+            let m = mse(t);
+            Ok(Try {
+                mse: m,
+                se: se(m),
+                shade_ms: 2.0,
+                products,
+                full_order_products: full,
+                relit: t,
+            })
         }
     }
-    Ok(TargetStudy {
-        target_psnr: opt.target_psnr,
-        probe_pixels: probe.pixels.len(),
-        candidate_pixels: probe.candidates,
-        probe_points: probe.points.iter().map(Vec::len).sum(),
-        frames,
-        median_shade_ms,
-        speedup,
-        min_psnr_actual,
-        uniform,
-        uniform_speedup,
-        last_frame,
-    })
+
+    fn full_order() -> Result<(f32, f64), SceneRelightError> {
+        Ok((-1.0, 10.0))
+    }
+
+    #[test]
+    fn the_controller_scales_the_threshold_down_the_error_curve_until_the_target_is_met() {
+        // Error quadratic in the threshold, MSE = 100 t², from t = 1 against MSE 1: the bound
+        // 100 asks for ×0.089, kept at ×0.25; at t = 0.25 the bound 6.25 asks for
+        // ×√(aim/6.25); there the MSE is the aim itself, below the target.
+        let mut t = 1.0f32;
+        let curve = synthetic(
+            |t| 100.0 * f64::from(t).powi(2),
+            |_| 0.0,
+            Some(1),
+            Some(1000),
+        );
+        let a = control(&mut t, 1.0, aim(), 5.0, curve, full_order).unwrap();
+        let third = 0.25f32 * ((aim() / 6.25).sqrt() as f32);
+        assert_eq!((a.tries, a.threshold, a.relit, t), (3, third, third, third));
+        let mse = 100.0 * f64::from(third).powi(2);
+        assert!(mse <= 1.0 && (mse - aim()).abs() < 1e-5, "{mse}");
+        assert_eq!((a.psnr_estimate, a.psnr_lower), (psnr(mse), psnr(mse)));
+        assert_eq!(a.shade_ms, 5.0 + 3.0 * 2.0);
+    }
+
+    #[test]
+    fn the_target_is_met_by_the_upper_bound_and_steps_are_at_most_0_8() {
+        // MSE 0.5 below t = 0.85 and 1.01 above, with a standard error of 40 % of the MSE: at
+        // t = 1 the bound 1.818 asks for ×0.66; at 0.66 the estimate meets the target but the
+        // bound 0.9 too. A bound just past the target asks for ×0.89, kept at ×0.8.
+        let mut t = 1.0f32;
+        let curve = synthetic(
+            |t| if t > 0.85 { 1.01 } else { 0.5 },
+            |m| 0.4 * m,
+            None,
+            None,
+        );
+        let a = control(&mut t, 1.0, aim(), 0.0, curve, full_order).unwrap();
+        let first_bound = 1.01 + 2.0 * (0.4 * 1.01);
+        let second = ((aim() / first_bound).sqrt() as f32).clamp(0.25, 0.8);
+        assert_eq!((a.tries, a.threshold), (2, second));
+        assert_eq!((a.psnr_estimate, a.psnr_lower), (psnr(0.5), psnr(0.9)));
+        let mut t = 1.0f32;
+        let curve = synthetic(|t| if t > 0.85 { 1.01 } else { 0.5 }, |_| 0.0, None, None);
+        let a = control(&mut t, 1.0, aim(), 0.0, curve, full_order).unwrap();
+        assert_eq!((a.tries, a.threshold), (2, 0.8));
+    }
+
+    #[test]
+    fn an_unmet_target_falls_back_to_full_order() {
+        // Out of tries: the threshold quartered each time, then full order (threshold 0).
+        let mut t = 1.0f32;
+        let curve = synthetic(|_| 1e9, |_| 0.0, None, None);
+        let a = control(&mut t, 1.0, aim(), 0.0, curve, full_order).unwrap();
+        assert_eq!((a.tries, a.threshold, a.relit), (MAX_TRIES, 0.0, -1.0));
+        assert_eq!(
+            (a.psnr_estimate, a.psnr_lower),
+            (f64::INFINITY, f64::INFINITY)
+        );
+        assert_eq!(a.shade_ms, 2.0 * MAX_TRIES as f64 + 10.0);
+        assert_eq!(t, (0..MAX_TRIES - 1).fold(1.0f32, |t, _| t * 0.25));
+        // Past full order's cost: a second try of 600 products would make 1200 of 1000.
+        let mut t = 1.0f32;
+        let curve = synthetic(|_| 1e9, |_| 0.0, Some(600), Some(1000));
+        let a = control(&mut t, 1.0, aim(), 0.0, curve, full_order).unwrap();
+        assert_eq!((a.tries, a.threshold, t), (1, 0.0, 1.0));
+        let curve = synthetic(|_| 1e9, |_| 0.0, Some(400), Some(1000));
+        let a = control(&mut 1.0, 1.0, aim(), 0.0, curve, full_order).unwrap();
+        assert_eq!(a.tries, 2);
+        // A try's error ends the frame.
+        let failing = |_| Err(SceneRelightError::Invalid("no".into()));
+        let e = control::<f32>(&mut 1.0, 1.0, aim(), 0.0, failing, full_order);
+        assert!(e.is_err());
+    }
+
+    /// The floor seen from above, 12 × 12 pixels, under a uniform environment of 0.5.
+    fn floor_scene(target: DVec3) -> (Scene, prt_tracer::Accel) {
+        let mut cam = Camera::look_at(DVec3::new(0.0, 4.0, 0.0), target, 40.0, 12, 12);
+        cam.up = DVec3::NEG_Z;
+        let mut scene = Scene::new(cam, Environment::uniform([0.5; 3]));
+        let m = scene.add_material("grey", Material::Lambert { albedo: [0.5; 3] });
+        scene.add_mesh(floor_quad(1.0, 0.0), m);
+        let accel = prt_tracer::Accel::build(&scene).unwrap();
+        (scene, accel)
+    }
+
+    #[test]
+    fn the_estimate_is_the_candidates_share_of_the_mean_error_with_its_standard_error() {
+        let (scene, _) = floor_scene(DVec3::ZERO);
+        // Pixel 0: one vertex, white against black (8-bit error 255 in every channel). Pixel 1:
+        // half background, half a vertex equal in both images (no error).
+        let probe = Probe {
+            pixels: vec![
+                ProbePixel {
+                    terms: vec![(0, 0, 1.0)],
+                    background: Vec::new(),
+                    weight: 1.0,
+                },
+                ProbePixel {
+                    terms: vec![(0, 1, 0.5)],
+                    background: vec![Vec3::Y],
+                    weight: 0.5,
+                },
+            ],
+            candidates: 4,
+            total: 8,
+            points: vec![vec![0, 1]],
+        };
+        let a = [vec![[1.0f32; 3], [0.3; 3]]];
+        let f = [vec![[0.0f32; 3], [0.3; 3]]];
+        let (mse, se) = estimate(&scene, &probe, &a, &f, 0.0);
+        // Errors e = (255², 0): mean e/2, variance e²/2, finite-population correction
+        // (4 − 2)/(4 − 1); the candidates are half the image.
+        let e = 255.0f64 * 255.0;
+        assert_eq!(mse, 0.5 * e / 2.0);
+        let want_se = 0.5 * (e * e / 2.0 / 2.0 * (2.0 / 3.0)).sqrt();
+        assert!((se - want_se).abs() < 1e-9 * want_se, "{se} vs {want_se}");
+        assert_eq!(estimate(&scene, &probe, &f, &f, 0.0), (0.0, 0.0));
+        assert_eq!(psnr(0.0), f64::INFINITY);
+        assert!((psnr(e / 100.0) - 20.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_probe_draws_pixels_that_show_an_object_and_their_vertices() {
+        let (scene, accel) = floor_scene(DVec3::ZERO);
+        let probe = build_probe(&scene, &accel, 5, 7).unwrap();
+        assert_eq!((probe.pixels.len(), probe.total), (5, 144));
+        let mask = crate::imaging::object_mask(&scene, &accel).unwrap();
+        let centres = mask.iter().filter(|&&m| m).count();
+        // Candidates: every pixel any of whose sub-pixel rays hits, at least those whose
+        // centre does, not the corners.
+        assert!(probe.candidates >= centres && probe.candidates < 144 - 4);
+        for p in &probe.pixels {
+            assert!(!p.terms.is_empty());
+            let sum: f32 =
+                p.terms.iter().map(|t| t.2).sum::<f32>() + p.weight * p.background.len() as f32;
+            assert!((sum - 1.0).abs() < 1e-5, "weights sum to {sum}");
+        }
+        let points = &probe.points[0];
+        assert!(points.windows(2).all(|w| w[0] < w[1]) && points.iter().all(|&v| v < 4));
+        // The same seed draws the same pixels.
+        let again = build_probe(&scene, &accel, 5, 7).unwrap();
+        assert_eq!(again.points, probe.points);
+        // A camera looking away sees nothing to relight.
+        let (away, accel) = floor_scene(DVec3::new(0.0, 8.0, 0.1));
+        let e = build_probe(&away, &accel, 5, 7).err().unwrap().to_string();
+        assert!(e.contains("no pixel shows an object"), "{e}");
+    }
+
+    #[test]
+    fn settings_the_run_cannot_meet_are_refused() {
+        let bake = Bake::default();
+        let opt = TargetOptions {
+            order: None,
+            adaptive: AdaptiveParams::new(Threshold::Display {
+                t: 0.02,
+                exposure_ev: 1.0,
+            }),
+            target_psnr: 40.0,
+            probe_pixels: 10,
+            seed: 0,
+            rotations: vec![0.0],
+            warmup_frames: 0,
+            verify: false,
+        };
+        assert!(check_options(&bake, &opt).is_ok());
+        for bad in [0.0, -3.0, f64::INFINITY, f64::NAN] {
+            let o = TargetOptions {
+                target_psnr: bad,
+                ..opt.clone()
+            };
+            let e = check_options(&bake, &o).unwrap_err().to_string();
+            assert!(e.contains("positive, finite number of dB"), "{e}");
+        }
+        let none = TargetOptions {
+            rotations: Vec::new(),
+            ..opt.clone()
+        };
+        assert!(check_options(&bake, &none).is_err());
+        let mut per_pixel = Bake::default();
+        per_pixel.meta.sample_kind = prt_bakefile::SampleKind::Pixel {
+            width: 4,
+            height: 4,
+        };
+        let e = check_options(&per_pixel, &opt).unwrap_err().to_string();
+        assert!(e.contains("needs a per-vertex bake"), "{e}");
+        // The threshold keeps its kind and the other settings.
+        let p = with_threshold(&opt.adaptive, 0.5);
+        assert_eq!(
+            p.threshold,
+            Threshold::Display {
+                t: 0.5,
+                exposure_ev: 1.0
+            }
+        );
+        assert_eq!((p.stop, threshold_value(&p)), (opt.adaptive.stop, 0.5));
+    }
 }
