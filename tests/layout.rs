@@ -69,11 +69,12 @@ fn every_crate_is_a_prt_package_with_docs() {
 const ALLOWED: &[(&str, &[&str])] = &[
     ("sh", &[]),
     ("wavelet", &[]),
-    ("compare", &[]),
+    ("image", &[]),
+    ("compare", &["image"]),
     ("bakefile", &[]),
     ("scene", &["bakefile"]),
     ("shading", &["scene", "sh", "bakefile"]),
-    ("tracer", &["scene", "shading"]),
+    ("tracer", &["scene", "shading", "image"]),
     ("relight", &["sh"]),
     ("bake", &["sh", "scene", "shading", "tracer", "bakefile"]),
     (
@@ -381,4 +382,140 @@ fn the_import_analysis_sees_the_three_ways_a_file_names_another() {
     assert_eq!(find_cycle(&graph).unwrap(), ["a", "b", "c", "a"]);
     std::fs::write(dir.join("c.rs"), "pub struct Thing;\n").unwrap();
     assert!(find_cycle(&module_graph(dir)).is_none());
+}
+
+/// The longest a function may be without a reason written beside it (issue 31: functions a
+/// reader can hold in their head).
+const LONGEST_FUNCTION: usize = 200;
+
+/// The word that, in the comment lines just above a function, says why it is longer.
+const LONG_REASON: &str = "Long function:";
+
+/// Every `fn` in `source` with its name, first line (1-based) and length in lines, from its
+/// signature to the closing brace written at the signature's indentation (rustfmt's layout).
+/// Declarations without a body (trait items ending in `;`) are skipped.
+fn function_lengths(source: &str) -> Vec<(String, usize, usize)> {
+    let lines: Vec<&str> = source.lines().collect();
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let trimmed = line.trim_start();
+        let indent = line.len() - trimmed.len();
+        let mut rest = trimmed;
+        for qualifier in [
+            "pub(crate) ",
+            "pub(super) ",
+            "pub ",
+            "const ",
+            "async ",
+            "unsafe ",
+        ] {
+            rest = rest.strip_prefix(qualifier).unwrap_or(rest);
+        }
+        let Some(after) = rest.strip_prefix("fn ") else {
+            continue;
+        };
+        let name: String = after
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        let Some(open) = (i..lines.len()).find(|&j| {
+            let l = lines[j].trim_end();
+            l.ends_with('{') || l.ends_with(';')
+        }) else {
+            continue;
+        };
+        if lines[open].trim_end().ends_with(';') {
+            continue;
+        }
+        let close = (open + 1..lines.len()).find(|&j| {
+            let l = lines[j];
+            l.len() > indent && l[..indent].trim().is_empty() && l[indent..].starts_with('}')
+        });
+        if let Some(close) = close {
+            out.push((name, i + 1, close - i + 1));
+        }
+    }
+    out
+}
+
+/// Whether the comment block just above line `first` (1-based) gives a reason for length.
+fn has_long_reason(source: &str, first: usize) -> bool {
+    source
+        .lines()
+        .take(first - 1)
+        .collect::<Vec<_>>()
+        .iter()
+        .rev()
+        .take_while(|l| {
+            let t = l.trim_start();
+            t.starts_with("//") || t.starts_with("#[")
+        })
+        .any(|l| l.contains(LONG_REASON))
+}
+
+#[test]
+fn no_function_is_longer_than_a_reader_can_hold_without_a_reason() {
+    // Library and binary code: each crate's `src/` (test files, whose long tables of rows
+    // are data, are not held to it).
+    let crates = common::workspace_root().join("crates");
+    let mut long = Vec::new();
+    let mut stack: Vec<_> = std::fs::read_dir(&crates)
+        .unwrap()
+        .map(|e| e.unwrap().path().join("src"))
+        .filter(|p| p.is_dir())
+        .collect();
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                let source = std::fs::read_to_string(&path).unwrap();
+                for (name, first, len) in function_lengths(&source) {
+                    if len > LONGEST_FUNCTION && !has_long_reason(&source, first) {
+                        long.push(format!("{}:{first} {name} ({len} lines)", path.display()));
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        long.is_empty(),
+        "functions over {LONGEST_FUNCTION} lines with no `{LONG_REASON}` comment above them:\n{}",
+        long.join("\n")
+    );
+}
+
+#[test]
+fn function_lengths_are_measured_from_signature_to_closing_brace() {
+    let source = "\
+pub fn short() {
+    let x = 1;
+}
+
+trait T {
+    fn declared(&self);
+    fn defaulted(&self) {
+        if true {
+        }
+    }
+}
+
+// Long function: a reason.
+#[inline]
+pub(crate) fn explained(
+    a: u32,
+) -> u32 {
+    a
+}
+";
+    let found = function_lengths(source);
+    let names: Vec<_> = found.iter().map(|(n, f, l)| (n.as_str(), *f, *l)).collect();
+    assert_eq!(
+        names,
+        [("short", 1, 3), ("defaulted", 7, 4), ("explained", 15, 5)]
+    );
+    assert!(!has_long_reason(source, 1));
+    assert!(!has_long_reason(source, 7));
+    assert!(has_long_reason(source, 15));
 }
