@@ -2,14 +2,14 @@
 """Independent relighter of `prt export` glTF files (per-vertex and lightmapped objects).
 
 Written from `crates/bakefile/SPEC.md` §1 (SH convention), §10 (glTF export), §10.1
-(view-dependent shading) and `CONVENTIONS.md` ("Spherical harmonics") ALONE (plus §3.1's
-definition of a covered texel, for `--texels covered`): no Rust source of prt was read, and
-nothing of prt is imported or called, so a disagreement with `prt relight` points at a bug in
-one of them or at a gap in the SPEC. Needs Python 3 and numpy only (PNGs are decoded here with
-zlib).
+(view-dependent shading), §10.2 (GPU targets: the data-texture layout) and `CONVENTIONS.md`
+("Spherical harmonics") ALONE (plus §3.1's definition of a covered texel, for `--texels
+covered`): no Rust source of prt was read, and nothing of prt is imported or called, so a
+disagreement with `prt relight` points at a bug in one of them or at a gap in the SPEC. Needs
+Python 3 and numpy only (PNGs are decoded here with zlib).
 
-Per-vertex meshes (`extras.prt.storage == "vertex"`): each vertex's radiance `D_c + S_c`
-(§10.1):
+Per-vertex meshes (`extras.prt.storage == "vertex"`, or "vertex_texture" below): each vertex's
+radiance `D_c + S_c` (§10.1):
   * diffuse `D_c = albedo_c · k_d · (1/π) Σ_i t[c or 0][i] · environment[i][c]` (one channel:
     `_PRT_C0_*` for R, G and B; three channels, a bounced bake: `_PRT_C{c}_*` against
     environment channel c), albedo = `extras.prt.albedo` (RGB, or the name of a per-vertex VEC3
@@ -22,6 +22,17 @@ Per-vertex meshes (`extras.prt.storage == "vertex"`): each vertex's radiance `D_
     (per channel as the matrix M_c[i][k] = Σ_q w_q y_i L_c y_k, then M_c V per vertex).
   * an environment with fewer rows than n² (order n_e < n, §10) is summed over its rows and
     the view-dependent terms are shaded at order min(n, n_e).
+  * `storage == "vertex_texture"` (§10.2, `--target webgl2|desktop`): the same object, relit
+    by the same formulas, but t and V come from the FLOAT VEC4 accessor of W·H texels named
+    by `extras.prt.transfer_texture`: coefficient i of channel c of the vertex whose
+    `_PRT_VERTEX_ID` (the attribute `vertex_id` names) is v is component i mod 4 of texel
+    k = v·P + channel_texels[c] + ⌊i/4⌋ (column k mod W, row ⌊k/W⌋; V at visibility_texel).
+    The ids must be exact integers in 0 … nv−1 (rows index the texture by their id, not by
+    their position); the layout must agree with order and channels (G = ⌈n²/4⌉,
+    channel_texels = c·G, visibility_texel = C·G exactly when there is a lobe, P = C·G (+G)),
+    the accessor must hold W·H texels, W ≤ V·P and H = ⌈V·P/W⌉ (the target's limit is not in
+    the file), padding (components past n², texels past V·P) must be 0 and there must be no
+    `_PRT_C*`/`_PRT_V_*` attributes — else the file is refused naming the mesh.
 Lightmapped meshes (`storage == "lightmap"`, §10 "Per-texel (lightmap) bakes"): the RGBA8 PNG
 of `lightmap.textures[c][g]` is decoded (own decoder: chunk CRCs, IDAT inflated with zlib,
 filter types 0–4; anything but 8-bit colour type 6, not interlaced, is refused naming the
@@ -307,8 +318,13 @@ def relight_primitive(glb, mesh_name, prim, eye, specular=True, fresnel=True, ma
                                              (5121, "SCALAR")], where + " indices")
         if idx.size and idx.max() >= nv:
             raise GlbError(f"{where}: an index is past the {nv} vertices")
-    t = np.stack([np.concatenate([attribute(glb, prim, f"_PRT_C{c}_{g}", "VEC4", nv, where)
-                                  for g in range(groups)], axis=1)[:, :nn] for c in range(nch)])
+    if ext.get("storage", "vertex") == "vertex_texture":            # §10.2
+        t, vis_tex = vertex_texture(glb, prim, ext, n, nch, nv, where)
+    else:
+        t = np.stack([np.concatenate([attribute(glb, prim, f"_PRT_C{c}_{g}", "VEC4", nv, where)
+                                      for g in range(groups)], axis=1)[:, :nn]
+                      for c in range(nch)])
+        vis_tex = None
     light, ns = environment(ext, n, where)                      # (min(n², n_e²), 3)
     ne = light.shape[0]
     alb = need(ext, "albedo", where)
@@ -347,11 +363,14 @@ def relight_primitive(glb, mesh_name, prim, eye, specular=True, fresnel=True, ma
     # accepted: the SPEC does not say how many).
     ws = where + " specular"
     n, nn = ns, ns * ns
-    vnames = need(spec, "visibility_attributes", ws)
-    if not isinstance(vnames, list) or not (nn + 3) // 4 <= len(vnames) <= groups:
-        raise GlbError(f"{ws}: visibility_attributes must name {(nn + 3) // 4} attributes")
-    vis = np.concatenate([attribute(glb, prim, nm, "VEC4", nv, where) for nm in vnames],
-                         axis=1)[:, :nn]
+    if vis_tex is not None:                     # §10.2: n² (object order) coefficients
+        vis = vis_tex[:, :nn]
+    else:
+        vnames = need(spec, "visibility_attributes", ws)
+        if not isinstance(vnames, list) or not (nn + 3) // 4 <= len(vnames) <= groups:
+            raise GlbError(f"{ws}: visibility_attributes must name {(nn + 3) // 4} attributes")
+        vis = np.concatenate([attribute(glb, prim, nm, "VEC4", nv, where) for nm in vnames],
+                             axis=1)[:, :nn]
     pm = product_matrices(light, n)
     lv = np.einsum("cik,vk->cvi", pm, vis)                               # (3, nv, n²)
     rvec = 2.0 * co[:, None] * nh - wo
@@ -376,6 +395,115 @@ def relight_primitive(glb, mesh_name, prim, eye, specular=True, fresnel=True, ma
                                           np.einsum("cik,vk->cvi", np.abs(pm), np.abs(vis)))
         mag_out[-1] = mag + np.where(co[:, None] > 0.0, s_abs, 0.0)
     return rad + np.where(co[:, None] > 0.0, s, 0.0)
+
+
+def vertex_texture(glb, prim, ext, n, nch, nv, where):
+    """§10.2 `storage: "vertex_texture"`: (t (nch, nv, n²), visibility (nv, n²) or None) read
+    from the RGBA32F data texture `extras.prt.transfer_texture` (a FLOAT VEC4 accessor of W·H
+    texels, row by row): coefficient i of channel c of the vertex whose `_PRT_VERTEX_ID` is v
+    is component i mod 4 of texel k = v·P + channel_texels[c] + ⌊i/4⌋ (column k mod W, row
+    ⌊k/W⌋), the visibility's of texel v·P + visibility_texel + ⌊i/4⌋. Row r of the primitive
+    reads the texels of its id, which must be an exact integer in 0 … nv−1 (§10.2 makes it
+    the vertex index; that it equals r is not assumed). Refused (GlbError naming the mesh):
+    a field missing or inconsistent with order and channels (G = ⌈n²/4⌉, channel_texels[c] =
+    c·G, visibility_texel = C·G exactly when there is a specular lobe, P = C·G (+ G)), an
+    accessor count other than W·H, W·H < V·P or H ≠ ⌈V·P/W⌉ (the target's limit is not in
+    the file, so W = min(limit, V·P) is checked only as W ≤ V·P), non-zero padding
+    (components past n², texels past V·P), and `_PRT_C*` / `_PRT_V_*` attributes or
+    non-empty `attributes` / `visibility_attributes` (§10.2: they are `[]`)."""
+    tw = where + " extras.prt.transfer_texture"
+    tt = need(ext, "transfer_texture", where + " extras.prt")
+    if not isinstance(tt, dict):
+        raise GlbError(f"{tw} is not an object (storage 'vertex_texture' needs one)")
+
+    def integer(key, lo):
+        v = need(tt, key, tw)
+        if not isinstance(v, int) or isinstance(v, bool) or v < lo:
+            raise GlbError(f"{tw}: {key} {v!r} is not an integer >= {lo}")
+        return v
+
+    nn = n * n
+    g_want = (nn + 3) // 4
+    width, height = integer("width", 1), integer("height", 1)
+    p_tex, groups = integer("texels_per_vertex", 1), integer("groups", 1)
+    fmt = need(tt, "format", tw)
+    if fmt != "RGBA32F":
+        raise GlbError(f"{tw}: format {fmt!r}, expected 'RGBA32F'")
+    if groups != g_want:
+        raise GlbError(f"{tw}: groups {groups}, but order {n} needs G = ceil({nn}/4) = {g_want}")
+    ct = need(tt, "channel_texels", tw)
+    ct_want = [c * groups for c in range(nch)]
+    if not isinstance(ct, list) or any(isinstance(v, bool) or not isinstance(v, int)
+                                       for v in ct) or ct != ct_want:
+        raise GlbError(f"{tw}: channel_texels {ct!r}, expected {ct_want} (c·G for the {nch} "
+                       "channels)")
+    vt = need(tt, "visibility_texel", tw)
+    spec = ext.get("specular")
+    if vt is None:
+        if spec is not None:
+            raise GlbError(f"{tw}: visibility_texel is null but the primitive has a specular "
+                           "lobe, which needs the visibility transfer (§10.1)")
+    else:
+        if isinstance(vt, bool) or not isinstance(vt, int) or vt != nch * groups:
+            raise GlbError(f"{tw}: visibility_texel {vt!r}, expected C·G = {nch * groups} (the "
+                           f"G texels after the {nch} channels' within P)")
+        if spec is None:
+            raise GlbError(f"{tw}: visibility_texel {vt} but specular is null (§10.2: the "
+                           "visibility is in the texture only with a specular lobe)")
+    p_want = nch * groups + (groups if vt is not None else 0)
+    if p_tex != p_want:
+        raise GlbError(f"{tw}: texels_per_vertex {p_tex}, expected {p_want} (C·G"
+                       + (" + G with visibility)" if vt is not None else ", no visibility)"))
+    used = nv * p_tex
+    if width * height < used or width > used or height != -(-used // width):
+        raise GlbError(f"{tw}: {width}x{height} texels for {nv} vertices of {p_tex} texels "
+                       f"(§10.2: W = min(limit, V·P) <= {used}, H = ceil(V·P/W))")
+    acc = need(tt, "accessor", tw)
+    texels = glb.accessor(acc, [(F, "VEC4")], f"{where} transfer_texture")
+    if texels.shape[0] != width * height:
+        raise GlbError(f"{tw}: accessor {acc} has {texels.shape[0]} texels, W·H = "
+                       f"{width}x{height} = {width * height}")
+    if np.any(texels[used:] != 0.0):
+        k = used + int(np.flatnonzero(np.any(texels[used:] != 0.0, axis=1))[0])
+        raise GlbError(f"{tw}: texel {k} past the last vertex's (V·P = {used}) is not 0")
+    attrs = need(prim, "attributes", where)
+    extra = sorted(a for a in attrs if a.startswith("_PRT_C") or a.startswith("_PRT_V_"))
+    if extra or ext.get("attributes", []) != []:
+        raise GlbError(f"{where}: storage 'vertex_texture' with transfer attributes "
+                       f"{extra or ext.get('attributes')} (§10.2: none, `attributes` is [])")
+    if spec is not None and spec.get("visibility_attributes", []) != []:
+        raise GlbError(f"{where} specular: visibility_attributes "
+                       f"{spec['visibility_attributes']!r} with storage 'vertex_texture' "
+                       "(§10.2: [])")
+    name = need(tt, "vertex_id", tw)
+    if not isinstance(name, str):
+        raise GlbError(f"{tw}: vertex_id {name!r} is not an attribute name")
+    vid = attribute(glb, prim, name, "SCALAR", nv, where).reshape(nv)
+    bad = np.flatnonzero((vid != np.floor(vid)) | (vid < 0) | (vid >= nv))
+    if len(bad):
+        raise GlbError(f"{where}: {name} of vertex {bad[0]} is {float(vid[bad[0]])!r}, not an "
+                       f"integer vertex index in 0..{nv - 1}")
+    grid = texels.reshape(height, width, 4)
+
+    def slot(ids, first):
+        """(len(ids), 4G) components of texels id·P + first + g, g < G (column k mod W,
+        row ⌊k/W⌋)."""
+        k = ids[:, None] * p_tex + first + np.arange(groups)[None, :]
+        return grid[k // width, k % width].reshape(len(ids), 4 * groups)
+
+    slots = [("channel", c, ct[c]) for c in range(nch)]
+    slots += [("visibility", 0, vt)] if vt is not None else []
+    every = np.arange(nv)
+    for kind, c, first in slots:                 # padding: components past n² are 0
+        pad = slot(every, first)[:, nn:]
+        if np.any(pad != 0.0):
+            v = int(np.flatnonzero(np.any(pad != 0.0, axis=1))[0])
+            raise GlbError(f"{tw}: vertex {v}'s {kind} {c} texels hold a non-zero component "
+                           f"past coefficient {nn - 1} (n² = {nn})")
+    ids = vid.astype(np.int64)
+    t = np.stack([slot(ids, ct[c])[:, :nn] for c in range(nch)])
+    vis = slot(ids, vt)[:, :nn] if vt is not None else None
+    return t, vis
 
 
 def environment(ext, n, where):
@@ -791,11 +919,12 @@ def relight_lightmap(glb, mesh_name, prim, texels="all", mag_out=None, quant_out
 def relight_file(path, eye=None, specular=True, fresnel=True, log=sys.stderr, mags=None,
                  quant=None, texels="all", storages=None):
     """[(mesh name, points, (P, 3) radiance)] for every mesh of a .glb: per-vertex meshes have
-    P = their vertices (points 0 … nv−1), lightmapped ones the texels of `texels` ("all" or
-    "covered"). With lists `mags` / `quant`, also appends [(mesh name, points, (P, 3))] of the
-    magnitudes (see relight_primitive / relight_lightmap) and of the quantisation bound (0
-    for per-vertex meshes, which are not quantised); with a dict `storages`, records each
-    mesh's `extras.prt.storage` under its name."""
+    P = their vertices (points 0 … nv−1; storage "vertex" or "vertex_texture"), lightmapped
+    ones the texels of `texels` ("all" or "covered"). With lists `mags` / `quant`, also
+    appends [(mesh name, points, (P, 3))] of the magnitudes (see relight_primitive /
+    relight_lightmap) and of the quantisation bound (0 for per-vertex meshes, which are not
+    quantised); with a dict `storages`, records each mesh's `extras.prt.storage` under its
+    name."""
     try:
         with open(path, "rb") as fh:
             data = fh.read()
@@ -817,7 +946,7 @@ def relight_file(path, eye=None, specular=True, fresnel=True, log=sys.stderr, ma
         q = [] if quant is not None else None
         if storage == "lightmap":
             pts, rad = relight_lightmap(glb, name, prims[0], texels, m, q, log)
-        elif storage == "vertex":
+        elif storage in ("vertex", "vertex_texture"):
             if eye is None:
                 cam = need(need(need(glb.json, "extras", "the root"), "prt", "root extras"),
                            "camera", "root extras.prt")
@@ -968,7 +1097,9 @@ def png_encode(img, filters=0, depth=8, colour=6, idat_parts=1, deflate=None, ie
 
 def glb_of(meshes, pngs=(), root_prt=None):
     """A .glb from meshes [(name, {attribute: float array (N, k)}, uint32 indices or None,
-    extras.prt)] and embedded PNG images (texture i = image i)."""
+    extras.prt)] and embedded PNG images (texture i = image i). An
+    `extras.prt.transfer_texture` whose `accessor` is a float array (W·H, 4) gets it written
+    as a FLOAT VEC4 accessor (§10.2)."""
     binary, views, accs = bytearray(), [], []
 
     def view(data):
@@ -986,6 +1117,9 @@ def glb_of(meshes, pngs=(), root_prt=None):
 
     gl_meshes = []
     for name, attrs, indices, prt in meshes:
+        tt = prt.get("transfer_texture")
+        if isinstance(tt, dict) and isinstance(tt.get("accessor"), np.ndarray):
+            prt = dict(prt, transfer_texture=dict(tt, accessor=accessor(tt["accessor"], F)))
         prim = {"attributes": {k: accessor(v, F) for k, v in attrs.items()},
                 "extras": {"prt": prt}}
         if indices is not None:
@@ -1096,6 +1230,217 @@ def self_test_channels(check, rng):
         check(False, "environment of 3 rows accepted")
     except GlbError:
         check(True, "")
+
+
+def vertex_texture_of(t, vis, limit=2048, ids=None):
+    """§10.2's layout written from its formulas: (texels (W·H, 4), transfer_texture) for the
+    transfer t (C, V, n²) and visibility (V, n²) or None; vertex v's block is at v·P, so a
+    row whose `_PRT_VERTEX_ID` is ids[r] reads t[:, r] when the texel block ids[r] holds it."""
+    nch, nv, nn = t.shape
+    ids = np.arange(nv) if ids is None else ids
+    g = (nn + 3) // 4
+    p = nch * g + (g if vis is not None else 0)
+    w = min(limit, nv * p)
+    h = -(-nv * p // w)
+    tex = np.zeros((h, w, 4))
+    for r in range(nv):
+        v = int(ids[r])
+        for i in range(nn):
+            for c in range(nch):
+                k = v * p + c * g + i // 4
+                tex[k // w, k % w, i % 4] = t[c, r, i]
+            if vis is not None:
+                k = v * p + nch * g + i // 4
+                tex[k // w, k % w, i % 4] = vis[r, i]
+    return tex.reshape(w * h, 4), {
+        "accessor": None, "format": "RGBA32F", "width": w, "height": h,
+        "texels_per_vertex": p, "groups": g, "channel_texels": [c * g for c in range(nch)],
+        "visibility_texel": nch * g if vis is not None else None,
+        "vertex_id": "_PRT_VERTEX_ID", "layout": "informative"}
+
+
+def self_test_vertex_texture(check, rng):
+    """§10.2: the same per-vertex data in the §10 attribute layout and in a data texture
+    (written above from the SPEC's formulas) relights identically — radiance and magnitudes,
+    1 and 3 channels, without a lobe, with Phong and fitted lobes (visibility from the
+    texture), an environment of lower order; W = 2048 < V·P with padding texels and rows
+    that split a vertex's block (2048 mod P ≠ 0), and W = V·P. Malformed layouts are refused
+    with a message naming the mesh."""
+    nv = 700
+    pos = rng.uniform(-1, 1, size=(nv, 3))
+    nrm = rng.normal(size=(nv, 3))
+    nrm[:, 2] = np.abs(nrm[:, 2]) + 0.2                 # mostly facing the eye, a few not
+    nrm[:40, 2] = -nrm[:40, 2]
+    eye = np.array([0.3, -0.2, 3.0])
+
+    def fitted(n):
+        return {"model": "fitted", "elevations": [0.0, 0.7, 1.6], "roughness_levels": [0.3],
+                "axis": rng.uniform(0, 0.5, size=(1, 3, 2)).tolist(),
+                "bands": rng.uniform(0, 1, size=(1, 3, 2, n + 1)).tolist(),
+                "bands_b": rng.uniform(0, 1, size=(1, 3, 2, n + 1)).tolist(),
+                "colour_a": [0.04, 0.05, 0.06], "colour_b": "_PRT_SPEC_B", "roughness": 0.3}
+
+    def phong(n):
+        return {"model": "phong", "exponent": 6.0, "specular": [0.3, 0.5, 0.7],
+                "bands": phong_bands(6.0, n).tolist()}
+
+    cases = [(1, 3, None, 9, 2048), (1, 3, phong, 9, 2048), (3, 3, None, 9, 2048),
+             (3, 3, fitted, 9, 2048), (3, 3, phong, 4, 2048), (1, 2, phong, 4, 10 ** 6),
+             (3, 4, fitted, 16, 4096)]
+    for nch, n, lobe, n_env, limit in cases:
+        nn, g = n * n, (n * n + 3) // 4
+        label = (f"vertex_texture {nch} ch order {n}, {lobe.__name__ if lobe else 'no lobe'}"
+                 f", env {n_env} rows, limit {limit}")
+        t = rng.uniform(-0.5, 1.0, size=(nch, nv, nn)).astype("<f4").astype(float)
+        vis = rng.uniform(-1, 1, size=(nv, nn)).astype("<f4").astype(float) if lobe else None
+        albedo = rng.uniform(0.1, 0.9, size=(nv, 3))
+        spec_b = rng.uniform(0.2, 0.9, size=(nv, 3))
+        base = {"order": n, "channels": nch, "environment":
+                rng.uniform(-1, 1, size=(n_env, 3)).tolist(), "albedo": "_PRT_ALBEDO",
+                "lightmap": None, "specular": lobe(n) if lobe else None,
+                "diffuse_fresnel": {"elevations": [0.0, 1.0, 1.5], "values": [0.05, 0.1, 0.3]}}
+        common = {"POSITION": pos, "NORMAL": nrm, "_PRT_ALBEDO": albedo, "_PRT_SPEC_B": spec_b}
+        attrs_v = dict(common)
+        pad = np.zeros((nv, 4 * g - nn))
+        for c in range(nch):
+            tc = np.concatenate([t[c], pad], axis=1)
+            attrs_v.update({f"_PRT_C{c}_{k}": tc[:, 4 * k:4 * k + 4] for k in range(g)})
+        prt_v = dict(base, storage="vertex",
+                     attributes=[f"_PRT_C{c}_{k}" for c in range(nch) for k in range(g)])
+        if lobe:
+            vc = np.concatenate([vis, pad], axis=1)
+            attrs_v.update({f"_PRT_V_{k}": vc[:, 4 * k:4 * k + 4] for k in range(g)})
+            prt_v["specular"] = dict(base["specular"],
+                                     visibility_attributes=[f"_PRT_V_{k}" for k in range(g)])
+        texels, tt = vertex_texture_of(t, vis, limit)
+        p = tt["texels_per_vertex"]
+        attrs_t = dict(common, _PRT_VERTEX_ID=np.arange(nv, dtype=float))
+        prt_t = dict(base, storage="vertex_texture", attributes=[],
+                     transfer_texture=dict(tt, accessor=texels))
+        if lobe:
+            prt_t["specular"] = dict(base["specular"], visibility_attributes=[])
+        meshes = [("attr", attrs_v, None, prt_v), ("tex", attrs_t, None, prt_t)]
+        _, data = glb_of(meshes, root_prt={"camera": {"eye": eye.tolist()}})
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "vt.glb")
+            with open(path, "wb") as fh:
+                fh.write(data)
+            mags, storages = [], {}
+            res = relight_file(path, mags=mags, storages=storages)
+            check(storages == {"attr": "vertex", "tex": "vertex_texture"}, label + ": storages")
+            check(np.array_equal(res[0][1], res[1][1]) and np.array_equal(res[0][2], res[1][2])
+                  and np.abs(res[1][2]).max() > 0, label + ": radiance = the attribute layout's")
+            check(np.array_equal(mags[0][2], mags[1][2]), label + ": magnitudes equal")
+            res_ns = relight_file(path, specular=False)
+            check(np.array_equal(res_ns[0][2], res_ns[1][2]) and (
+                lobe is None or not np.array_equal(res_ns[1][2], res[1][2])),
+                  label + ": --no-specular equal (and differs when there is a lobe)")
+            if limit == 2048:
+                check(tt["width"] == 2048 and tt["height"] * 2048 > nv * p and 2048 % p,
+                      f"{label}: layout has padding texels and split blocks ({tt})")
+            else:
+                check(tt["height"] == 1 or limit == 4096, f"{label}: W = V·P")
+        if nch != 3 or lobe is not fitted or limit != 2048:
+            continue
+        # The command line: CSVs of the two layouts hold the same rows (but the name).
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "vt.glb")
+            with open(path, "wb") as fh:
+                fh.write(data)
+            out = {k: os.path.join(tmp, k + ".csv") for k in ("c", "m", "q", "ref")}
+            quiet = open(os.devnull, "w")
+            saved = sys.stdout, sys.stderr
+            sys.stdout = sys.stderr = quiet
+            try:
+                rc = main([path, "--colours", out["c"], "--magnitudes", out["m"],
+                           "--quantisation", out["q"]])
+                with open(out["ref"], "w") as fh:     # the reference: attr's rows for both
+                    rows = open(out["c"]).read().splitlines()
+                    attr_rows = [r for r in rows[1:] if r.startswith("attr,")]
+                    fh.write("\n".join([rows[0]] + attr_rows
+                                       + ["tex," + r[5:] for r in attr_rows]) + "\n")
+                rc_cmp = main([path, "--compare", out["ref"]])
+            finally:
+                sys.stdout, sys.stderr = saved
+                quiet.close()
+            check((rc, rc_cmp) == (0, 0), f"vertex_texture CLI exit codes {(rc, rc_cmp)}")
+            for k in ("c", "m"):
+                rows = open(out[k]).read().splitlines()[1:]
+                a = [r[5:] for r in rows if r.startswith("attr,")]
+                b = [r[4:] for r in rows if r.startswith("tex,")]
+                check(len(a) == nv and a == b, f"vertex_texture CSV {k}: same rows as attr")
+            check(all(r.endswith(",0.0,0.0,0.0") for r in open(out["q"]).read().splitlines()[1:]),
+                  "vertex_texture quantisation rows are 0")
+        # Vertices index the texture by their id: ids permuted with the blocks, same result.
+        perm = rng.permutation(nv)
+        ptex, _ = vertex_texture_of(t, vis, limit, ids=perm)
+        prt_p = dict(prt_t, transfer_texture=dict(tt, accessor=ptex))
+        _, pdata = glb_of([("tex", dict(attrs_t, _PRT_VERTEX_ID=perm.astype(float)), None,
+                            prt_p)], root_prt={"camera": {"eye": eye.tolist()}})
+        pdoc_prim = Glb(pdata).json["meshes"][0]["primitives"][0]
+        got = relight_primitive(Glb(pdata), "tex", pdoc_prim, eye)
+        check(np.array_equal(got, res[1][2]), "vertex_texture: rows read the block of their id")
+
+        # Malformed: each refused with a message naming the mesh and the problem.
+        def refused(prt_x, attrs_x, needle, what):
+            _, bad = glb_of([("broken", attrs_x, None, prt_x)])
+            gb = Glb(bad)
+            try:
+                relight_primitive(gb, "broken", gb.json["meshes"][0]["primitives"][0], eye)
+                check(False, f"vertex_texture: {what} accepted")
+            except GlbError as exc:
+                check("mesh 'broken'" in str(exc) and needle in str(exc),
+                      f"vertex_texture: {what} refused as: {exc}")
+
+        def tex_with(**kw):
+            return dict(prt_t, transfer_texture=dict(prt_t["transfer_texture"], **kw))
+
+        refused(tex_with(accessor=texels[:-1]), attrs_t, "W·H", "accessor count W·H − 1")
+        refused(tex_with(accessor=np.concatenate([texels, texels[:1]])), attrs_t, "W·H",
+                "accessor count W·H + 1")
+        ids = np.arange(nv, dtype=float)
+        ids[5] = 4.5
+        refused(prt_t, dict(attrs_t, _PRT_VERTEX_ID=ids), "4.5", "non-integer vertex id")
+        ids[5] = nv
+        refused(prt_t, dict(attrs_t, _PRT_VERTEX_ID=ids), "not an integer vertex index",
+                "vertex id past the vertices")
+        ids[5] = -1
+        refused(prt_t, dict(attrs_t, _PRT_VERTEX_ID=ids), "not an integer vertex index",
+                "negative vertex id")
+        refused(prt_t, {k: v for k, v in attrs_t.items() if k != "_PRT_VERTEX_ID"},
+                "_PRT_VERTEX_ID", "missing _PRT_VERTEX_ID")
+        refused({k: v for k, v in prt_t.items() if k != "transfer_texture"}, attrs_t,
+                "transfer_texture", "missing transfer_texture")
+        refused(dict(prt_t, transfer_texture=None), attrs_t, "transfer_texture",
+                "null transfer_texture")
+        refused(tex_with(texels_per_vertex=p + 1), attrs_t, "texels_per_vertex",
+                "texels_per_vertex off by one")
+        refused(tex_with(groups=g + 1), attrs_t, "groups", "groups off by one")
+        refused(tex_with(channel_texels=[0, g, g + 1]), attrs_t, "channel_texels",
+                "channel_texels not c·G")
+        refused(tex_with(channel_texels=[0, g]), attrs_t, "channel_texels",
+                "channel_texels of 2 channels")
+        refused(tex_with(visibility_texel=None), attrs_t, "visibility_texel",
+                "lobe without visibility_texel")
+        refused(tex_with(visibility_texel=0), attrs_t, "visibility_texel",
+                "visibility_texel on channel 0's texels")
+        refused(dict(prt_t, specular=None), attrs_t, "visibility_texel",
+                "visibility_texel without a lobe")
+        refused(tex_with(format="RGBA16F"), attrs_t, "format", "format RGBA16F")
+        refused(tex_with(width=1024, height=2 * tt["height"]), attrs_t, "ceil",
+                "W·H = V·P + padding but H != ceil(V·P/W)")
+        refused(tex_with(width=tt["width"] // 2), attrs_t, "ceil", "too few texels")
+        dirty = texels.copy()
+        dirty[-1, 3] = 1.0
+        refused(tex_with(accessor=dirty), attrs_t, "past the last vertex",
+                "non-zero padding texel")
+        dirty = texels.copy()
+        dirty[3 * p + g - 1, 3] = 1.0                  # vertex 3, channel 0: component 11 > n²
+        refused(tex_with(accessor=dirty), attrs_t, "past coefficient", "non-zero component")
+        refused(prt_t, dict(attrs_t, _PRT_C0_0=attrs_v["_PRT_C0_0"]), "_PRT_C0_0",
+                "a _PRT_C attribute too")
+        refused(dict(prt_t, specular=dict(prt_t["specular"], visibility_attributes=["_PRT_V_0"])),
+                attrs_t, "visibility_attributes", "non-empty visibility_attributes")
 
 
 def self_test_png(check, rng):
@@ -1491,7 +1836,8 @@ def self_test():
         check(False, "missing _PRT_V_0 accepted")
     except GlbError:
         check(True, "missing attribute")
-    for part in (self_test_channels, self_test_png, self_test_lightmaps):
+    for part in (self_test_channels, self_test_png, self_test_lightmaps,
+                 self_test_vertex_texture):
         try:
             part(check, rng)
         except Exception as exc:                       # a crash is a failed check, named

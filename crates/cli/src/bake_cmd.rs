@@ -583,9 +583,26 @@ pub struct ExportArgs {
     /// Output binary glTF (.glb).
     #[arg(long)]
     pub out: PathBuf,
+    /// What the file must fit (SPEC §10.2): `raw`, every coefficient a vertex attribute;
+    /// `webgl2` (16 vertex attributes, textures ≤ 2048²) and `desktop` (16, ≤ 4096²), the
+    /// transfer in vertex attributes when the primitive fits, else in a float data texture
+    /// read by vertex id.
+    #[arg(long, value_enum, default_value_t = TargetArg::Raw)]
+    pub target: TargetArg,
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `prt export --target` values (see [`prt_gltf::Target`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum TargetArg {
+    /// No limits (SPEC §10).
+    Raw,
+    /// WebGL 2.0.
+    Webgl2,
+    /// Desktop OpenGL 4.x / Vulkan 1.0.
+    Desktop,
 }
 
 /// Runs `prt export`.
@@ -594,7 +611,12 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
     let bake = prt_bakefile::read_bake(&args.bake)?;
     prt_scene_relight::check_bake(&scene, &bake, &args.bake)?;
     let scene = prt_scene_relight::baked_scene(&scene, &bake)?;
-    let summary = prt_gltf::export_glb(&scene, &bake, &args.out)
+    let target = match args.target {
+        TargetArg::Raw => prt_gltf::Target::Raw,
+        TargetArg::Webgl2 => prt_gltf::Target::Webgl2,
+        TargetArg::Desktop => prt_gltf::Target::Desktop,
+    };
+    let summary = prt_gltf::export_glb_for(&scene, &bake, &args.out, target)
         .with_context(|| format!("{}: cannot export", args.bake.display()))?;
     if args.json {
         outln!("{}", serde_json::to_string(&summary)?);
@@ -607,6 +629,14 @@ pub fn run_export(args: &ExportArgs) -> Result<()> {
             summary.attributes,
             summary.bytes
         );
+        if target != prt_gltf::Target::Raw {
+            outln!(
+                "target {}: at most {} vertex attributes per primitive; {} objects with their transfer in a data texture",
+                target.name(),
+                summary.vertex_attributes,
+                summary.transfer_textures
+            );
+        }
     }
     Ok(())
 }

@@ -27,6 +27,10 @@
 //! `scale / 510`). Texels no triangle touches are dilated from their covered neighbours (two
 //! rings), so that an engine's plain bilinear filtering does not pull chart borders toward 0.
 
+mod target;
+
+pub use target::{Target, TexturePacking};
+
 use image::ImageEncoder as _;
 use prt_bakefile::{Bake, SampleKind};
 use prt_scene::Scene;
@@ -43,6 +47,12 @@ pub struct ExportSummary {
     pub vertices: usize,
     /// Custom `VEC4` transfer attributes per vertex (all objects: the largest count).
     pub attributes: usize,
+    /// Vertex attributes of a primitive, all of them (all objects: the largest count).
+    pub vertex_attributes: usize,
+    /// Objects whose transfer is in a data texture (SPEC §10.2).
+    pub transfer_textures: usize,
+    /// The target the file was written for.
+    pub target: Target,
     /// File size, bytes.
     pub bytes: usize,
 }
@@ -83,6 +93,18 @@ impl Bin {
             "buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len(), "target": target,
         }));
         self.data.extend_from_slice(bytes);
+        let mut a = accessor;
+        a["bufferView"] = json!(view);
+        self.accessors.push(a);
+        self.accessors.len() - 1
+    }
+}
+
+impl Bin {
+    /// Appends `bytes` as a buffer view without target (data a shader reads as a texture)
+    /// with an accessor; returns the accessor's index.
+    fn add_data(&mut self, bytes: &[u8], accessor: Value) -> usize {
+        let view = self.add_view(bytes);
         let mut a = accessor;
         a["bufferView"] = json!(view);
         self.accessors.push(a);
@@ -330,6 +352,22 @@ pub fn export_glb(
     bake: &Bake,
     path: &Path,
 ) -> Result<ExportSummary, SceneRelightError> {
+    export_glb_for(scene, bake, path, Target::Raw)
+}
+
+/// [`export_glb`] for a target (SPEC §10.2): within its vertex-attribute budget, a per-vertex
+/// object keeps its transfer in vertex attributes when everything fits, else the transfer
+/// (and the visibility transfer) goes into a float data texture read by vertex id.
+///
+/// # Errors
+/// As [`export_glb`], and an object that does not fit the target even so (named, with its
+/// attribute count or texture size).
+pub fn export_glb_for(
+    scene: &Scene,
+    bake: &Bake,
+    path: &Path,
+    target: Target,
+) -> Result<ExportSummary, SceneRelightError> {
     match bake.meta.sample_kind {
         SampleKind::Vertex => {}
         SampleKind::Pixel { .. } => {
@@ -352,10 +390,24 @@ pub fn export_glb(
     let mut tex = Textures::default();
     let (mut meshes, mut nodes, mut materials) = (Vec::new(), Vec::new(), Vec::new());
     let (mut vertices, mut attributes) = (0usize, 0usize);
+    let (mut vertex_attributes, mut transfer_textures) = (0usize, 0usize);
     for (o, obj) in bake.objects.iter().enumerate() {
         let lightmap = lightmaps[o].as_ref();
-        let done = add_object(scene, env, o, obj, lightmap, &mut bin, &mut tex)?;
+        let placement = placement(scene, env, o, obj, lightmap, target)?;
+        let done = add_object(scene, env, o, obj, lightmap, placement, &mut bin, &mut tex)?;
+        if let Some(budget) = target.attribute_budget() {
+            if done.vertex_attributes > budget {
+                return Err(invalid(format!(
+                    "object {}: {} vertex attributes, more than the {} target's {budget} even with its transfer in a data texture",
+                    obj.name,
+                    done.vertex_attributes,
+                    target.name()
+                )));
+            }
+        }
         attributes = attributes.max(done.attributes);
+        vertex_attributes = vertex_attributes.max(done.vertex_attributes);
+        transfer_textures += usize::from(placement != Placement::Attributes);
         vertices += done.vertices;
         materials.push(done.material);
         meshes.push(done.mesh);
@@ -377,6 +429,9 @@ pub fn export_glb(
         objects: bake.objects.len(),
         vertices,
         attributes,
+        vertex_attributes,
+        transfer_textures,
+        target,
         bytes: glb.len(),
     })
 }
@@ -414,6 +469,165 @@ fn add_lightmap(
     })
 }
 
+/// Where a per-vertex object's transfer goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Placement {
+    /// `_PRT_C*` / `_PRT_V_*` vertex attributes (SPEC §10).
+    Attributes,
+    /// A float data texture at most this many texels a side (SPEC §10.2).
+    Texture(usize),
+}
+
+/// Chooses where object `o`'s transfer goes for `target`: vertex attributes when the whole
+/// primitive fits the attribute budget with them (tried on a scratch buffer when the transfer
+/// alone leaves room), else a data texture. Lightmapped objects keep their textures.
+fn placement(
+    scene: &Scene,
+    env: &prt_bakefile::EnvCoefficients,
+    o: usize,
+    obj: &prt_bakefile::ObjectBake,
+    lightmap: Option<&prt_scene::lightmap::Lightmap>,
+    target: Target,
+) -> Result<Placement, SceneRelightError> {
+    let Some(budget) = target.attribute_budget() else {
+        return Ok(Placement::Attributes);
+    };
+    if lightmap.is_some() {
+        return Ok(Placement::Attributes);
+    }
+    let groups = (obj.order as usize).pow(2).div_ceil(4);
+    let has_visibility = obj
+        .blocks
+        .iter()
+        .any(|b| b.kind == prt_bakefile::TransferKind::Visibility);
+    let transfer = (obj.channels as usize + usize::from(has_visibility)) * groups;
+    // POSITION and NORMAL are always there.
+    if transfer + 2 <= budget {
+        let mut scratch = Bin {
+            data: Vec::new(),
+            views: Vec::new(),
+            accessors: Vec::new(),
+        };
+        let mut scratch_tex = Textures::default();
+        let trial = add_object(
+            scene,
+            env,
+            o,
+            obj,
+            None,
+            Placement::Attributes,
+            &mut scratch,
+            &mut scratch_tex,
+        )?;
+        if trial.vertex_attributes <= budget {
+            return Ok(Placement::Attributes);
+        }
+    }
+    Ok(Placement::Texture(target.max_texture_size()))
+}
+
+/// Adds a per-vertex object's transfer (and its visibility transfer, when given) as a float
+/// data texture and the `_PRT_VERTEX_ID` attribute that indexes it; returns
+/// `extras.prt.transfer_texture` (SPEC §10.2).
+#[allow(clippy::too_many_arguments)]
+fn add_transfer_texture(
+    bin: &mut Bin,
+    attrs: &mut serde_json::Map<String, Value>,
+    name: &str,
+    data: &[f32],
+    vis: Option<&[f32]>,
+    (v, c, n2): (usize, usize, usize),
+    max_size: usize,
+) -> Result<Value, SceneRelightError> {
+    if v > 1 << 24 {
+        return Err(invalid(format!(
+            "object {name}: {v} vertices; a FLOAT vertex id is exact below 2^24"
+        )));
+    }
+    let packing = TexturePacking::new(v, c, n2, vis.is_some(), max_size).ok_or_else(|| {
+        invalid(format!(
+            "object {name}: its transfer ({v} vertices × {} texels) does not fit a {max_size} × {max_size} texture",
+            (c + usize::from(vis.is_some())) * n2.div_ceil(4)
+        ))
+    })?;
+    let texels = packing.pack(n2, data, c * n2, c, vis.map(|x| (x, c * n2)));
+    let accessor = bin.add_data(
+        &f32_bytes(texels),
+        json!({"componentType": FLOAT, "count": packing.width * packing.height, "type": "VEC4"}),
+    );
+    let ids = bin.add(
+        &f32_bytes((0..v).map(|i| i as f32)),
+        ARRAY_BUFFER,
+        json!({"componentType": FLOAT, "count": v, "type": "SCALAR"}),
+    );
+    attrs.insert("_PRT_VERTEX_ID".into(), json!(ids));
+    Ok(json!({
+        "accessor": accessor, "format": "RGBA32F",
+        "width": packing.width, "height": packing.height, "max_size": max_size,
+        "texels_per_vertex": packing.texels_per_vertex, "groups": packing.groups,
+        "channel_texels": (0..c).map(|ch| ch * packing.groups).collect::<Vec<_>>(),
+        "visibility_texel": packing.visibility,
+        "vertex_id": "_PRT_VERTEX_ID",
+        "layout": "coefficient i of channel c of vertex v is component i mod 4 of texel k = v * texels_per_vertex + channel_texels[c] + floor(i/4) (visibility: visibility_texel + floor(i/4)), at column k mod width, row floor(k / width) of the accessor's texels read row by row; v = _PRT_VERTEX_ID",
+    }))
+}
+
+/// The prt diffuse albedo of object `o` for `extras.prt.albedo`: one value, or, when the
+/// material varies over the surface (textures, vertex colours; `per_vertex` its vertex
+/// count), the `_PRT_ALBEDO` attribute it adds.
+fn add_albedo(
+    scene: &Scene,
+    o: usize,
+    per_vertex: Option<usize>,
+    bin: &mut Bin,
+    attrs: &mut serde_json::Map<String, Value>,
+) -> Value {
+    let Some(v) = per_vertex else {
+        return json!(scene.materials[scene.meshes[o].material].albedo());
+    };
+    let colours = (0..v as u32).flat_map(|i| {
+        scene
+            .material_at(o, prt_scene::SurfacePoint::Vertex(i))
+            .albedo()
+    });
+    let a = bin.add(
+        &f32_bytes(colours),
+        ARRAY_BUFFER,
+        json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
+    );
+    attrs.insert("_PRT_ALBEDO".into(), json!(a));
+    json!("_PRT_ALBEDO")
+}
+
+/// Object `obj`'s diffuse transfer, and its visibility transfer when the primitive has a
+/// lobe, as a data texture ([`add_transfer_texture`]).
+fn textured_transfer(
+    obj: &prt_bakefile::ObjectBake,
+    with_lobe: bool,
+    (v, c, n2): (usize, usize, usize),
+    max_size: usize,
+    bin: &mut Bin,
+    attrs: &mut serde_json::Map<String, Value>,
+) -> Result<Value, SceneRelightError> {
+    let block = obj
+        .diffuse_block()
+        .ok_or_else(|| invalid(format!("object {} has no diffuse transfer", obj.name)))?;
+    let vis = obj
+        .blocks
+        .iter()
+        .find(|b| b.kind == prt_bakefile::TransferKind::Visibility)
+        .filter(|_| with_lobe);
+    add_transfer_texture(
+        bin,
+        attrs,
+        &obj.name,
+        &block.data,
+        vis.map(|b| b.data.as_slice()),
+        (v, c, n2),
+        max_size,
+    )
+}
+
 /// One object's part of the export: its mesh (with `extras.prt`) and material, and counts for
 /// the summary.
 struct ObjectExport {
@@ -421,6 +635,7 @@ struct ObjectExport {
     material: Value,
     vertices: usize,
     attributes: usize,
+    vertex_attributes: usize,
 }
 
 /// Adds object `o` of the bake to the binary chunk and textures: geometry, transfer (vertex
@@ -432,6 +647,7 @@ fn add_object(
     o: usize,
     obj: &prt_bakefile::ObjectBake,
     lightmap: Option<&prt_scene::lightmap::Lightmap>,
+    placement: Placement,
     bin: &mut Bin,
     tex: &mut Textures,
 ) -> Result<ObjectExport, SceneRelightError> {
@@ -466,7 +682,8 @@ fn add_object(
         }
         None => Value::Null,
     };
-    for ch in (0..c).filter(|_| lightmap.is_none()) {
+    let in_attributes = lightmap.is_none() && placement == Placement::Attributes;
+    for ch in (0..c).filter(|_| in_attributes) {
         names.extend(add_coefficient_groups(
             bin,
             &mut attrs,
@@ -482,22 +699,7 @@ fn add_object(
     // The prt diffuse albedo: one, or per vertex where the material varies over the
     // surface (textures, vertex colours) as `_PRT_ALBEDO`.
     let varies = scene.material_varies(o) && scene_mesh.positions.len() == v;
-    let albedo = if varies {
-        let colours = (0..v as u32).flat_map(|i| {
-            scene
-                .material_at(o, prt_scene::SurfacePoint::Vertex(i))
-                .albedo()
-        });
-        let a = bin.add(
-            &f32_bytes(colours),
-            ARRAY_BUFFER,
-            json!({"componentType": FLOAT, "count": v, "type": "VEC3"}),
-        );
-        attrs.insert("_PRT_ALBEDO".into(), json!(a));
-        json!("_PRT_ALBEDO")
-    } else {
-        json!(material.albedo())
-    };
+    let albedo = add_albedo(scene, o, varies.then_some(v), bin, &mut attrs);
     // The core glTF material: the scene's own where glTF has it (`pbr`: factors and
     // textures, with the asset's UV sets and vertex colours), else the diffuse albedo.
     let uv_shift = usize::from(lightmap.is_some());
@@ -540,6 +742,7 @@ fn add_object(
             v,
             c,
             n2,
+            placement == Placement::Attributes,
             bin,
             &mut attrs,
         )
@@ -549,6 +752,26 @@ fn add_object(
             "view_dependent": "not exported for lightmapped objects: the diffuse term only",
         })
     };
+    // Under a target's budget: the transfer (and the visibility transfer the lobe needs) in a
+    // data texture.
+    let transfer_texture = match placement {
+        Placement::Texture(max_size) if lightmap.is_none() => {
+            let with_lobe = !view["specular"].is_null();
+            textured_transfer(obj, with_lobe, (v, c, n2), max_size, bin, &mut attrs)?
+        }
+        _ => Value::Null,
+    };
+    let storage = match (lightmap, &transfer_texture) {
+        (Some(_), _) => "lightmap",
+        (None, Value::Null) => "vertex",
+        (None, _) => "vertex_texture",
+    };
+    let layout = match storage {
+        "lightmap" => "see lightmap.layout; SH index l(l+1)+m",
+        "vertex" => "coefficient i (SH index l(l+1)+m) of channel c is component i mod 4 of the FLOAT VEC4 attribute _PRT_C{c}_{floor(i/4)}; unused components are 0",
+        _ => "see transfer_texture.layout; SH index l(l+1)+m",
+    };
+    let vertex_attributes = attrs.len();
     let material_json = json!({
         "name": scene.material_names.get(scene_mesh.material).cloned().unwrap_or_default(),
         "pbrMetallicRoughness": pbr,
@@ -557,17 +780,17 @@ fn add_object(
     let env_rows: Vec<[f64; 3]> = (0..n2.min(en2))
         .map(|i| [env.values[i], env.values[en2 + i], env.values[2 * en2 + i]])
         .collect();
-    let mesh = json!({
+    let mut mesh = json!({
         "name": obj.name,
         "primitives": [{
             "attributes": attrs, "indices": indices, "material": o, "mode": 4,
             "extras": {"prt": {
                 "format": "prt-transfer", "version": 1,
                 "kind": block.kind.name(), "order": n, "channels": c,
-                "storage": if lightmap.is_some() { "lightmap" } else { "vertex" },
+                "storage": storage,
                 "attributes": names,
                 "lightmap": lightmap_extras,
-                "layout": if lightmap.is_some() { "see lightmap.layout; SH index l(l+1)+m" } else { "coefficient i (SH index l(l+1)+m) of channel c is component i mod 4 of the FLOAT VEC4 attribute _PRT_C{c}_{floor(i/4)}; unused components are 0" },
+                "layout": layout,
                 "sh": {"basis": "real-orthonormal", "phase": "condon-shortley", "index_order": "l(l+1)+m", "angles": "theta-from-+Z, phi=atan2(y,x)"},
                 "radiance": "exit radiance of channel c = diffuse + specular (SPEC §10.1); diffuse = albedo_c * k_d / pi * sum_i t[c or 0][i] * environment[i][c], albedo = extras.prt.albedo, or the vertex attribute it names (the scene material's diffuse albedo at the vertex, textures applied)",
                 "albedo": albedo,
@@ -580,11 +803,16 @@ fn add_object(
             }},
         }],
     });
+    // Only in files with a texture (raw exports stay as they were).
+    if !transfer_texture.is_null() {
+        mesh["primitives"][0]["extras"]["prt"]["transfer_texture"] = transfer_texture;
+    }
     Ok(ObjectExport {
         mesh,
         material: material_json,
         vertices: v,
         attributes: names.len(),
+        vertex_attributes,
     })
 }
 
@@ -839,6 +1067,7 @@ fn view_extras(
     v: usize,
     channels: usize,
     n2: usize,
+    vis_as_attributes: bool,
     bin: &mut Bin,
     attrs: &mut serde_json::Map<String, Value>,
 ) -> Value {
@@ -848,7 +1077,7 @@ fn view_extras(
         .map_or(Value::Null, |(e, s)| json!({"elevations": e, "values": s}));
     // The visibility transfer, when there is a lobe to shade with it.
     let vis_names = match (&vd.specular, vis) {
-        (Some(_), Some(vis)) => {
+        (Some(_), Some(vis)) if vis_as_attributes => {
             add_coefficient_groups(bin, attrs, vis, channels * n2, 0, n2, v, |g| {
                 format!("_PRT_V_{g}")
             })
@@ -1060,6 +1289,23 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, SceneRelightError
             }
             Ok(out)
         };
+        let texture = prt.get("transfer_texture").filter(|t| !t.is_null());
+        if let Some(t) = texture {
+            let (transfer, visibility) =
+                read_transfer_texture(t, &doc, &attrs, &floats, &bad, (v, channels, n2))?;
+            let albedo = read_albedo(prt, &attrs, &floats, &bad, v)?;
+            out.push(ExportedObject {
+                name: mesh.name().unwrap_or_default().to_owned(),
+                order,
+                channels,
+                positions,
+                transfer,
+                albedo,
+                lightmap,
+                visibility,
+            });
+            continue;
+        }
         let mut transfer = Vec::new();
         if lightmap.is_none() {
             let per_channel: Vec<Vec<f32>> = (0..channels)
@@ -1078,23 +1324,7 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, SceneRelightError
         } else {
             None
         };
-        let albedo = match &prt["albedo"] {
-            Value::String(name) => {
-                let acc = attrs.get(name).ok_or_else(|| {
-                    bad(format!("extras.prt.albedo names {name}, which is missing"))
-                })?;
-                let vals = floats(acc)?;
-                if vals.len() != 3 * v {
-                    return Err(bad(format!(
-                        "{name}: {} values for {v} vertices",
-                        vals.len() / 3
-                    )));
-                }
-                vals.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
-            }
-            other => vec![serde_json::from_value::<[f32; 3]>(other.clone())
-                .map_err(|e| bad(format!("extras.prt.albedo: {e}")))?],
-        };
+        let albedo = read_albedo(prt, &attrs, &floats, &bad, v)?;
         out.push(ExportedObject {
             name: mesh.name().unwrap_or_default().to_owned(),
             order,
@@ -1107,6 +1337,97 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, SceneRelightError
         });
     }
     Ok(out)
+}
+
+/// An accessor's f32 values, as `read_export` reads them.
+type Floats<'a> = dyn Fn(&gltf::Accessor) -> Result<Vec<f32>, SceneRelightError> + 'a;
+/// A primitive's attributes by name.
+type Attributes<'a> = std::collections::HashMap<String, gltf::Accessor<'a>>;
+
+/// The diffuse albedo of a primitive (`extras.prt.albedo`): one value, or one per vertex.
+fn read_albedo(
+    prt: &Value,
+    attrs: &Attributes,
+    floats: &Floats,
+    bad: &dyn Fn(String) -> SceneRelightError,
+    v: usize,
+) -> Result<Vec<[f32; 3]>, SceneRelightError> {
+    Ok(match &prt["albedo"] {
+        Value::String(name) => {
+            let acc = attrs
+                .get(name)
+                .ok_or_else(|| bad(format!("extras.prt.albedo names {name}, which is missing")))?;
+            let vals = floats(acc)?;
+            if vals.len() != 3 * v {
+                return Err(bad(format!(
+                    "{name}: {} values for {v} vertices",
+                    vals.len() / 3
+                )));
+            }
+            vals.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        }
+        other => vec![serde_json::from_value::<[f32; 3]>(other.clone())
+            .map_err(|e| bad(format!("extras.prt.albedo: {e}")))?],
+    })
+}
+
+/// A `vertex_texture` primitive's transfer and visibility (SPEC §10.2), `[vertex][channel]
+/// [coeff]` and `[vertex][coeff]`, indexed through its `_PRT_VERTEX_ID`.
+fn read_transfer_texture(
+    t: &Value,
+    doc: &gltf::Document,
+    attrs: &Attributes,
+    floats: &Floats,
+    bad: &dyn Fn(String) -> SceneRelightError,
+    (v, channels, n2): (usize, usize, usize),
+) -> Result<(Vec<f32>, Option<Vec<f32>>), SceneRelightError> {
+    let field = |k: &str| {
+        t[k].as_u64()
+            .map(|x| x as usize)
+            .ok_or_else(|| bad(format!("transfer_texture.{k} is not a number")))
+    };
+    let (width, height, per_vertex) = (
+        field("width")?,
+        field("height")?,
+        field("texels_per_vertex")?,
+    );
+    let acc = doc
+        .accessors()
+        .nth(field("accessor")?)
+        .ok_or_else(|| bad("transfer_texture.accessor out of range".into()))?;
+    let texels = floats(&acc)?;
+    if texels.len() != 4 * width * height {
+        return Err(bad(format!(
+            "transfer_texture: {} texels for {width} × {height}",
+            texels.len() / 4
+        )));
+    }
+    let ids = attrs
+        .get("_PRT_VERTEX_ID")
+        .ok_or_else(|| bad("no _PRT_VERTEX_ID".into()))
+        .and_then(floats)?;
+    let channel_texels: Vec<usize> = serde_json::from_value(t["channel_texels"].clone())
+        .map_err(|e| bad(format!("transfer_texture.channel_texels: {e}")))?;
+    // Coefficients `n2` from texel `first` on, of vertex `id`.
+    let read = |id: usize, first: usize| -> Result<&[f32], SceneRelightError> {
+        let at = 4 * (id * per_vertex + first);
+        texels
+            .get(at..at + n2)
+            .ok_or_else(|| bad(format!("vertex {id}: beyond the transfer texture")))
+    };
+    let mut transfer = vec![0.0f32; v * channels * n2];
+    let vis_texel = t["visibility_texel"].as_u64().map(|x| x as usize);
+    let mut visibility = vis_texel.map(|_| vec![0.0f32; v * n2]);
+    for (p, id) in ids.iter().enumerate().take(v) {
+        let id = *id as usize;
+        for (c, first) in channel_texels.iter().enumerate().take(channels) {
+            transfer[(p * channels + c) * n2..][..n2].copy_from_slice(read(id, *first)?);
+        }
+        if let (Some(first), Some(vis)) = (vis_texel, visibility.as_mut()) {
+            vis[p * n2..][..n2].copy_from_slice(read(id, first)?);
+        }
+    }
+    Ok((transfer, visibility))
 }
 
 /// Dequantises a primitive's lightmap textures (`extras.prt.lightmap`).
