@@ -2,13 +2,13 @@
 
 use crate::accel::{point_offset, Accel, Hit};
 use crate::camera::PinholeCamera;
-use prt_image::srgb::srgb_encode;
 use crate::rng::{stream, PixelKeys, Purpose};
 use crate::settings::{Mode, RenderSettings};
 use crate::vertex::Vertex;
 use crate::TracerError;
 use glam::{DVec3, Vec3};
 use indicatif::{ProgressBar, ProgressStyle};
+use prt_image::srgb::srgb_encode;
 use prt_scene::{Material, Scene};
 use prt_shading::EnvSampler;
 use rayon::prelude::*;
