@@ -75,12 +75,12 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("scene", &["bakefile"]),
     ("shading", &["scene", "sh", "bakefile"]),
     ("tracer", &["scene", "shading", "image"]),
-    ("relight", &["sh"]),
+    ("relight", &["sh", "image"]),
     ("bake", &["sh", "scene", "shading", "tracer", "bakefile"]),
     (
         "scene-relight",
         &[
-            "sh", "scene", "shading", "tracer", "bakefile", "relight", "compare",
+            "sh", "scene", "shading", "tracer", "bakefile", "relight", "compare", "image",
         ],
     ),
     ("gltf", &["scene", "tracer", "bakefile", "scene-relight"]),

@@ -980,8 +980,8 @@ fn shade_frames(
             }
         });
         images.push(RgbImage {
-            width: w,
-            height: h,
+            width: w as usize,
+            height: h as usize,
             pixels,
         });
     }

@@ -536,17 +536,10 @@ struct DisplayTable {
     least: Vec<f32>,
 }
 
+/// prt-image's sRGB curve (the one of the PNG views), tabulated for the display measure.
 static SRGB_TABLE: std::sync::LazyLock<DisplayTable> = std::sync::LazyLock::new(|| {
     let value: Vec<f32> = (0..=SRGB_STEPS)
-        .map(|i| {
-            let y = i as f64 / SRGB_STEPS as f64;
-            let v = if y <= 0.003_130_8 {
-                12.92 * y
-            } else {
-                1.055 * y.powf(1.0 / 2.4) - 0.055
-            };
-            v as f32
-        })
+        .map(|i| prt_image::srgb_oetf(i as f64 / SRGB_STEPS as f64) as f32)
         .collect();
     // Chord slopes of the f32 table in f64 (so the bounds hold for the interpolation actually
     // evaluated); per coarse interval `i` (of `SLOPE_STEPS`), the largest chord slope on

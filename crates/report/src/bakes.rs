@@ -123,8 +123,8 @@ pub(crate) fn budget_images<'b>(
         &run.out_dir
             .join(format!("images/per_pixel_{max_order:02}.exr")),
         &RgbImage {
-            width: run.width,
-            height: run.height,
+            width: run.width as usize,
+            height: run.height as usize,
             pixels: pixel.iter().map(|v| v.to_array()).collect(),
         },
         &[

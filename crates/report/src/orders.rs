@@ -14,7 +14,7 @@ use prt_bakefile::Bake;
 use prt_compare::{compare, ErrorImageOptions, ErrorStats, Image};
 use prt_relight::{AdaptiveParams, Threshold};
 use prt_scene_relight::imaging::{form_image, roi_image, RgbImage};
-use prt_scene_relight::io::{to_compare_image, write_exr, write_png};
+use prt_scene_relight::io::{write_exr, write_png};
 use prt_scene_relight::relit::{relight, RelightOptions, RelightStats, Relit};
 
 /// What relighting at every order gave.
@@ -125,7 +125,7 @@ fn relight_order(
         rgb: ad_img.pixels.clone(),
     });
     out.full_images.push(linear(&full_img));
-    let (fi, ai) = (to_compare_image(&full_img), to_compare_image(&ad_img));
+    let (fi, ai) = (full_img.clone(), ad_img.clone());
     let target = match s.target_psnr {
         Some(p) => {
             let params = ad_opt.adaptive.expect("adaptive options");
@@ -203,7 +203,7 @@ fn target_column(
     let f = &study.frames[0];
     let shaded = study.last_frame.as_ref().expect("one frame shaded");
     let img = form_image(run.scene, &run.accel, shaded, 0.0)?;
-    let m = compare(&to_compare_image(&img), full, None)?.whole;
+    let m = compare(&img.clone(), full, None)?.whole;
     Ok(TargetColumn {
         target_psnr,
         ms: f.shade_ms,
@@ -283,7 +283,7 @@ fn roi_picture(run: &Run, adaptive: &Relit, order: usize) -> Result<Tile, Report
     let roi = roi_image(run.scene, &run.accel, adaptive)?;
     write_png(&run.out_dir.join("images/roi.png"), &roi, 0.0)?;
     Ok(srgb_tile(
-        &to_compare_image(&roi),
+        &roi.clone(),
         format!("ROI, order {order}: red all bands, grey fewer"),
     ))
 }

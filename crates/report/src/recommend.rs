@@ -13,7 +13,6 @@ use prt_bakefile::{Bake, Decision};
 use prt_compare::{compare, Image, Mask};
 use prt_scene::Scene;
 use prt_scene_relight::imaging::form_image;
-use prt_scene_relight::io::to_compare_image;
 use prt_scene_relight::relit::{relight, RelightOptions};
 use prt_tracer::Accel;
 use serde::Serialize;
@@ -89,7 +88,7 @@ pub fn object_quality(
                 ..RelightOptions::default()
             },
         )?;
-        Ok(to_compare_image(&form_image(scene, accel, &r, 0.0)?))
+        Ok(form_image(scene, accel, &r, 0.0)?.clone())
     })
 }
 

@@ -58,8 +58,8 @@ pub(crate) fn path_traced_reference(run: &Run) -> Result<Reference, ReportError>
     write_exr(
         &run.out_dir.join("images/reference.exr"),
         &RgbImage {
-            width: run.width,
-            height: run.height,
+            width: run.width as usize,
+            height: run.height as usize,
             pixels: image.pixels.clone(),
         },
         &[

@@ -31,7 +31,7 @@ use prt_fields::relight::{
 use prt_fields::sample::ReflectanceSettings;
 use prt_scene::Scene;
 use prt_scene_relight::imaging::RgbImage;
-use prt_scene_relight::io::{to_compare_image, write_exr, write_png};
+use prt_scene_relight::io::{write_exr, write_png};
 use prt_scene_relight::relit::{relight, RelightOptions};
 use prt_tracer::Accel;
 use prt_wavelet::Wavelet;
@@ -525,7 +525,7 @@ impl Section<'_> {
     /// error of the object pixels' mean radiance.
     fn measure(&self, img: &RgbImage) -> Result<(f64, f64, f64), ReportError> {
         let cx = self.cx;
-        let ci = to_compare_image(img);
+        let ci = img.clone();
         let m = compare(&ci, cx.reference, Some(cx.mask))?
             .masked
             .expect("mask given");
@@ -595,7 +595,7 @@ impl Section<'_> {
             let (psnr_ldr, rel_l2, mean_error) = self.measure(&frames[0])?;
             self.save(&format!("rf_{name}"), &frames[0], "reflectance field")?;
             self.tiles.push(crate::plots::srgb_tile(
-                &to_compare_image(&frames[0]),
+                &frames[0].clone(),
                 format!("field, {name}: {psnr_ldr:.2} dB"),
             ));
             self.show(
@@ -659,7 +659,7 @@ impl Section<'_> {
                 );
                 if k == *ks.last().expect("non-empty") {
                     self.tiles.push(crate::plots::srgb_tile(
-                        &to_compare_image(img),
+                        &img.clone(),
                         format!("{wname}, K = {k}: {psnr_ldr:.2} dB"),
                     ));
                 }
@@ -769,7 +769,7 @@ impl Section<'_> {
                 self.tiles.insert(
                     1,
                     crate::plots::srgb_tile(
-                        &to_compare_image(&img),
+                        &img.clone(),
                         format!("per-pixel SH {order}: {psnr_ldr:.2} dB"),
                     ),
                 );
@@ -825,7 +825,7 @@ impl Section<'_> {
                 self.tiles.insert(
                     2,
                     crate::plots::srgb_tile(
-                        &to_compare_image(&frames[0]),
+                        &frames[0].clone(),
                         format!("SH {order} fitted to the field: {psnr_ldr:.2} dB"),
                     ),
                 );

@@ -52,8 +52,8 @@ impl<'a> Run<'a> {
         let (w, h) = (scene.camera.width, scene.camera.height);
         let mask_bits = object_mask(scene, &accel)?;
         let mask_png = RgbImage {
-            width: w,
-            height: h,
+            width: w as usize,
+            height: h as usize,
             pixels: mask_bits
                 .iter()
                 .map(|&m| if m { [1.0; 3] } else { [0.0; 3] })

@@ -104,16 +104,9 @@ fn holds_edge(seen: impl Iterator<Item = Option<(u32, f32)>>) -> bool {
     hi > 1.05 * lo
 }
 
-/// An RGB image, row-major from the top row.
-#[derive(Clone, Debug)]
-pub struct RgbImage {
-    /// Width.
-    pub width: u32,
-    /// Height.
-    pub height: u32,
-    /// Linear radiance.
-    pub pixels: Vec<[f32; 3]>,
-}
+/// The image type relighting forms: prt-image's linear RGB image (row-major from the top
+/// row), the one every crate of the workspace uses.
+pub use prt_image::Image as RgbImage;
 
 /// Environment radiance seen along `dir` with an extra rotation about +Y (degrees).
 pub fn background_radiance(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
@@ -205,8 +198,8 @@ pub fn form_image(
         })
         .collect();
     Ok(RgbImage {
-        width: w,
-        height: h,
+        width: w as usize,
+        height: h as usize,
         pixels,
     })
 }

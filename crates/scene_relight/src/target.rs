@@ -630,11 +630,7 @@ impl TargetRun<'_> {
         let full = self.relight(&self.base(deg))?;
         let fi = crate::imaging::form_image(scene, accel, &full, deg)?;
         let ai = crate::imaging::form_image(scene, accel, adaptive, deg)?;
-        let m = prt_compare::compare(
-            &crate::io::to_compare_image(&ai),
-            &crate::io::to_compare_image(&fi),
-            None,
-        )?;
+        let m = prt_compare::compare(&ai.clone(), &fi.clone(), None)?;
         Ok((m.whole.psnr_ldr, fi, full.stats.shade_ms))
     }
 
@@ -689,11 +685,7 @@ impl TargetRun<'_> {
                 ..self.base(deg)
             })?;
             let img = crate::imaging::form_image(self.scene, self.accel, &r, deg)?;
-            let m = prt_compare::compare(
-                &crate::io::to_compare_image(&img),
-                &crate::io::to_compare_image(fi),
-                None,
-            )?;
+            let m = prt_compare::compare(&img.clone(), &fi.clone(), None)?;
             worst = worst.min(m.whole.psnr_ldr);
             times.push(r.stats.shade_ms);
             if worst < self.opt.target_psnr {
