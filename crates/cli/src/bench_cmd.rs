@@ -1,7 +1,7 @@
 //! `prt bench`: timings, kept apart from the commands that make images.
 //!
 //! `prt bench relight` times the shading of exactly what `prt relight` with the same options
-//! shades (the same library call, `prt_scene_relight::relight`), so `prt relight` itself need
+//! shades (the same library call, `prt_scene_relight::Bound::relight`), so `prt relight` itself need
 //! not relight again to report a speed-up: warm-up frames first (a frame sequence runs in the
 //! steady state, not in a fresh process), then `--frames` timed frames of an environment
 //! turning by `--rotate-y-step`, and the median, fastest and slowest frame; with `--adaptive`
@@ -77,7 +77,8 @@ fn run_relight(bench: &BenchRelightArgs) -> Result<()> {
         points: None,
         glossy: glossy_path(args)?,
     };
-    let asked = prt_scene_relight::relight(&scene, &accel, &bake, &opt)?.stats;
+    let bound = prt_scene_relight::Bound::new(&scene, &accel, &bake)?;
+    let asked = bound.relight(&opt)?.stats;
     // The full order, timed the same way, when the options shade less than it.
     let full = if args.adaptive || args.order.is_some() {
         let full_opt = RelightOptions {
@@ -85,7 +86,7 @@ fn run_relight(bench: &BenchRelightArgs) -> Result<()> {
             adaptive: None,
             ..opt.clone()
         };
-        Some(prt_scene_relight::relight(&scene, &accel, &bake, &full_opt)?.stats)
+        Some(bound.relight(&full_opt)?.stats)
     } else {
         None
     };

@@ -270,18 +270,21 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         points: None,
         glossy: glossy_path(args)?,
     };
-    let relit = prt_scene_relight::relight(&scene, &accel, &bake, &opt)?;
+    // Bound once: a per-pixel bake's footprints, a per-texel bake's lightmaps and the
+    // camera's rays serve every relighting and image of the command.
+    let bound = prt_scene_relight::Bound::new(&scene, &accel, &bake)?;
+    let relit = bound.relight(&opt)?;
     let full_stats: Option<RelightStats> = if args.adaptive {
         let full = RelightOptions {
             adaptive: None,
             ..opt.clone()
         };
-        Some(prt_scene_relight::relight(&scene, &accel, &bake, &full)?.stats)
+        Some(bound.relight(&full)?.stats)
     } else {
         None
     };
     let t = Instant::now();
-    let image = prt_scene_relight::form_image(&scene, &accel, &relit, args.rotate_y)?;
+    let image = bound.form_image(&relit, args.rotate_y)?;
     let image_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut attrs = vec![
         ("kind", "relit".to_string()),
@@ -312,11 +315,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         // work only (rotation, light product matrices, shading), not loading or setup.
         opt.timing_frames = args.frames;
         opt.rotate_y_step_deg = args.rotate_y_step;
-        fps = Some(
-            prt_scene_relight::relight(&scene, &accel, &bake, &opt)?
-                .stats
-                .fps,
-        );
+        fps = Some(bound.relight(&opt)?.stats.fps);
     }
     print_summary(
         args,

@@ -608,7 +608,7 @@ fn lightmap_export_validates_and_relights_like_prt() {
     let any = *ours.texels.iter().flatten().next().unwrap();
     let mut all = ours.clone();
     all.texels = vec![Some(any); all.texels.len()];
-    relit.lightmaps[1] = Some(all);
+    std::sync::Arc::make_mut(&mut relit.lightmaps)[1] = Some(all);
     relit.radiance[1] = texel_radiance;
     let engine = prt_scene_relight::form_image(&scene, &accel, &relit, 0.0).unwrap();
     let engine_path = dir.path().join("engine.exr");

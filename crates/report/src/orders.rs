@@ -13,7 +13,7 @@ use glam::Vec3;
 use prt_bakefile::Bake;
 use prt_compare::{compare, ErrorImageOptions, ErrorStats, Image};
 use prt_relight::{AdaptiveParams, Threshold};
-use prt_scene_relight::imaging::{form_image, roi_image, RgbImage};
+use prt_scene_relight::imaging::{roi_image, RgbImage};
 use prt_scene_relight::io::{write_exr, write_png};
 use prt_scene_relight::relit::{relight, RelightOptions, RelightStats, Relit};
 
@@ -112,8 +112,8 @@ fn relight_order(
     };
     let adaptive = relight(scene, accel, bake, &ad_opt)?;
     out.notes.extend(full.stats.notes.iter().cloned());
-    let full_img = form_image(scene, accel, &full, 0.0)?;
-    let ad_img = form_image(scene, accel, &adaptive, 0.0)?;
+    let full_img = run.form(&full)?;
+    let ad_img = run.form(&adaptive)?;
     viewer_images.push(ViewerImage {
         id: format!("full_{order:02}"),
         label: format!("full SH, order {order}"),
@@ -202,8 +202,8 @@ fn target_column(
     )?;
     let f = &study.frames[0];
     let shaded = study.last_frame.as_ref().expect("one frame shaded");
-    let img = form_image(run.scene, &run.accel, shaded, 0.0)?;
-    let m = compare(&img.clone(), full, None)?.whole;
+    let img = run.form(shaded)?;
+    let m = compare(&img, full, None)?.whole;
     Ok(TargetColumn {
         target_psnr,
         ms: f.shade_ms,
@@ -283,7 +283,7 @@ fn roi_picture(run: &Run, adaptive: &Relit, order: usize) -> Result<Tile, Report
     let roi = roi_image(run.scene, &run.accel, adaptive)?;
     write_png(&run.out_dir.join("images/roi.png"), &roi, 0.0)?;
     Ok(srgb_tile(
-        &roi.clone(),
+        &roi,
         format!("ROI, order {order}: red all bands, grey fewer"),
     ))
 }

@@ -12,8 +12,8 @@ use crate::error::ReportError;
 use prt_bakefile::{Bake, Decision};
 use prt_compare::{compare, Image, Mask};
 use prt_scene::Scene;
-use prt_scene_relight::imaging::form_image;
-use prt_scene_relight::relit::{relight, RelightOptions};
+use prt_scene_relight::relit::RelightOptions;
+use prt_scene_relight::Bound;
 use prt_tracer::Accel;
 use serde::Serialize;
 
@@ -76,19 +76,16 @@ pub fn object_quality(
     orders: &[usize],
     target: f64,
 ) -> Result<Vec<ObjectQuality>, ReportError> {
+    // Bound once: every order's image from the same footprints, lightmaps and camera rays.
+    let bound = Bound::new(scene, accel, bake)?;
     object_quality_with(scene, accel, bake, reference, orders, target, |order| {
-        let r = relight(
-            scene,
-            accel,
-            bake,
-            &RelightOptions {
-                order: Some(order),
-                timing_frames: 1,
-                warmup_frames: 0,
-                ..RelightOptions::default()
-            },
-        )?;
-        Ok(form_image(scene, accel, &r, 0.0)?.clone())
+        let r = bound.relight(&RelightOptions {
+            order: Some(order),
+            timing_frames: 1,
+            warmup_frames: 0,
+            ..RelightOptions::default()
+        })?;
+        Ok(bound.form_image(&r, 0.0)?)
     })
 }
 

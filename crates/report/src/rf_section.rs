@@ -32,7 +32,7 @@ use prt_fields::sample::ReflectanceSettings;
 use prt_scene::Scene;
 use prt_scene_relight::imaging::RgbImage;
 use prt_scene_relight::io::{write_exr, write_png};
-use prt_scene_relight::relit::{relight, RelightOptions};
+use prt_scene_relight::relit::RelightOptions;
 use prt_tracer::Accel;
 use prt_wavelet::Wavelet;
 use serde::Serialize;
@@ -525,8 +525,8 @@ impl Section<'_> {
     /// error of the object pixels' mean radiance.
     fn measure(&self, img: &RgbImage) -> Result<(f64, f64, f64), ReportError> {
         let cx = self.cx;
-        let ci = img.clone();
-        let m = compare(&ci, cx.reference, Some(cx.mask))?
+        let ci = img;
+        let m = compare(ci, cx.reference, Some(cx.mask))?
             .masked
             .expect("mask given");
         let (mut a, mut r) = (0.0f64, 0.0f64);
@@ -595,7 +595,7 @@ impl Section<'_> {
             let (psnr_ldr, rel_l2, mean_error) = self.measure(&frames[0])?;
             self.save(&format!("rf_{name}"), &frames[0], "reflectance field")?;
             self.tiles.push(crate::plots::srgb_tile(
-                &frames[0].clone(),
+                &frames[0],
                 format!("field, {name}: {psnr_ldr:.2} dB"),
             ));
             self.show(
@@ -659,7 +659,7 @@ impl Section<'_> {
                 );
                 if k == *ks.last().expect("non-empty") {
                     self.tiles.push(crate::plots::srgb_tile(
-                        &img.clone(),
+                        img,
                         format!("{wname}, K = {k}: {psnr_ldr:.2} dB"),
                     ));
                 }
@@ -742,22 +742,19 @@ impl Section<'_> {
             cx.progress,
         )?;
         let mut sh = Vec::new();
+        // Bound once: the bake's pixel footprints serve every order.
+        let bound = prt_scene_relight::Bound::new(cx.scene, cx.accel, &sh_bake)?;
         for &order in orders {
             self.say(&format!("per-pixel SH at order {order}"));
-            let r = relight(
-                cx.scene,
-                cx.accel,
-                &sh_bake,
-                &RelightOptions {
-                    order: Some(order),
-                    adaptive: None,
-                    timing_frames: cx.sh_timing_frames,
-                    warmup_frames: 2,
-                    points: None,
-                    ..Default::default()
-                },
-            )?;
-            let img = prt_scene_relight::imaging::form_image(cx.scene, cx.accel, &r, 0.0)?;
+            let r = bound.relight(&RelightOptions {
+                order: Some(order),
+                adaptive: None,
+                timing_frames: cx.sh_timing_frames,
+                warmup_frames: 2,
+                points: None,
+                ..Default::default()
+            })?;
+            let img = bound.form_image(&r, 0.0)?;
             let (psnr_ldr, rel_l2, _) = self.measure(&img)?;
             self.save(&format!("rf_sh_{order:02}"), &img, "per-pixel SH")?;
             self.show(
@@ -769,7 +766,7 @@ impl Section<'_> {
                 self.tiles.insert(
                     1,
                     crate::plots::srgb_tile(
-                        &img.clone(),
+                        &img,
                         format!("per-pixel SH {order}: {psnr_ldr:.2} dB"),
                     ),
                 );
@@ -825,7 +822,7 @@ impl Section<'_> {
                 self.tiles.insert(
                     2,
                     crate::plots::srgb_tile(
-                        &frames[0].clone(),
+                        &frames[0],
                         format!("SH {order} fitted to the field: {psnr_ldr:.2} dB"),
                     ),
                 );

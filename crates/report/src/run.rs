@@ -7,11 +7,12 @@ use glam::Vec3;
 use prt_bakefile::Bake;
 use prt_compare::{Image, Mask};
 use prt_scene::Scene;
-use prt_scene_relight::imaging::{form_image, object_mask, RgbImage};
+use prt_scene_relight::imaging::{form_image_with, object_mask, ImageRays, RgbImage};
 use prt_scene_relight::io::write_png;
-use prt_scene_relight::relit::{relight, RelightOptions};
+use prt_scene_relight::relit::{relight, RelightOptions, Relit};
 use prt_tracer::Accel;
 use std::path::Path;
+use std::sync::OnceLock;
 
 /// What every step of a report reads.
 pub(crate) struct Run<'a> {
@@ -31,6 +32,9 @@ pub(crate) struct Run<'a> {
     pub mask: Mask,
     /// The highest order of the settings' orders: the bake's order.
     pub max_order: usize,
+    /// The camera's sub-pixel rays, traced for the first image formed and kept for every
+    /// other (the report forms several images per order).
+    rays: OnceLock<ImageRays>,
 }
 
 impl<'a> Run<'a> {
@@ -70,6 +74,7 @@ impl<'a> Run<'a> {
             height: h,
             mask,
             max_order: *settings.orders.iter().max().expect("non-empty"),
+            rays: OnceLock::new(),
         })
     }
 
@@ -102,7 +107,20 @@ impl<'a> Run<'a> {
             ..Default::default()
         };
         let r = relight(self.scene, &self.accel, bake, &once)?;
-        Ok(linear(&form_image(self.scene, &self.accel, &r, 0.0)?))
+        Ok(linear(&self.form(&r)?))
+    }
+
+    /// The image of a relit result of the scene, unrotated, with the camera's rays traced
+    /// once per report ([`ImageRays`]).
+    pub fn form(&self, relit: &Relit) -> Result<RgbImage, ReportError> {
+        let rays = match self.rays.get() {
+            Some(r) => r,
+            None => {
+                let traced = ImageRays::trace(self.scene, &self.accel)?;
+                self.rays.get_or_init(|| traced)
+            }
+        };
+        Ok(form_image_with(self.scene, &self.accel, rays, relit, 0.0))
     }
 }
 

@@ -118,90 +118,246 @@ pub fn background_radiance(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32;
     scene.environment.radiance(d)
 }
 
+/// A sub-pixel ray's hit as image formation needs it: the triangle and barycentrics
+/// (`mesh = u32::MAX` for a miss, which shows the background).
+#[derive(Clone, Copy, Debug)]
+struct Sample {
+    mesh: u32,
+    tri: u32,
+    u: f32,
+    v: f32,
+}
+
+impl Sample {
+    fn of(hit: Option<&prt_tracer::Hit>) -> Self {
+        hit.map_or(
+            Self {
+                mesh: u32::MAX,
+                tri: 0,
+                u: 0.0,
+                v: 0.0,
+            },
+            |h| Self {
+                mesh: h.mesh,
+                tri: h.tri,
+                u: h.u,
+                v: h.v,
+            },
+        )
+    }
+}
+
+/// Sub-pixel samples of edge grids kept at most (16 bytes each): past it, image formation
+/// traces an edge pixel's fine grid again each time (a 4000 × 3000 image with a tenth of
+/// its pixels on edges would hold 3 GB).
+const MAX_CACHED_SAMPLES: usize = 1 << 24;
+
+/// The sub-pixel rays of every pixel of the scene camera and what each hits, traced once
+/// ([`pixel_samples`]' grids: `SUBPIXELS²` rays, `EDGE_SUBPIXELS²` at edges), so that forming
+/// the image of any relit result of the scene is a gather: the report forms dozens of images
+/// of one scene, `prt relight` two or three. The hits are what the rays of [`form_image`]
+/// see, so images formed either way are the same bits.
+pub struct ImageRays {
+    cam: PinholeCamera,
+    /// Per pixel: the grid's side (`SUBPIXELS` or `EDGE_SUBPIXELS`) and its first sample in
+    /// `samples` (`u32::MAX`: an edge grid not kept, traced when needed).
+    grid: Vec<(u32, u32)>,
+    samples: Vec<Sample>,
+}
+
+impl ImageRays {
+    /// Traces the scene camera's sub-pixel rays.
+    ///
+    /// # Errors
+    /// A camera the tracer refuses.
+    pub fn trace(scene: &Scene, accel: &Accel) -> Result<Self, SceneRelightError> {
+        let cam = PinholeCamera::new(&scene.camera)?;
+        let (w, h) = (cam.width(), cam.height());
+        // Pass 1: every pixel's coarse grid. Pass 2: pixels that may hold an edge (their own
+        // rays or their neighbours' centre rays disagree: `pixel_samples`) traced again on the
+        // fine grid.
+        // Per pixel: its coarse samples, what its centre ray saw, whether its own rays
+        // disagree.
+        type Coarse = (Vec<Sample>, Option<(u32, f32)>, bool);
+        let coarse: Vec<Coarse> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let grid = sample_grid(&cam, accel, i % w, i / w, SUBPIXELS);
+                let centre = seen(grid[grid.len() / 2].1.as_ref());
+                let own_edge = holds_edge(grid.iter().map(|(_, h)| seen(h.as_ref())));
+                let samples = grid.iter().map(|(_, h)| Sample::of(h.as_ref())).collect();
+                (samples, centre, own_edge)
+            })
+            .collect();
+        let edge: Vec<bool> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let (_, centre, own_edge) = &coarse[i as usize];
+                let centres =
+                    neighbours(&cam, x, y).map(|(nx, ny)| coarse[(ny * w + nx) as usize].1);
+                *own_edge || holds_edge(std::iter::once(*centre).chain(centres))
+            })
+            .collect();
+        let fine_samples =
+            edge.iter().filter(|e| **e).count() * (EDGE_SUBPIXELS * EDGE_SUBPIXELS) as usize;
+        let keep_fine =
+            fine_samples + coarse.len() * (SUBPIXELS * SUBPIXELS) as usize <= MAX_CACHED_SAMPLES;
+        let fine: Vec<Option<Vec<Sample>>> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                (edge[i as usize] && keep_fine).then(|| {
+                    sample_grid(&cam, accel, i % w, i / w, EDGE_SUBPIXELS)
+                        .iter()
+                        .map(|(_, h)| Sample::of(h.as_ref()))
+                        .collect()
+                })
+            })
+            .collect();
+        let mut grid = Vec::with_capacity(coarse.len());
+        let mut samples = Vec::new();
+        for ((c, _, _), (e, f)) in coarse.into_iter().zip(edge.into_iter().zip(fine)) {
+            match (e, f) {
+                (false, _) => {
+                    grid.push((SUBPIXELS, samples.len() as u32));
+                    samples.extend(c);
+                }
+                (true, Some(f)) => {
+                    grid.push((EDGE_SUBPIXELS, samples.len() as u32));
+                    samples.extend(f);
+                }
+                (true, None) => grid.push((EDGE_SUBPIXELS, u32::MAX)),
+            }
+        }
+        Ok(Self { cam, grid, samples })
+    }
+
+    /// The mean radiance of pixel `i`'s samples ([`shade_ray`] of each, in grid order).
+    fn shade(
+        &self,
+        scene: &Scene,
+        accel: &Accel,
+        relit: &Relit,
+        i: u32,
+        rotate_y_deg: f64,
+    ) -> [f32; 3] {
+        let w = self.cam.width();
+        let (x, y) = (i % w, i / w);
+        let (k, first) = self.grid[i as usize];
+        let traced;
+        let samples: &[Sample] = if first == u32::MAX {
+            traced = sample_grid(&self.cam, accel, x, y, k)
+                .iter()
+                .map(|(_, h)| Sample::of(h.as_ref()))
+                .collect::<Vec<_>>();
+            &traced
+        } else {
+            &self.samples[first as usize..][..(k * k) as usize]
+        };
+        let mut sum = [0.0f32; 3];
+        for (j, s) in samples.iter().enumerate() {
+            let (sx, sy) = (j as u32 % k, j as u32 / k);
+            let dir = || {
+                let fx = f64::from(x) + (f64::from(sx) + 0.5) / f64::from(k);
+                let fy = f64::from(y) + (f64::from(sy) + 0.5) / f64::from(k);
+                self.cam.direction(fx, fy)
+            };
+            let v = shade_ray(scene, relit, dir, *s, rotate_y_deg);
+            for ch in 0..3 {
+                sum[ch] += v[ch];
+            }
+        }
+        let n = samples.len() as f32;
+        sum.map(|v| v / n)
+    }
+}
+
 /// Forms the image of relit radiance. Per-vertex bakes: each pixel averages a `k×k` grid of
 /// sub-pixel rays, each taking the barycentric (Gouraud) interpolation of its triangle's
 /// vertex radiance or the environment. Per-pixel bakes ([`Relit::footprints`] set): the sum
 /// over objects of the pixel's relit value (each object's transfer is already averaged over
 /// the pixel's footprint samples, with zeros where a sample sees something else), plus the
-/// environment seen by the samples that hit nothing, each weighted `1/K`.
+/// environment seen by the samples that hit nothing, each weighted `1/K`. Traces the camera's
+/// rays; to form several images of one scene, trace them once ([`ImageRays`],
+/// [`form_image_with`]).
+///
+/// # Errors
+/// A camera the tracer refuses.
 pub fn form_image(
     scene: &Scene,
     accel: &Accel,
     relit: &Relit,
     rotate_y_deg: f64,
 ) -> Result<RgbImage, SceneRelightError> {
-    let cam = PinholeCamera::new(&scene.camera)?;
-    let (w, h) = (cam.width(), cam.height());
-    // Pass 1: every pixel's coarse grid. Pass 2: pixels that may hold an edge (their own rays
-    // or their neighbours' centre rays disagree: `pixel_samples`) traced again on the fine
-    // grid.
-    enum Coarse {
-        Done([f32; 3]),
-        Pixel {
-            value: [f32; 3],
-            centre: Option<(u32, f32)>,
-            own_edge: bool,
-        },
+    if relit.footprints.is_some() {
+        let cam = PinholeCamera::new(&scene.camera)?;
+        return Ok(footprint_image(
+            scene,
+            relit,
+            cam.width(),
+            cam.height(),
+            rotate_y_deg,
+        ));
     }
-    let coarse: Vec<Coarse> = (0..w * h)
+    Ok(form_image_with(
+        scene,
+        accel,
+        &ImageRays::trace(scene, accel)?,
+        relit,
+        rotate_y_deg,
+    ))
+}
+
+/// [`form_image`] with the camera's rays traced beforehand (`rays`, of this scene).
+#[must_use]
+pub fn form_image_with(
+    scene: &Scene,
+    accel: &Accel,
+    rays: &ImageRays,
+    relit: &Relit,
+    rotate_y_deg: f64,
+) -> RgbImage {
+    let (w, h) = (rays.cam.width(), rays.cam.height());
+    if relit.footprints.is_some() {
+        return footprint_image(scene, relit, w, h, rotate_y_deg);
+    }
+    let pixels = (0..w * h)
         .into_par_iter()
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            if let Some(fp) = &relit.footprints {
-                let mut c = [0.0f32; 3];
-                for r in &relit.radiance {
-                    let v = r.get(i as usize).copied().unwrap_or([0.0; 3]);
-                    (0..3).for_each(|ch| c[ch] += v[ch]);
-                }
-                let samples = fp.pixel(i as usize);
-                let weight = 1.0 / samples.len() as f32;
-                for s in samples.iter().filter(|s| s.hit.is_none()) {
-                    let b = background_radiance(scene, s.dir, rotate_y_deg);
-                    (0..3).for_each(|ch| c[ch] += weight * b[ch]);
-                }
-                return Coarse::Done(c);
-            }
-            // The coarse grid; what its centre ray and its own rays saw, for the edge test.
-            let coarse = sample_grid(&cam, accel, x, y, SUBPIXELS);
-            let centre = seen(coarse[coarse.len() / 2].1.as_ref());
-            let own_edge = holds_edge(coarse.iter().map(|(_, h)| seen(h.as_ref())));
-            let value = shade_samples(scene, relit, &coarse, rotate_y_deg);
-            Coarse::Pixel {
-                value,
-                centre,
-                own_edge,
-            }
-        })
+        .map(|i| rays.shade(scene, accel, relit, i, rotate_y_deg))
         .collect();
-    let pixels: Vec<[f32; 3]> = (0..w * h)
-        .into_par_iter()
-        .map(|i| match coarse[i as usize] {
-            Coarse::Done(c) => c,
-            Coarse::Pixel {
-                value,
-                centre,
-                own_edge,
-            } => {
-                let (x, y) = (i % w, i / w);
-                let centres =
-                    neighbours(&cam, x, y).map(|(nx, ny)| match coarse[(ny * w + nx) as usize] {
-                        Coarse::Pixel { centre, .. } => centre,
-                        Coarse::Done(_) => None,
-                    });
-                if own_edge || holds_edge(std::iter::once(centre).chain(centres)) {
-                    let fine = sample_grid(&cam, accel, x, y, EDGE_SUBPIXELS);
-                    shade_samples(scene, relit, &fine, rotate_y_deg)
-                } else {
-                    value
-                }
-            }
-        })
-        .collect();
-    Ok(RgbImage {
+    RgbImage {
         width: w as usize,
         height: h as usize,
         pixels,
-    })
+    }
+}
+
+/// The image of a per-pixel relit result: per pixel, the sum over objects of its relit value
+/// plus the environment its footprint samples that hit nothing see, each weighted `1/K`.
+fn footprint_image(scene: &Scene, relit: &Relit, w: u32, h: u32, rotate_y_deg: f64) -> RgbImage {
+    let fp = relit.footprints.as_ref().expect("a per-pixel relit result");
+    let pixels = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let mut c = [0.0f32; 3];
+            for r in &relit.radiance {
+                let v = r.get(i as usize).copied().unwrap_or([0.0; 3]);
+                (0..3).for_each(|ch| c[ch] += v[ch]);
+            }
+            let samples = fp.pixel(i as usize);
+            let weight = 1.0 / samples.len() as f32;
+            for s in samples.iter().filter(|s| s.hit.is_none()) {
+                let b = background_radiance(scene, s.dir, rotate_y_deg);
+                (0..3).for_each(|ch| c[ch] += weight * b[ch]);
+            }
+            c
+        })
+        .collect();
+    RgbImage {
+        width: w as usize,
+        height: h as usize,
+        pixels,
+    }
 }
 
 /// The radiance a sub-pixel ray shows: its hit's relit radiance (per vertex, barycentric;
@@ -209,11 +365,11 @@ pub fn form_image(
 fn shade_ray(
     scene: &Scene,
     relit: &Relit,
-    dir: Vec3,
-    hit: Option<&prt_tracer::Hit>,
+    dir: impl FnOnce() -> Vec3,
+    hit: Sample,
     rotate_y_deg: f64,
 ) -> [f32; 3] {
-    match hit {
+    match (hit.mesh != u32::MAX).then_some(hit) {
         Some(hit) => {
             let mesh = &scene.meshes[hit.mesh as usize];
             let tri = mesh.indices[hit.tri as usize];
@@ -248,26 +404,8 @@ fn shade_ray(
                 c
             }
         }
-        None => background_radiance(scene, dir, rotate_y_deg),
+        None => background_radiance(scene, dir(), rotate_y_deg),
     }
-}
-
-/// The mean of `samples`' radiance ([`shade_ray`]).
-fn shade_samples(
-    scene: &Scene,
-    relit: &Relit,
-    samples: &[(Vec3, Option<prt_tracer::Hit>)],
-    rotate_y_deg: f64,
-) -> [f32; 3] {
-    let mut sum = [0.0f32; 3];
-    for (dir, hit) in samples {
-        let v = shade_ray(scene, relit, *dir, hit.as_ref(), rotate_y_deg);
-        for ch in 0..3 {
-            sum[ch] += v[ch];
-        }
-    }
-    let n = samples.len() as f32;
-    sum.map(|v| v / n)
 }
 
 /// The object whose centre ray each pixel hits (`None`: background), row-major.
@@ -369,7 +507,7 @@ mod tests {
             roi,
             stats: RelightStats::default(),
             footprints: None,
-            lightmaps: Vec::new(),
+            lightmaps: Vec::new().into(),
         }
     }
 
@@ -458,12 +596,12 @@ mod tests {
             ],
             vec![Vec::new(); 2],
         );
-        r.footprints = Some(prt_tracer::points::PixelFootprints {
+        r.footprints = Some(std::sync::Arc::new(prt_tracer::points::PixelFootprints {
             width: 2,
             height: 1,
             samples_per_pixel: 4,
             samples: samples.to_vec(),
-        });
+        }));
         let image = form_image(&scene, &accel, &r, 0.0).unwrap();
         let want = [
             [

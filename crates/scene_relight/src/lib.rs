@@ -14,6 +14,7 @@
 //! (per-view-elevation BRDF projections, `prt_shading::projection`).
 
 mod binding;
+mod bound;
 mod error;
 pub mod footprint;
 mod frames;
@@ -26,8 +27,9 @@ pub mod relit;
 mod specular;
 pub mod target;
 
+pub use bound::Bound;
 pub use error::SceneRelightError;
-pub use imaging::{form_image, object_mask, roi_image, RgbImage};
+pub use imaging::{form_image, form_image_with, object_mask, roi_image, ImageRays, RgbImage};
 pub use relit::{
     baked_scene, check_bake, relight, GlossyPath, RelightOptions, RelightStats, Relit,
 };

@@ -13,6 +13,7 @@ use prt_scene::{Material, Scene};
 use prt_tracer::points::PixelFootprints;
 use serde::Serialize;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 
 pub use crate::binding::{baked_scene, check_bake, lightmaps};
@@ -74,10 +75,10 @@ pub struct Relit {
     /// Per-pixel bakes: the sub-pixel samples the bake averaged over (its seed and
     /// `pixel_samples`), which image formation uses for the background share of each pixel.
     /// `None` for per-vertex bakes.
-    pub footprints: Option<prt_tracer::points::PixelFootprints>,
+    pub footprints: Option<Arc<prt_tracer::points::PixelFootprints>>,
     /// Per-texel bakes: per object its lightmap (`None` for objects relit per vertex), which
     /// image formation looks the texels' radiance up in; empty otherwise.
-    pub lightmaps: Vec<Option<prt_scene::lightmap::Lightmap>>,
+    pub lightmaps: Arc<Vec<Option<prt_scene::lightmap::Lightmap>>>,
 }
 
 /// Figures of one relighting run.
@@ -121,11 +122,40 @@ pub struct RelightStats {
     pub notes: Vec<String>,
 }
 
-/// Relights every object of `scene` from `bake` (already checked with [`check_bake`]).
-pub fn relight(
+/// Per object, its lightmap when it was baked per texel, shared by the relit results.
+pub(crate) type Lightmaps = Arc<Vec<Option<Lightmap>>>;
+
+/// What relighting `bake` needs besides a frame's lighting: the pixel footprints of a
+/// per-pixel bake (traced) and the lightmaps of a per-texel one (rasterised).
+///
+/// # Errors
+/// A camera the tracer refuses or a lightmap the rasteriser refuses.
+pub(crate) fn prepare(
     scene: &Scene,
     accel: &prt_tracer::Accel,
     bake: &Bake,
+) -> Result<(Option<Arc<PixelFootprints>>, Lightmaps), SceneRelightError> {
+    let footprints = if matches!(bake.meta.sample_kind, SampleKind::Pixel { .. }) {
+        Some(Arc::new(prt_tracer::points::pixel_footprints(
+            scene,
+            accel,
+            bake.meta.seed,
+            baked_pixel_samples(bake),
+        )?))
+    } else {
+        None
+    };
+    Ok((footprints, Arc::new(lightmaps(scene, bake)?)))
+}
+
+/// Relights every object of `bake` under `opt`, given what [`prepare`] computes (once, in a
+/// [`crate::Bound`]):
+/// the footprints of a per-pixel bake and the lightmaps of a per-texel one.
+pub(crate) fn relight_prepared(
+    scene: &Scene,
+    bake: &Bake,
+    footprints: Option<&Arc<PixelFootprints>>,
+    lightmaps: &Lightmaps,
     opt: &RelightOptions,
 ) -> Result<Relit, SceneRelightError> {
     let (env_order, env) = environment(bake);
@@ -141,18 +171,6 @@ pub fn relight(
         Some(r) => r.apply_rgb(&frames.env),
         None => frames.env.clone(),
     };
-    let per_pixel = matches!(bake.meta.sample_kind, SampleKind::Pixel { .. });
-    let footprints = if per_pixel {
-        Some(prt_tracer::points::pixel_footprints(
-            scene,
-            accel,
-            bake.meta.seed,
-            baked_pixel_samples(bake),
-        )?)
-    } else {
-        None
-    };
-    let lightmaps = lightmaps(scene, bake)?;
     let run = Run {
         scene,
         bake,
@@ -160,9 +178,9 @@ pub fn relight(
         frames,
         env_rotated,
         eye: scene.camera.eye.as_vec3().to_array(),
-        per_pixel,
-        footprints: footprints.as_ref(),
-        lightmaps: &lightmaps,
+        per_pixel: footprints.is_some(),
+        footprints: footprints.map(|f| &**f),
+        lightmaps,
     };
     let mut totals = Totals::new(opt);
     let mut radiance = Vec::new();
@@ -176,9 +194,26 @@ pub fn relight(
         radiance,
         roi,
         stats: totals.finish(),
-        footprints,
-        lightmaps,
+        footprints: footprints.cloned(),
+        lightmaps: Arc::clone(lightmaps),
     })
+}
+
+/// Relights every object of `scene` from `bake` (already checked with [`check_bake`]):
+/// [`crate::Bound::new`] then [`crate::Bound::relight`]. To relight the same bake more than once, bind it
+/// once.
+///
+/// # Errors
+/// As [`crate::Bound::new`] and [`crate::Bound::relight`]: options the bake cannot honour, a subset of
+/// points outside full-order per-vertex relighting, and failures of the kernels.
+pub fn relight(
+    scene: &Scene,
+    accel: &prt_tracer::Accel,
+    bake: &Bake,
+    opt: &RelightOptions,
+) -> Result<Relit, SceneRelightError> {
+    let (footprints, lightmaps) = prepare(scene, accel, bake)?;
+    relight_prepared(scene, bake, footprints.as_ref(), &lightmaps, opt)
 }
 
 /// What every object of a run shares.

@@ -26,9 +26,10 @@
 //! 3 dB the next frame starts 1.5× higher. The cost of a frame (`shade_ms`) is the shading time
 //! of every try plus that of the probe's full-order vertices.
 
+use crate::bound::Bound;
 use crate::error::SceneRelightError;
 use crate::imaging::{background_radiance, pixel_samples, RgbImage};
-use crate::relit::{relight, RelightOptions, Relit};
+use crate::relit::{RelightOptions, Relit};
 use glam::Vec3;
 use prt_bakefile::Bake;
 use prt_relight::{AdaptiveParams, Threshold};
@@ -305,10 +306,11 @@ pub fn relight_to_target(
     check_options(bake, opt)?;
     let probe = build_probe(scene, accel, opt.probe_pixels, opt.seed)?;
     let target_mse = 255.0f64 * 255.0 * 10f64.powf(-opt.target_psnr / 10.0);
+    let bound = Bound::new(scene, accel, bake)?;
     let run = TargetRun {
         scene,
-        accel,
         bake,
+        bound: &bound,
         opt,
         probe: &probe,
         target_mse,
@@ -324,12 +326,12 @@ pub fn relight_to_target(
         // Adaptive did not pay on the last attempt: stay at full order (no probe needed, it
         // is exact) and try adaptive again every `RETRY_ADAPTIVE_EVERY` frames.
         if let Some(k) = full_streak.filter(|&k| k + 1 < RETRY_ADAPTIVE_EVERY) {
-            let f = relight(scene, accel, bake, &run.base(deg))?;
+            let f = bound.relight(&run.base(deg))?;
             full_streak = Some(k + 1);
             let ms = f.stats.shade_ms;
             frames.push(TargetFrame::full_order(deg, ms, opt.verify));
             if opt.verify {
-                let fi = crate::imaging::form_image(scene, accel, &f, deg)?;
+                let fi = bound.form_image(&f, deg)?;
                 full_images.push((fi, ms));
             }
             last_frame = Some(f);
@@ -427,8 +429,9 @@ type FullImage = (RgbImage, f64);
 /// What every frame of a target-quality run shares.
 struct TargetRun<'a> {
     scene: &'a Scene,
-    accel: &'a prt_tracer::Accel,
     bake: &'a Bake,
+    /// The bake bound once: every relighting and image of the study.
+    bound: &'a Bound<'a>,
     opt: &'a TargetOptions,
     probe: &'a Probe,
     /// The MSE of the target PSNR.
@@ -537,7 +540,7 @@ impl TargetRun<'_> {
 
     /// Relights the scene with `opt`.
     fn relight(&self, opt: &RelightOptions) -> Result<Relit, SceneRelightError> {
-        relight(self.scene, self.accel, self.bake, opt)
+        self.bound.relight(opt)
     }
 
     /// Shades frame `deg` adaptively to the target from threshold `t` (which the controller
@@ -626,11 +629,10 @@ impl TargetRun<'_> {
         deg: f64,
         adaptive: &Relit,
     ) -> Result<(f64, RgbImage, f64), SceneRelightError> {
-        let (scene, accel) = (self.scene, self.accel);
         let full = self.relight(&self.base(deg))?;
-        let fi = crate::imaging::form_image(scene, accel, &full, deg)?;
-        let ai = crate::imaging::form_image(scene, accel, adaptive, deg)?;
-        let m = prt_compare::compare(&ai.clone(), &fi.clone(), None)?;
+        let fi = self.bound.form_image(&full, deg)?;
+        let ai = self.bound.form_image(adaptive, deg)?;
+        let m = prt_compare::compare(&ai, &fi, None)?;
         Ok((m.whole.psnr_ldr, fi, full.stats.shade_ms))
     }
 
@@ -684,8 +686,8 @@ impl TargetRun<'_> {
                 order: Some(order),
                 ..self.base(deg)
             })?;
-            let img = crate::imaging::form_image(self.scene, self.accel, &r, deg)?;
-            let m = prt_compare::compare(&img.clone(), &fi.clone(), None)?;
+            let img = self.bound.form_image(&r, deg)?;
+            let m = prt_compare::compare(&img, fi, None)?;
             worst = worst.min(m.whole.psnr_ldr);
             times.push(r.stats.shade_ms);
             if worst < self.opt.target_psnr {

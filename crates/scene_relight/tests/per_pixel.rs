@@ -341,3 +341,43 @@ fn per_pixel_full_order_relighting_converges_to_the_path_tracer() {
         "per-vertex floor {ev_floor:.5} vs per-pixel {ep_floor:.5}"
     );
 }
+
+/// A bake bound once (`Bound`: footprints, lightmaps and the camera's rays computed once)
+/// relights and forms images bit for bit as the one-shot functions do, per pixel and per
+/// vertex, at two orders and two rotations, and its second image reuses the traced rays.
+#[test]
+fn a_bound_bake_relights_and_images_as_the_one_shot_functions() {
+    let scene = scene(8);
+    let accel = Accel::build(&scene).expect("accel");
+    for points in [PointKind::Pixel, PointKind::Vertex] {
+        let settings = BakeSettings {
+            order: Some(4),
+            rays: 64,
+            bounces: 0,
+            points,
+            ..BakeSettings::final_quality()
+        };
+        let bake = prt_bake::bake(&scene, &accel, &settings)
+            .expect("bake")
+            .bake;
+        let bound = prt_scene_relight::Bound::new(&scene, &accel, &bake).expect("bind");
+        for (order, deg) in [(4, 0.0), (2, 35.0)] {
+            let opt = RelightOptions {
+                order: Some(order),
+                rotate_y_deg: deg,
+                timing_frames: 1,
+                warmup_frames: 0,
+                ..RelightOptions::default()
+            };
+            let once = relight(&scene, &accel, &bake, &opt).expect("relight");
+            let bound_relit = bound.relight(&opt).expect("bound relight");
+            assert_eq!(
+                once.radiance, bound_relit.radiance,
+                "{points:?} order {order}"
+            );
+            let a = form_image(&scene, &accel, &once, deg).expect("image");
+            let b = bound.form_image(&bound_relit, deg).expect("bound image");
+            assert_eq!(a.pixels, b.pixels, "{points:?} order {order} at {deg}°");
+        }
+    }
+}

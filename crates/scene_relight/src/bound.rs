@@ -1,0 +1,112 @@
+//! A bake bound to its scene ([`Bound`]): the set-up relighting and image formation share
+//! across calls, computed once per command.
+
+use crate::error::SceneRelightError;
+use crate::imaging::{form_image, form_image_with, ImageRays, RgbImage};
+use crate::relit::{prepare, relight_prepared, RelightOptions, Relit};
+use prt_bakefile::Bake;
+use prt_scene::lightmap::Lightmap;
+use prt_scene::Scene;
+use prt_tracer::points::PixelFootprints;
+use std::sync::{Arc, OnceLock};
+
+/// A bake bound to its scene: what relighting needs besides the lighting of a frame,
+/// computed once — the pixel footprints of a per-pixel bake (traced) and the lightmaps of a
+/// per-texel bake (rasterised) — so that a command or a report relighting the same bake
+/// several times (full order and adaptive, every order, every frame of a study) pays for
+/// them once, and the camera's sub-pixel rays that image formation traces. [`Bound::relight`]
+/// is then [`crate::relight`] without that set-up, and [`Bound::form_image`] a gather.
+pub struct Bound<'a> {
+    scene: &'a Scene,
+    accel: &'a prt_tracer::Accel,
+    bake: &'a Bake,
+    footprints: Option<Arc<PixelFootprints>>,
+    lightmaps: Arc<Vec<Option<Lightmap>>>,
+    /// The camera's sub-pixel rays, traced when the first image is formed.
+    rays: OnceLock<ImageRays>,
+}
+
+impl<'a> Bound<'a> {
+    /// Binds `bake` (already checked with [`crate::check_bake`]) to `scene` and its BVH.
+    ///
+    /// # Errors
+    /// A per-pixel bake whose footprints cannot be traced (a camera the tracer refuses) or a
+    /// lightmap the rasteriser refuses.
+    pub fn new(
+        scene: &'a Scene,
+        accel: &'a prt_tracer::Accel,
+        bake: &'a Bake,
+    ) -> Result<Self, SceneRelightError> {
+        let (footprints, lightmaps) = prepare(scene, accel, bake)?;
+        Ok(Self {
+            scene,
+            accel,
+            bake,
+            footprints,
+            lightmaps,
+            rays: OnceLock::new(),
+        })
+    }
+
+    /// The image of `relit` (a result of [`Bound::relight`]) under the environment turned by
+    /// `rotate_y_deg`: [`form_image`], with the camera's rays traced once for
+    /// every image of this binding.
+    ///
+    /// # Errors
+    /// A camera the tracer refuses.
+    pub fn form_image(
+        &self,
+        relit: &Relit,
+        rotate_y_deg: f64,
+    ) -> Result<RgbImage, SceneRelightError> {
+        if relit.footprints.is_some() {
+            return form_image(self.scene, self.accel, relit, rotate_y_deg);
+        }
+        let rays = match self.rays.get() {
+            Some(r) => r,
+            None => {
+                let traced = ImageRays::trace(self.scene, self.accel)?;
+                self.rays.get_or_init(|| traced)
+            }
+        };
+        Ok(form_image_with(
+            self.scene,
+            self.accel,
+            rays,
+            relit,
+            rotate_y_deg,
+        ))
+    }
+
+    /// The scene.
+    #[must_use]
+    pub fn scene(&self) -> &'a Scene {
+        self.scene
+    }
+
+    /// The scene's BVH.
+    #[must_use]
+    pub fn accel(&self) -> &'a prt_tracer::Accel {
+        self.accel
+    }
+
+    /// The bake.
+    #[must_use]
+    pub fn bake(&self) -> &'a Bake {
+        self.bake
+    }
+
+    /// Relights every object under `opt`.
+    ///
+    /// # Errors
+    /// As [`relight`].
+    pub fn relight(&self, opt: &RelightOptions) -> Result<Relit, SceneRelightError> {
+        relight_prepared(
+            self.scene,
+            self.bake,
+            self.footprints.as_ref(),
+            &self.lightmaps,
+            opt,
+        )
+    }
+}
