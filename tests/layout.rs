@@ -83,7 +83,10 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "sh", "scene", "shading", "tracer", "bakefile", "relight", "compare", "image",
         ],
     ),
-    ("gltf", &["scene", "tracer", "bakefile", "scene-relight"]),
+    (
+        "gltf",
+        &["scene", "tracer", "bakefile", "scene-relight", "image"],
+    ),
     (
         "fields",
         &[

@@ -25,6 +25,7 @@ mod relight_cmd;
 mod render_cmd;
 mod report_cmd;
 mod sh_cmd;
+mod view_cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -66,6 +67,9 @@ enum Command {
     Report(report_cmd::ReportArgs),
     /// Compare an image with a reference: PSNR (LDR, HDR), RMSE, relative L2, noise.
     Compare(compare_cmd::CompareArgs),
+    /// Write a self-contained page that relights an export (`prt export`) live with WebGL2
+    /// from the file alone: turn the environment, change the exposure, switch to stills.
+    View(view_cmd::ViewArgs),
     /// Timings: `prt bench relight` times `prt relight`'s shading (median of warm frames).
     #[command(subcommand)]
     Bench(bench_cmd::BenchCommand),
@@ -86,6 +90,7 @@ fn main() -> ExitCode {
         Command::Report(args) => report_cmd::run(&args),
         Command::Compare(args) => compare_cmd::run(args),
         Command::Bench(cmd) => bench_cmd::run(&cmd),
+        Command::View(args) => view_cmd::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

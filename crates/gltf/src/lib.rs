@@ -28,6 +28,7 @@
 //! rings), so that an engine's plain bilinear filtering does not pull chart borders toward 0.
 
 mod target;
+pub mod viewer;
 
 pub use target::{Target, TexturePacking};
 
@@ -841,6 +842,7 @@ fn document(
             "camera": {
                 "eye": scene.camera.eye.as_vec3().to_array(),
                 "target": scene.camera.target.as_vec3().to_array(),
+                "up": scene.camera.up.as_vec3().to_array(),
                 "fov_y": scene.camera.fov_y_deg,
                 "resolution": [scene.camera.width, scene.camera.height],
             },
