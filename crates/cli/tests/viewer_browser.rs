@@ -79,8 +79,8 @@ fn report_viewer_works_in_headless_chromium() {
 }
 
 /// Issue 33: an order-10 bake of the bunny (Lambert, under the bundled courtyard map), at 0
-/// and 1 bounce, and of the default scene (the bunny on a Phong floor, whose specular the
-/// page shades), exported for `--target webgl2` (16 vertex attributes at most: its transfer in
+/// and 1 bounce, of the default scene (the bunny on a Phong floor, whose specular the page
+/// shades) and of the bunny in glTF-PBR gold (fitted lobes), exported for `--target webgl2` (16 vertex attributes at most: its transfer in
 /// the §10.2 data texture), shown by `prt view`'s page in headless Chromium's WebGL2
 /// (SwiftShader): the page loads from file:// with no console error, turning the map and the
 /// exposure change the canvas, and at three rotations the canvas — the GPU's interpolation
@@ -140,10 +140,21 @@ scale = 0.1
         .replace("\"maps/", &format!("\"{}/maps/", scenes.display()));
     let default_scene = dir.path().join("default.toml");
     std::fs::write(&default_scene, default).unwrap();
+    // The bunny in glTF-PBR gold (roughness 0.6): all its light is the fitted lobes' (§10.1
+    // "fitted": the tables per view elevation, the Schlick split into two shapes, the
+    // `pbr` diffuse factor), which the page shades too.
+    let gold = std::fs::read_to_string(&scene).unwrap().replace(
+        "type = \"lambert\"\nalbedo = [0.8, 0.7, 0.6]",
+        "type = \"pbr\"\nbase_color = [1.0, 0.78, 0.34]\nmetallic = 1.0\nroughness = 0.6",
+    );
+    assert!(gold.contains("pbr"));
+    let gold_scene = dir.path().join("gold.toml");
+    std::fs::write(&gold_scene, gold).unwrap();
     for (scene, bounces, tag) in [
         (&scene, "0", "bunny"),
         (&scene, "1", "bunny"),
         (&default_scene, "0", "phong_floor"),
+        (&gold_scene, "0", "pbr_gold"),
     ] {
         let path = |name: &str| dir.path().join(format!("{tag}_b{bounces}_{name}"));
         run(prt()

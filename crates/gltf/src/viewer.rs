@@ -3,11 +3,11 @@
 //! script parses it, rotates the environment's SH about +Y on the CPU each frame (by
 //! quadrature: projecting the rotated function back onto the bands, exact for band-limited
 //! functions), and shades each vertex's diffuse term (§10.1: transfer, albedo, the `pbr`
-//! diffuse factor) and Phong specular (the `L ⊛ V` product matrices built per frame on the
-//! CPU by quadrature, the lobe at the mirror direction) in a vertex shader reading the transfer
-//! through one float texture — the §10.2 data texture, or the `_PRT_C*`/`_PRT_V_*` attributes
-//! packed into that layout. Fitted lobes and lightmapped objects are not shaded yet (the page
-//! says so). Path-traced stills can be embedded to switch to. `window.prtView` lets scripts turn the map, set the exposure
+//! diffuse factor) and specular lobes (Phong and the fitted lobes: the `L ⊛ V` product
+//! matrices built per frame on the CPU by quadrature, the lobes' bands at their axes) in a
+//! vertex shader reading the transfer through one float texture — the §10.2 data texture, or
+//! the `_PRT_C*`/`_PRT_V_*` attributes packed into that layout. Lightmapped objects are not
+//! shown yet (the page says so). Path-traced stills can be embedded to switch to. `window.prtView` lets scripts turn the map, set the exposure
 //! and read frame times (`tools/engine_check.py`).
 
 use base64::Engine as _;
