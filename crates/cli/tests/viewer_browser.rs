@@ -80,7 +80,8 @@ fn report_viewer_works_in_headless_chromium() {
 
 /// Issue 33: an order-10 bake of the bunny (Lambert, under the bundled courtyard map), at 0
 /// and 1 bounce, of the default scene (the bunny on a Phong floor, whose specular the page
-/// shades) and of the bunny in glTF-PBR gold (fitted lobes), exported for `--target webgl2` (16 vertex attributes at most: its transfer in
+/// shades), of the bunny in glTF-PBR gold (fitted lobes), and an order-6 1-bounce per-texel
+/// bake of the bunny on a lightmapped floor, exported for `--target webgl2` (16 vertex attributes at most: its transfer in
 /// the §10.2 data texture), shown by `prt view`'s page in headless Chromium's WebGL2
 /// (SwiftShader): the page loads from file:// with no console error, turning the map and the
 /// exposure change the canvas, and at three rotations the canvas — the GPU's interpolation
@@ -150,25 +151,34 @@ scale = 0.1
     assert!(gold.contains("pbr"));
     let gold_scene = dir.path().join("gold.toml");
     std::fs::write(&gold_scene, gold).unwrap();
-    for (scene, bounces, tag) in [
-        (&scene, "0", "bunny"),
-        (&scene, "1", "bunny"),
-        (&default_scene, "0", "phong_floor"),
-        (&gold_scene, "0", "pbr_gold"),
+    // The bunny on a floor baked per texel (`scenes/hard/figure_on_quad.toml`, the floor's
+    // UVs): the floor's transfer is in lightmap textures (§10), which the page samples.
+    let hard = scenes.join("hard");
+    let texel = std::fs::read_to_string(hard.join("figure_on_quad.toml"))
+        .unwrap()
+        .replace("resolution = [320, 240]", "resolution = [160, 120]")
+        .replace("\"../", &format!("\"{}/", scenes.display()))
+        .replace(
+            "\"quad.obj\"",
+            &format!("\"{}\"", hard.join("quad.obj").display()),
+        );
+    let texel_scene = dir.path().join("figure_on_quad.toml");
+    std::fs::write(&texel_scene, texel).unwrap();
+    let order10: &[&str] = &["--order", "10"];
+    let lightmapped: &[&str] = &["--order", "6", "--per-texel", "48"];
+    for (scene, bounces, tag, extra) in [
+        (&scene, "0", "bunny", order10),
+        (&scene, "1", "bunny", order10),
+        (&default_scene, "0", "phong_floor", order10),
+        (&gold_scene, "0", "pbr_gold", order10),
+        (&texel_scene, "1", "lightmap", lightmapped),
     ] {
         let path = |name: &str| dir.path().join(format!("{tag}_b{bounces}_{name}"));
         run(prt()
             .arg("bake")
             .arg(scene)
-            .args([
-                "--order",
-                "10",
-                "--rays",
-                "128",
-                "--bounces",
-                bounces,
-                "--out",
-            ])
+            .args(extra)
+            .args(["--rays", "128", "--bounces", bounces, "--out"])
             .arg(path("bake.prtb")));
         let export = common::json(&run(prt()
             .arg("export")

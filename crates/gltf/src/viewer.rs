@@ -6,8 +6,9 @@
 //! diffuse factor) and specular lobes (Phong and the fitted lobes: the `L ⊛ V` product
 //! matrices built per frame on the CPU by quadrature, the lobes' bands at their axes) in a
 //! vertex shader reading the transfer through one float texture — the §10.2 data texture, or
-//! the `_PRT_C*`/`_PRT_V_*` attributes packed into that layout. Lightmapped objects are not
-//! shown yet (the page says so). Path-traced stills can be embedded to switch to. `window.prtView` lets scripts turn the map, set the exposure
+//! the `_PRT_C*`/`_PRT_V_*` attributes packed into that layout; lightmapped objects from
+//! their coefficient textures (layers of one texture array, sampled bilinearly, offset and
+//! scale folded into the frame's lighting). Path-traced stills can be embedded to switch to. `window.prtView` lets scripts turn the map, set the exposure
 //! and read frame times (`tools/engine_check.py`).
 
 use base64::Engine as _;
