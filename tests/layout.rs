@@ -112,6 +112,8 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "fields",
             "compare",
             "wavelet",
+            "gltf",
+            "image",
         ],
     ),
     (

@@ -76,6 +76,23 @@ fn report_viewer_works_in_headless_chromium() {
     eprintln!("{text}{}", String::from_utf8_lossy(&check.stderr));
     assert!(check.status.success(), "the browser check failed:\n{text}");
     assert!(text.contains("all checks passed"));
+    // The report links its live page, which loads and draws in the same browser (issue 33).
+    assert!(page.contains("<a href=\"live.html\">live.html</a>"));
+    if engine_check_available() {
+        let live = Command::new("python3")
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/engine_check.py"))
+            .arg(out.join("live.html"))
+            .args(["--rotations", "0,90", "--out-dir"])
+            .arg(dir.path().join("live"))
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&live.stdout);
+        eprintln!("{text}{}", String::from_utf8_lossy(&live.stderr));
+        assert!(
+            live.status.success(),
+            "the live page's check failed:\n{text}"
+        );
+    }
 }
 
 /// Issue 33: an order-10 bake of the bunny (Lambert, under the bundled courtyard map), at 0

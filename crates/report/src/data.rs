@@ -151,6 +151,8 @@ pub struct ReportData {
     pub notes: Vec<String>,
     /// The reflectance-field section, when asked for (`--reflectance`).
     pub reflectance: Option<crate::rf_section::RfSection>,
+    /// The live WebGL2 page of the bake (`live.html`), when the bake exports.
+    pub live_page: Option<String>,
 }
 
 /// The path-traced reference of a report (`report.json`: `reference`).

@@ -15,6 +15,7 @@ mod cache;
 mod data;
 mod error;
 mod figures;
+mod live;
 mod machine;
 mod markdown;
 mod orders;

@@ -45,6 +45,12 @@ pub(crate) fn markdown(d: &ReportData, html_images: bool) -> String {
 /// The title, the machine, the settings, the reference and the bake.
 fn header(s: &mut String, d: &ReportData, html_images: bool) {
     let _ = writeln!(s, "# Speed against error: `{}`\n", d.scene);
+    if let Some(page) = &d.live_page {
+        let _ = writeln!(
+            s,
+            "Live relighting in the browser (WebGL2, the bake exported with `--target webgl2`; turn the map, change the exposure, switch to the path-traced reference): [{page}]({page}).\n"
+        );
+    }
     let _ = writeln!(
         s,
         "Machine: {} logical cores, {}.  ",

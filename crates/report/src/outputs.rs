@@ -151,15 +151,41 @@ fn markdown_to_html(md: &str) -> (String, String) {
         } else if let Some(t) = line.strip_prefix("    ") {
             let _ = writeln!(body, "<pre>{}</pre>", escape(t));
         } else if let Some(t) = line.strip_prefix("- ") {
-            let _ = writeln!(body, "<li>{}</li>", escape(t));
+            let _ = writeln!(body, "<li>{}</li>", links(&escape(t)));
         } else if !line.is_empty() {
-            let _ = writeln!(body, "<p>{}</p>", escape(line));
+            let _ = writeln!(body, "<p>{}</p>", links(&escape(line)));
         }
     }
     if in_table {
         body.push_str("</table>\n");
     }
     (title, body)
+}
+
+/// Markdown links `[text](file)` as HTML links, for plain relative file names only (letters,
+/// digits, `.`, `_`, `-`, `/`): the report links to its own files.
+fn links(text: &str) -> String {
+    let mut out = String::new();
+    let mut rest = text;
+    while let Some(open) = rest.find('[') {
+        let Some(mid) = rest[open..].find("](").map(|m| open + m) else {
+            break;
+        };
+        let Some(close) = rest[mid..].find(')').map(|c| mid + c) else {
+            break;
+        };
+        let (label, href) = (&rest[open + 1..mid], &rest[mid + 2..close]);
+        let plain = |c: char| c.is_ascii_alphanumeric() || "._-/".contains(c);
+        if href.is_empty() || !href.chars().all(plain) || label.contains('[') {
+            out.push_str(&rest[..=open]);
+            rest = &rest[open + 1..];
+            continue;
+        }
+        let _ = write!(out, "{}<a href=\"{href}\">{label}</a>", &rest[..open]);
+        rest = &rest[close + 1..];
+    }
+    out.push_str(rest);
+    out
 }
 
 /// Escapes HTML's special characters and drops Markdown's backticks.
@@ -172,7 +198,25 @@ fn escape(s: &str) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::markdown_to_html;
+    use super::{links, markdown_to_html};
+
+    /// Links to the report's own files become anchors; anything else stays text.
+    #[test]
+    fn links_to_plain_file_names_become_anchors() {
+        assert_eq!(
+            links("see [live.html](live.html) now"),
+            "see <a href=\"live.html\">live.html</a> now"
+        );
+        assert_eq!(
+            links("[x](javascript:alert(1))"),
+            "[x](javascript:alert(1))"
+        );
+        assert_eq!(links("a [b] c (d)"), "a [b] c (d)");
+        assert_eq!(
+            links("[a](b.png) and [c](d/e.html)"),
+            "<a href=\"b.png\">a</a> and <a href=\"d/e.html\">c</a>"
+        );
+    }
 
     #[test]
     fn the_markdown_converter_makes_sortable_tables_headings_and_escaped_text() {

@@ -80,7 +80,16 @@ pub fn run_report(
         relit.tiles,
         reference_tile,
     )?;
-    // 6. What was measured, and the files that show it.
+    // 6. The live page of the bake (export for WebGL2), then what was measured and the files
+    // that show it.
+    let mut notes = relit.notes;
+    let live_page = match crate::live::live_page(&run, &bakes.bake, &reference.image)? {
+        Ok(page) => Some(page),
+        Err(note) => {
+            notes.push(note);
+            None
+        }
+    };
     let data = ReportData {
         scene: scene_path.display().to_string(),
         machine: Machine {
@@ -101,8 +110,9 @@ pub fn run_report(
         bake_rays: bake_rays(&bakes.bake),
         convergence,
         orders: relit.rows,
-        notes: relit.notes,
+        notes,
         reflectance,
+        live_page,
     };
     write_outputs(out_dir, &data, run.width, run.height, &viewer_images)?;
     Ok(data)
