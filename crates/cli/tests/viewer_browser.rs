@@ -208,6 +208,22 @@ scale = 0.1
             export["vertex_attributes"].as_u64().unwrap() <= 16,
             "{export}"
         );
+        // The Khronos glTF-Validator on the very file the page shows (when installed).
+        let tools = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools");
+        if tools.join("node_modules/gltf-validator").exists() {
+            let v = Command::new("node")
+                .arg(tools.join("gltf_validate.js"))
+                .arg(path("asset.glb"))
+                .output()
+                .unwrap();
+            let report = String::from_utf8_lossy(&v.stdout);
+            assert!(
+                v.status.success()
+                    && report.contains("\"errors\":0")
+                    && report.contains("\"warnings\":0"),
+                "{tag}: {report}"
+            );
+        }
         run(prt()
             .arg("view")
             .arg(path("asset.glb"))
