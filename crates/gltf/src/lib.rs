@@ -1291,40 +1291,30 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedObject>, SceneRelightError
             }
             Ok(out)
         };
+        // The transfer and visibility: from the §10.2 data texture, or the attributes.
         let texture = prt.get("transfer_texture").filter(|t| !t.is_null());
-        if let Some(t) = texture {
-            let (transfer, visibility) =
-                read_transfer_texture(t, &doc, &attrs, &floats, &bad, (v, channels, n2))?;
-            let albedo = read_albedo(prt, &attrs, &floats, &bad, v)?;
-            out.push(ExportedObject {
-                name: mesh.name().unwrap_or_default().to_owned(),
-                order,
-                channels,
-                positions,
-                transfer,
-                albedo,
-                lightmap,
-                visibility,
-            });
-            continue;
-        }
-        let mut transfer = Vec::new();
-        if lightmap.is_none() {
-            let per_channel: Vec<Vec<f32>> = (0..channels)
-                .map(|ch| groups(&|g| attribute_name(ch, g)))
-                .collect::<Result<_, _>>()?;
-            transfer = vec![0.0f32; v * channels * n2];
-            for (ch, rows) in per_channel.iter().enumerate() {
-                for p in 0..v {
-                    transfer[(p * channels + ch) * n2..][..n2]
-                        .copy_from_slice(&rows[p * n2..(p + 1) * n2]);
+        let (transfer, visibility) = if let Some(t) = texture {
+            read_transfer_texture(t, &doc, &attrs, &floats, &bad, (v, channels, n2))?
+        } else {
+            let mut transfer = Vec::new();
+            if lightmap.is_none() {
+                let per_channel: Vec<Vec<f32>> = (0..channels)
+                    .map(|ch| groups(&|g| attribute_name(ch, g)))
+                    .collect::<Result<_, _>>()?;
+                transfer = vec![0.0f32; v * channels * n2];
+                for (ch, rows) in per_channel.iter().enumerate() {
+                    for p in 0..v {
+                        transfer[(p * channels + ch) * n2..][..n2]
+                            .copy_from_slice(&rows[p * n2..(p + 1) * n2]);
+                    }
                 }
             }
-        }
-        let visibility = if attrs.contains_key("_PRT_V_0") {
-            Some(groups(&|g| format!("_PRT_V_{g}"))?)
-        } else {
-            None
+            let visibility = if attrs.contains_key("_PRT_V_0") {
+                Some(groups(&|g| format!("_PRT_V_{g}"))?)
+            } else {
+                None
+            };
+            (transfer, visibility)
         };
         let albedo = read_albedo(prt, &attrs, &floats, &bad, v)?;
         out.push(ExportedObject {
