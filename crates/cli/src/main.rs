@@ -20,6 +20,7 @@ mod bake_cmd;
 mod bench_cmd;
 mod common;
 mod compare_cmd;
+mod fit_cmd;
 mod reflectance_cmd;
 mod relight_cmd;
 mod render_cmd;
@@ -70,6 +71,9 @@ enum Command {
     /// Write a self-contained page that relights an export (`prt export`) live with WebGL2
     /// from the file alone: turn the environment, change the exposure, switch to stills.
     View(view_cmd::ViewArgs),
+    /// Fit the environment's SH lighting to an image of a baked scene (inverse lighting:
+    /// the image is linear in the lighting), with the conditioning of each band.
+    FitLighting(fit_cmd::FitLightingArgs),
     /// Timings: `prt bench relight` times `prt relight`'s shading (median of warm frames).
     #[command(subcommand)]
     Bench(bench_cmd::BenchCommand),
@@ -91,6 +95,7 @@ fn main() -> ExitCode {
         Command::Compare(args) => compare_cmd::run(args),
         Command::Bench(cmd) => bench_cmd::run(&cmd),
         Command::View(args) => view_cmd::run(&args),
+        Command::FitLighting(args) => fit_cmd::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -107,6 +107,35 @@ impl<'a> Bound<'a> {
             self.footprints.as_ref(),
             &self.lightmaps,
             opt,
+            None,
+        )
+    }
+
+    /// [`Bound::relight`] under `lighting` (SH coefficients, rows of `[r, g, b]`, `n²` of them)
+    /// instead of the bake's environment: relighting is linear in the lighting, which is what
+    /// fitting the lighting to an image rests on.
+    ///
+    /// # Errors
+    /// As [`relight`], and a row count that is not a square.
+    pub fn relight_under(
+        &self,
+        lighting: &[[f64; 3]],
+        opt: &RelightOptions,
+    ) -> Result<Relit, SceneRelightError> {
+        let n = (lighting.len() as f64).sqrt().round() as usize;
+        if n == 0 || n * n != lighting.len() {
+            return Err(SceneRelightError::Invalid(format!(
+                "{} lighting coefficients: not the n² of an order",
+                lighting.len()
+            )));
+        }
+        relight_prepared(
+            self.scene,
+            self.bake,
+            self.footprints.as_ref(),
+            &self.lightmaps,
+            opt,
+            Some(lighting),
         )
     }
 }

@@ -20,6 +20,7 @@ pub mod footprint;
 mod frames;
 pub mod glossy;
 pub mod imaging;
+pub mod inverse;
 pub mod io;
 mod lobe;
 mod points;

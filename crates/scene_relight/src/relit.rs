@@ -157,8 +157,13 @@ pub(crate) fn relight_prepared(
     footprints: Option<&Arc<PixelFootprints>>,
     lightmaps: &Lightmaps,
     opt: &RelightOptions,
+    lighting: Option<&[[f64; 3]]>,
 ) -> Result<Relit, SceneRelightError> {
-    let (env_order, env) = environment(bake);
+    // The bake's environment, or the lighting asked for (rows of [r, g, b], a square count).
+    let (env_order, env) = match lighting {
+        None => environment(bake),
+        Some(l) => ((l.len() as f64).sqrt().round() as usize, l.to_vec()),
+    };
     let frames = Frames {
         env_order,
         env,
@@ -213,7 +218,7 @@ pub fn relight(
     opt: &RelightOptions,
 ) -> Result<Relit, SceneRelightError> {
     let (footprints, lightmaps) = prepare(scene, accel, bake)?;
-    relight_prepared(scene, bake, footprints.as_ref(), &lightmaps, opt)
+    relight_prepared(scene, bake, footprints.as_ref(), &lightmaps, opt, None)
 }
 
 /// What every object of a run shares.

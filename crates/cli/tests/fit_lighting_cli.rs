@@ -1,0 +1,200 @@
+//! `prt fit-lighting` (issue 35, inverse lighting): an image of a baked scene is linear in the
+//! lighting, so the lighting's SH coefficients come back from the image by least squares.
+//! Checked where the answer is known exactly: an image `prt relight` formed from the bake under
+//! its own environment gives back that environment's coefficients (to the f32 rounding of the
+//! image), relights a new rotation as `prt relight` does, and the conditioning behaves as the
+//! thesis says — a glossy (Phong) object determines every band better than a Lambertian one.
+
+mod common;
+
+use common::{json, prt, run};
+use std::path::Path;
+
+/// The low-resolution bunny under the bundled courtyard map, 160 × 120, in `material`.
+fn bunny_scene(dir: &Path, name: &str, material: &str) -> std::path::PathBuf {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let scene = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &scene,
+        format!(
+            r#"[camera]
+eye = [0.0, 0.55, 1.6]
+target = [0.0, 0.42, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 40.0
+resolution = [160, 120]
+
+[environment]
+file = "{}"
+
+[materials.m]
+{material}
+
+[[objects]]
+mesh = "{}"
+material = "m"
+scale = 0.1
+"#,
+            scenes.join("maps/courtyard.exr").display(),
+            scenes.join("meshes/bunny_lowres.obj").display()
+        ),
+    )
+    .unwrap();
+    scene
+}
+
+/// Bakes `scene` at order 4 and writes `prt relight`'s image of it; returns (bake, image).
+fn bake_and_image(
+    scene: &Path,
+    dir: &Path,
+    name: &str,
+) -> (std::path::PathBuf, std::path::PathBuf) {
+    let bake = dir.join(format!("{name}.prtb"));
+    run(prt()
+        .arg("bake")
+        .arg(scene)
+        .args(["--order", "4", "--rays", "128", "--bounces", "0", "--out"])
+        .arg(&bake));
+    let image = dir.join(format!("{name}.exr"));
+    run(prt()
+        .arg("relight")
+        .arg(scene)
+        .arg("--bake")
+        .arg(&bake)
+        .arg("--out")
+        .arg(&image));
+    (bake, image)
+}
+
+fn fit(scene: &Path, bake: &Path, image: &Path, extra: &[&str]) -> serde_json::Value {
+    json(&run(prt()
+        .arg("fit-lighting")
+        .arg(image)
+        .arg("--scene")
+        .arg(scene)
+        .arg("--bake")
+        .arg(bake)
+        .args(["--order", "4", "--json"])
+        .args(extra)))
+}
+
+fn exr(path: &Path) -> Vec<[f32; 3]> {
+    prt_image::read_image(path).unwrap().image.pixels
+}
+
+#[test]
+fn fitted_lighting_is_the_bakes_own_and_glossy_objects_condition_it_better() {
+    let dir = tempfile::tempdir().unwrap();
+    let lambert = bunny_scene(
+        dir.path(),
+        "lambert",
+        "type = \"lambert\"\nalbedo = [0.8, 0.7, 0.6]",
+    );
+    let (bake, image) = bake_and_image(&lambert, dir.path(), "lambert");
+    let relit_60 = dir.path().join("fit_60.exr");
+    let j = fit(
+        &lambert,
+        &bake,
+        &image,
+        &[
+            "--relight-out",
+            relit_60.to_str().unwrap(),
+            "--rotate-y",
+            "60",
+        ],
+    );
+    // The form of `prt sh project --json`, and the figures beside it.
+    assert_eq!(j["order"], 4);
+    let got: Vec<[f64; 3]> = serde_json::from_value(j["coefficients"].clone()).unwrap();
+    assert_eq!(got.len(), 16);
+    let env = prt_bakefile::read_bake(&bake).unwrap().environment.unwrap();
+    let n2 = (env.order * env.order) as usize;
+    let (mut err, mut norm) = (0.0f64, 0.0f64);
+    for (i, row) in got.iter().enumerate() {
+        for (c, v) in row.iter().enumerate() {
+            let want = env.values[c * n2 + i];
+            err += (v - want).powi(2);
+            norm += want * want;
+        }
+    }
+    // The image is f32 (relative rounding 6e-8) and the worst condition number about 400:
+    // the coefficients within 400 · 6e-8 · a safety factor of 4 ≈ 1e-4 (relative L2).
+    let rel = (err / norm).sqrt();
+    assert!(
+        rel < 1e-4,
+        "relative L2 error of the fitted coefficients {rel}"
+    );
+    assert!(j["relative_residual"].as_f64().unwrap() < 1e-5, "{j}");
+    assert_eq!(j["well_determined"], 4);
+    assert!(j["regularised_bands"].as_array().unwrap().is_empty());
+    let lambert_cond: Vec<f64> = serde_json::from_value(j["condition_by_band"].clone()).unwrap();
+    assert!(
+        lambert_cond.windows(2).all(|w| w[1] >= w[0]),
+        "{lambert_cond:?}"
+    );
+    assert!(
+        (lambert_cond[0] - 1.0).abs() < 1e-9,
+        "one column is perfectly conditioned"
+    );
+
+    // The fitted lighting turned by 60° relights like the bake's own, turned alike.
+    let truth_60 = dir.path().join("truth_60.exr");
+    run(prt()
+        .arg("relight")
+        .arg(&lambert)
+        .arg("--bake")
+        .arg(&bake)
+        .args(["--rotate-y", "60", "--out"])
+        .arg(&truth_60));
+    let (a, b) = (exr(&relit_60), exr(&truth_60));
+    let loaded = prt_scene::load_scene(&lambert).unwrap().scene;
+    let accel = prt_tracer::Accel::build(&loaded).unwrap();
+    let mask = prt_scene_relight::object_mask(&loaded, &accel).unwrap();
+    for ((p, q), on) in a.iter().zip(&b).zip(&mask) {
+        if *on {
+            for c in 0..3 {
+                assert!(
+                    (p[c] - q[c]).abs() <= 1e-3 * q[c].abs().max(1e-2),
+                    "{p:?} vs {q:?}"
+                );
+            }
+        }
+    }
+
+    // A glossy object: every band above 0 better conditioned than on the Lambertian one.
+    let phong = bunny_scene(
+        dir.path(),
+        "phong",
+        "type = \"phong\"\nalbedo = [0.3, 0.25, 0.2]\nspecular = [0.5, 0.5, 0.5]\nexponent = 30.0",
+    );
+    let (bake, image) = bake_and_image(&phong, dir.path(), "phong");
+    let j = fit(&phong, &bake, &image, &[]);
+    let phong_cond: Vec<f64> = serde_json::from_value(j["condition_by_band"].clone()).unwrap();
+    for l in 1..4 {
+        assert!(
+            phong_cond[l] < lambert_cond[l],
+            "band {l}: Phong {} against Lambert {}",
+            phong_cond[l],
+            lambert_cond[l]
+        );
+    }
+
+    // An image of another size is refused, naming the file.
+    let small = dir.path().join("small.exr");
+    exr::prelude::write_rgb_file(&small, 8, 8, |_, _| (0.5f32, 0.5f32, 0.5f32)).unwrap();
+    let out = prt()
+        .arg("fit-lighting")
+        .arg(&small)
+        .arg("--scene")
+        .arg(&lambert)
+        .arg("--bake")
+        .arg(dir.path().join("lambert.prtb"))
+        .args(["--order", "4"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("small.exr") && err.contains("8×8"),
+        "{err}"
+    );
+}
