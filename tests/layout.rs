@@ -131,6 +131,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "gltf",
             "fields",
             "wavelet",
+            "image",
         ],
     ),
 ];
