@@ -17,7 +17,9 @@
 //!   `KHR_materials_emissive_strength` (which do not affect geometry or our material mapping),
 //!   sparse accessors, accessors that run past their buffer, out-of-range indices and
 //!   non-finite positions.
-//! - Materials: see [`map_material`].
+//! - Materials: see [`map_material`]. What a material has that nothing here models — a normal,
+//!   occlusion or emissive input, an alpha mode other than OPAQUE — is a warning naming the
+//!   file, the material and the feature.
 
 use crate::mesh::{finish_mesh, RawMesh, Repairs};
 use crate::obj::file_name;
@@ -26,6 +28,46 @@ use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
 use glam::{DMat4, Mat4, Vec3};
 use std::path::Path;
+
+/// What of a glTF material the renderer, the bakes and the relighting do not model, each as a
+/// sentence for a warning: the normal, occlusion and emissive inputs and the alpha modes.
+fn unmodelled_features(m: &::gltf::Material) -> Vec<String> {
+    let mut out = Vec::new();
+    if m.normal_texture().is_some() {
+        out.push(
+            "normalTexture (normal map) is not modelled: shading uses the mesh's interpolated normals"
+                .to_owned(),
+        );
+    }
+    if m.occlusion_texture().is_some() {
+        out.push(
+            "occlusionTexture is not used: the path tracer and the bakes compute occlusion themselves"
+                .to_owned(),
+        );
+    }
+    let emissive = m.emissive_factor();
+    if m.emissive_texture().is_some() || emissive.iter().any(|&e| e != 0.0) {
+        out.push(format!(
+            "emission (emissiveFactor {emissive:?}{}) is not modelled: the surface emits no light",
+            if m.emissive_texture().is_some() {
+                ", emissiveTexture"
+            } else {
+                ""
+            }
+        ));
+    }
+    match m.alpha_mode() {
+        ::gltf::material::AlphaMode::Opaque => {}
+        ::gltf::material::AlphaMode::Mask => out.push(format!(
+            "alphaMode MASK (cutoff {}) is not modelled: the surface is opaque everywhere",
+            m.alpha_cutoff().unwrap_or(0.5)
+        )),
+        ::gltf::material::AlphaMode::Blend => out.push(
+            "alphaMode BLEND is not modelled: the surface is opaque (alpha ignored)".to_owned(),
+        ),
+    }
+    out
+}
 
 /// Required extensions that can be honoured by ignoring them.
 const IGNORABLE_REQUIRED_EXTENSIONS: [&str; 2] =
@@ -403,6 +445,12 @@ impl Loader<'_> {
             base_color_texture,
             metallic_roughness_texture,
         };
+        for feature in unmodelled_features(&m) {
+            self.warnings.push(format!(
+                "{}: material `{label}`: {feature}",
+                self.path.display()
+            ));
+        }
         self.materials.push((m.index(), name, mat));
         Ok(self.materials.len() - 1)
     }

@@ -370,12 +370,25 @@ fn gltf_json(
     node_extra: &str,
     acc_extra: &str,
 ) -> Vec<u8> {
+    gltf_json_with_material(p, idx, mode, root_extra, node_extra, acc_extra, "")
+}
+
+/// [`gltf_json`] with extra JSON in its material (`"shiny"`).
+fn gltf_json_with_material(
+    p: &[[f32; 3]],
+    idx: &[u16],
+    mode: u32,
+    root_extra: &str,
+    node_extra: &str,
+    acc_extra: &str,
+    material_extra: &str,
+) -> Vec<u8> {
     let (bin, plen) = bin_of(p, idx);
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},{root_extra}"scene":0,"scenes":[{{"nodes":[0]}}],
         "nodes":[{{"mesh":0{node_extra}}}],
         "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1,"mode":{mode},"material":0}}]}}],
-        "materials":[{{"name":"shiny","pbrMetallicRoughness":{{"baseColorFactor":[0.5,0.25,1.0,1.0],"metallicFactor":1.0,"roughnessFactor":0.5}}}}],
+        "materials":[{{"name":"shiny"{material_extra},"pbrMetallicRoughness":{{"baseColorFactor":[0.5,0.25,1.0,1.0],"metallicFactor":1.0,"roughnessFactor":0.5}}}}],
         "accessors":[{{"bufferView":0,"componentType":5126,"count":{},"type":"VEC3","min":[-9,-9,-9],"max":[9,9,9]{acc_extra}}},
                      {{"bufferView":1,"componentType":5123,"count":{},"type":"SCALAR"}}],
         "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{plen}}},{{"buffer":0,"byteOffset":{plen},"byteLength":{}}}],
@@ -571,4 +584,52 @@ fn test15_gltf_missing_buffer_file_is_named() {
         msg.contains("t.gltf") && msg.contains("`gone.bin`"),
         "{msg}"
     );
+}
+
+/// Issue 34: a glTF material's inputs that nothing here models — normal, occlusion and
+/// emissive maps and factors, alpha modes — each get a warning naming the file, the material
+/// and the feature; a plain material gets none.
+#[test]
+fn test16_gltf_material_features_not_modelled_are_warned() {
+    let textures = r#""textures":[{"source":0}],"images":[{"uri":"unused.png"}],"#;
+    let extra = r#","normalTexture":{"index":0},"occlusionTexture":{"index":0},"emissiveFactor":[1.0,0.5,0.0],"alphaMode":"MASK","alphaCutoff":0.3"#;
+    let loaded = load_glb(&gltf_json_with_material(
+        &SQUARE,
+        &[0, 1, 2],
+        4,
+        textures,
+        "",
+        "",
+        extra,
+    ))
+    .unwrap();
+    let w = loaded.warnings.join("\n");
+    for needle in [
+        "normalTexture",
+        "occlusionTexture",
+        "emissiveFactor [1.0, 0.5, 0.0]",
+        "alphaMode MASK (cutoff 0.3)",
+    ] {
+        assert!(w.contains(needle), "no warning about {needle}:\n{w}");
+    }
+    assert!(
+        loaded
+            .warnings
+            .iter()
+            .all(|l| l.contains("t.glb") && l.contains("`shiny`")),
+        "{w}"
+    );
+    let blend = load_glb(&gltf_json_with_material(
+        &SQUARE,
+        &[0, 1, 2],
+        4,
+        "",
+        "",
+        "",
+        r#","alphaMode":"BLEND""#,
+    ))
+    .unwrap();
+    assert!(blend.warnings.iter().any(|l| l.contains("alphaMode BLEND")));
+    let plain = load_glb(&gltf_json(&SQUARE, &[0, 1, 2], 4, "", "", "")).unwrap();
+    assert!(plain.warnings.is_empty(), "{:?}", plain.warnings);
 }
