@@ -10,7 +10,8 @@ use std::path::PathBuf;
 #[derive(Args)]
 pub struct FitLightingArgs {
     /// The image (EXR, linear; or PNG, sRGB) of the scene's camera: a render, a photograph
-    /// registered to the camera, or a relit image.
+    /// registered to the camera, or a relit image. An EXR with `variance.R/G/B` channels
+    /// (`prt render --aovs`) weights each pixel by the inverse of its variance.
     pub image: PathBuf,
     /// The scene the bake was made from.
     #[arg(long)]
@@ -56,13 +57,27 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
     let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
     let bound = prt_scene_relight::Bound::new(&scene, &accel, &bake)?;
     let image = prt_image::read_image(&args.image)?.image;
+    // Each pixel weighted by the inverse of its noise where the image says it (the variance
+    // channels `prt render --aovs` writes), floored at a millionth of the mean so that a
+    // noiseless pixel does not take the whole fit.
+    let weights = prt_image::read::read_variance(&args.image)?.map(|var| {
+        let v: Vec<f64> = var
+            .iter()
+            .map(|p| p.iter().map(|&x| f64::from(x.max(0.0))).sum::<f64>() / 3.0)
+            .collect();
+        let floor = 1e-6 * v.iter().sum::<f64>() / v.len().max(1) as f64;
+        v.iter()
+            .map(|&x| 1.0 / x.max(floor).max(f64::MIN_POSITIVE))
+            .collect()
+    });
+    let weighted = weights.is_some();
     let fit = fit_lighting(
         &bound,
         &image,
         &FitOptions {
             order: args.order,
             condition_limit: args.condition_limit,
-            weights: None,
+            weights,
         },
     )
     .with_context(|| format!("{}: cannot fit the lighting", args.image.display()))?;
@@ -87,8 +102,13 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
         )?;
     }
     if args.json {
-        outln!("{}", serde_json::to_string(&fit)?);
+        let mut v = serde_json::to_value(&fit)?;
+        v["weighted_by_variance"] = weighted.into();
+        outln!("{}", serde_json::to_string(&v)?);
         return Ok(());
+    }
+    if weighted {
+        outln!("pixels weighted by the inverse of the image's variance channels");
     }
     outln!(
         "fitted {} bands over {} pixels (relative residual {:.4}); {} well determined, {} singular directions dropped",

@@ -161,6 +161,31 @@ fn fitted_lighting_is_the_bakes_own_and_glossy_objects_condition_it_better() {
         }
     }
 
+    // The same image with a variance per pixel (as `prt render --aovs` writes): the fit weighs
+    // each pixel by its inverse, and on this exact image still returns the coefficients.
+    let with_var = dir.path().join("with_variance.exr");
+    write_with_variance(&image, &with_var);
+    let j = fit(
+        &lambert,
+        &bake_path_of(dir.path(), "lambert"),
+        &with_var,
+        &[],
+    );
+    assert_eq!(j["weighted_by_variance"], true);
+    let got: Vec<[f64; 3]> = serde_json::from_value(j["coefficients"].clone()).unwrap();
+    let rel_weighted = (got
+        .iter()
+        .enumerate()
+        .flat_map(|(i, row)| (0..3).map(move |c| (i, c, row[c])))
+        .map(|(i, c, v)| (v - env.values[c * n2 + i]).powi(2))
+        .sum::<f64>()
+        / norm)
+        .sqrt();
+    assert!(
+        rel_weighted < 1e-4,
+        "weighted fit: relative L2 error {rel_weighted}"
+    );
+
     // A glossy object: every band above 0 better conditioned than on the Lambertian one.
     let phong = bunny_scene(
         dir.path(),
@@ -197,4 +222,37 @@ fn fitted_lighting_is_the_bakes_own_and_glossy_objects_condition_it_better() {
         !out.status.success() && err.contains("small.exr") && err.contains("8×8"),
         "{err}"
     );
+}
+
+fn bake_path_of(dir: &Path, name: &str) -> std::path::PathBuf {
+    dir.join(format!("{name}.prtb"))
+}
+
+/// `image` rewritten with `variance.R/G/B` channels: a positive pattern varying over 3 orders
+/// of magnitude across the pixels.
+fn write_with_variance(image: &Path, out: &Path) {
+    use exr::prelude::*;
+    let loaded = prt_image::read_image(image).unwrap().image;
+    let (w, h) = (loaded.width, loaded.height);
+    let channel = |name: &str, values: Vec<f32>| AnyChannel::new(name, FlatSamples::F32(values));
+    let plane = |c: usize| loaded.pixels.iter().map(|p| p[c]).collect::<Vec<f32>>();
+    let variance = (0..w * h)
+        .map(|i| 1e-4 * 10f32.powf(3.0 * ((i * 7919) % 1000) as f32 / 1000.0))
+        .collect::<Vec<f32>>();
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    list.extend([
+        channel("R", plane(0)),
+        channel("G", plane(1)),
+        channel("B", plane(2)),
+    ]);
+    for c in ["variance.R", "variance.G", "variance.B"] {
+        list.push(channel(c, variance.clone()));
+    }
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(list),
+    );
+    Image::from_layer(layer).write().to_file(out).unwrap();
 }

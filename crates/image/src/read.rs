@@ -316,3 +316,44 @@ pub fn nonzero_mask(path: &Path) -> Result<(usize, usize, Vec<bool>)> {
         ))
     }
 }
+
+/// The per-pixel variance an OpenEXR carries beside its image (`variance.R`, `variance.G`,
+/// `variance.B`: `prt render --aovs` writes the variance of each pixel's mean), or `None` when
+/// the file has no such channels (or is not an EXR).
+///
+/// # Errors
+/// A file that cannot be read, or an EXR that does not parse.
+pub fn read_variance(path: impl AsRef<Path>) -> Result<Option<Vec<[f32; 3]>>> {
+    use exr::prelude::{read, ReadChannels, ReadLayers};
+    let path = path.as_ref();
+    let bytes = open_bytes(path)?;
+    if !bytes.starts_with(&EXR_MAGIC) {
+        return Ok(None);
+    }
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(&bytes[..]))
+        .map_err(|e| not_an_image(path, format!("damaged or unsupported OpenEXR file: {e}")))?;
+    for layer in &image.layer_data {
+        let channels = &layer.channel_data.list;
+        let find = |name: &str| channels.iter().find(|c| c.name.to_string() == name);
+        if let (Some(r), Some(g), Some(b)) =
+            (find("variance.R"), find("variance.G"), find("variance.B"))
+        {
+            let [r, g, b]: [Vec<f32>; 3] =
+                [r, g, b].map(|c| c.sample_data.values_as_f32().collect());
+            return Ok(Some(
+                r.iter()
+                    .zip(&g)
+                    .zip(&b)
+                    .map(|((r, g), b)| [*r, *g, *b])
+                    .collect(),
+            ));
+        }
+    }
+    Ok(None)
+}

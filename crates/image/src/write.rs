@@ -202,6 +202,10 @@ mod tests {
         write_exr(&exr, &img, attrs.clone()).unwrap();
         let first = std::fs::read(&exr).unwrap();
         assert_eq!(crate::read_image(&exr).unwrap().image, img);
+        assert!(
+            crate::read::read_variance(&exr).unwrap().is_none(),
+            "no variance channels"
+        );
         // Same image and attributes: the same bytes (attributes sorted by name).
         write_exr(&exr, &img, attrs.into_iter().rev().collect()).unwrap();
         assert_eq!(std::fs::read(&exr).unwrap(), first);
