@@ -97,8 +97,9 @@ fn report_viewer_works_in_headless_chromium() {
 
 /// Issue 33: an order-10 bake of the bunny (Lambert, under the bundled courtyard map), at 0
 /// and 1 bounce, of the default scene (the bunny on a Phong floor, whose specular the page
-/// shades), of the bunny in glTF-PBR gold (fitted lobes), and an order-6 1-bounce per-texel
-/// bake of the bunny on a lightmapped floor, exported for `--target webgl2` (16 vertex attributes at most: its transfer in
+/// shades), of the bunny in glTF-PBR gold (fitted lobes), an order-6 1-bounce per-texel
+/// bake of the bunny on a lightmapped floor, and an order-8 bake of Khronos' textured
+/// BoxTextured (per-vertex albedo and lobe colours), exported for `--target webgl2` (16 vertex attributes at most: its transfer in
 /// the §10.2 data texture), shown by `prt view`'s page in headless Chromium's WebGL2
 /// (SwiftShader): the page loads from file:// with no console error, turning the map and the
 /// exposure change the canvas, and at three rotations the canvas — the GPU's interpolation
@@ -181,6 +182,17 @@ scale = 0.1
         );
     let texel_scene = dir.path().join("figure_on_quad.toml");
     std::fs::write(&texel_scene, texel).unwrap();
+    // Khronos' BoxTextured (a textured glTF-PBR cube: per-vertex albedo and lobe colours,
+    // `_PRT_ALBEDO`, `_PRT_SPEC_A/B`) on a pbr floor.
+    let boxed = std::fs::read_to_string(scenes.join("box_textured.toml"))
+        .unwrap()
+        .replace("resolution = [240, 180]", "resolution = [160, 120]")
+        .replace("\"gltf/", &format!("\"{}/gltf/", scenes.display()))
+        .replace("\"meshes/", &format!("\"{}/meshes/", scenes.display()))
+        .replace("\"maps/", &format!("\"{}/maps/", scenes.display()));
+    let box_scene = dir.path().join("box_textured.toml");
+    std::fs::write(&box_scene, boxed).unwrap();
+    let order8: &[&str] = &["--order", "8"];
     let order10: &[&str] = &["--order", "10"];
     let lightmapped: &[&str] = &["--order", "6", "--per-texel", "48"];
     for (scene, bounces, tag, extra) in [
@@ -189,6 +201,7 @@ scale = 0.1
         (&default_scene, "0", "phong_floor", order10),
         (&gold_scene, "0", "pbr_gold", order10),
         (&texel_scene, "1", "lightmap", lightmapped),
+        (&box_scene, "0", "box_textured", order8),
     ] {
         let path = |name: &str| dir.path().join(format!("{tag}_b{bounces}_{name}"));
         run(prt()
