@@ -162,18 +162,28 @@ fn glossy_tables(
     glossy: &mut Vec<GlossyBrdfTable>,
     decisions: &mut Vec<Decision>,
 ) {
-    if let Material::Pbr { roughness, .. } = *material {
+    if let Material::Pbr {
+        roughness,
+        metallic_roughness_texture,
+        ..
+    } = *material
+    {
         for c in prt_shading::projection::PbrComponent::ALL {
             let mut t = prt_shading::projection::pbr_table(roughness, c, order);
             t.material = format!("{name}{}", c.suffix());
             glossy.push(t);
         }
+        let roughness_source = if metallic_roughness_texture.is_some() {
+            format!(
+                "its roughness comes from a texture (times the factor {roughness}): these tables, which the exact path reads, are at the factor; the fitted path (the default) follows the texture per point"
+            )
+        } else {
+            format!("roughness {roughness}")
+        };
         decisions.push(Decision {
             object: None,
             decision: format!("glossy tables for {name} (pbr: D·V, s·D·V, s/π)"),
-            reason: format!(
-                "the metallic-roughness BRDF has no zonal form; roughness factor {roughness} (a roughness texture is not in the tables)"
-            ),
+            reason: format!("the metallic-roughness BRDF has no zonal form; {roughness_source}"),
         });
     } else if matches!(
         material,
@@ -212,4 +222,37 @@ pub(crate) fn output(
             decisions,
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The decision line of a pbr material says where its roughness comes from: the factor,
+    /// or a texture that the tables (at the factor) do not hold and the fitted path follows.
+    #[test]
+    fn pbr_decisions_say_where_the_roughness_comes_from() {
+        let pbr = |texture: Option<prt_scene::TextureRef>| Material::Pbr {
+            base_color: [0.8; 3],
+            metallic: 0.0,
+            roughness: 0.5,
+            base_color_texture: None,
+            metallic_roughness_texture: texture,
+        };
+        let reason = |m: &Material| {
+            let (mut glossy, mut decisions) = (Vec::new(), Vec::new());
+            glossy_tables("m", m, 3, &mut glossy, &mut decisions);
+            assert_eq!(glossy.len(), 3, "three pbr tables");
+            decisions.pop().unwrap().reason
+        };
+        assert!(reason(&pbr(None)).ends_with("roughness 0.5"));
+        let textured = reason(&pbr(Some(prt_scene::TextureRef {
+            index: 0,
+            texcoord: 0,
+        })));
+        assert!(
+            textured.contains("from a texture") && textured.contains("fitted path"),
+            "{textured}"
+        );
+    }
 }
