@@ -249,6 +249,7 @@ mod tests {
         let textured = reason(&pbr(Some(prt_scene::TextureRef {
             index: 0,
             texcoord: 0,
+            transform: None,
         })));
         assert!(
             textured.contains("from a texture") && textured.contains("fitted path"),

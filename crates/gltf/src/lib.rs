@@ -848,6 +848,9 @@ fn document(
             },
         }},
     });
+    if tex.transforms {
+        doc["extensionsUsed"] = json!(["KHR_texture_transform"]);
+    }
     if !tex.images.is_empty() {
         doc["images"] = json!(tex.images);
         doc["textures"] = json!(tex.textures);
@@ -904,6 +907,8 @@ struct Textures {
     samplers: Vec<Value>,
     /// Scene textures already written: (scene texture, sRGB) → glTF texture.
     written: Vec<((usize, bool), usize)>,
+    /// Whether a texture reference carries a `KHR_texture_transform`.
+    transforms: bool,
 }
 
 impl Textures {
@@ -983,7 +988,16 @@ impl Textures {
             );
             attrs.insert(name, json!(acc));
         }
-        Ok(Some(json!({"index": index, "texCoord": set})))
+        let mut info = json!({"index": index, "texCoord": set});
+        // The asset's texture transform, as it came (SPEC §10: the core material is the
+        // asset's own).
+        if let Some(tr) = t.transform {
+            info["extensions"] = json!({"KHR_texture_transform": {
+                "offset": tr.offset, "rotation": tr.rotation, "scale": tr.scale,
+            }});
+            self.transforms = true;
+        }
+        Ok(Some(info))
     }
 
     /// The core glTF `pbrMetallicRoughness` of `material`: a `pbr` material's factors and
@@ -1554,5 +1568,79 @@ mod tests {
             bin.data[o..o + n].to_vec()
         };
         assert_eq!((view(0), view(1)), (vec![0u8; 5], vec![1u8; 7]));
+    }
+
+    /// A texture reference with a `KHR_texture_transform` is written with it (the asset's own
+    /// material, as it came), and the document then declares the extension.
+    #[test]
+    fn texture_transforms_are_written_back() {
+        let mut bin = Bin {
+            data: Vec::new(),
+            views: Vec::new(),
+            accessors: Vec::new(),
+        };
+        let mut scene = Scene::new(
+            prt_scene::Camera::default(),
+            prt_scene::Environment::uniform([1.0; 3]),
+        );
+        scene.textures = vec![prt_scene::Texture {
+            name: "t".into(),
+            width: 1,
+            height: 1,
+            texels: vec![[0.5; 4]],
+            wrap: [prt_scene::Wrap::Repeat; 2],
+        }];
+        let mut mesh = prt_scene::test_util::floor_quad(1.0, 0.0);
+        mesh.texcoords = vec![vec![[0.5; 2]; 4]];
+        let transform = prt_scene::UvTransform {
+            offset: [0.5, 0.25],
+            rotation: 0.5,
+            scale: [2.0, 3.0],
+        };
+        let t = prt_scene::TextureRef {
+            index: 0,
+            texcoord: 0,
+            transform: Some(transform),
+        };
+        let mut tex = Textures::default();
+        let mut attrs = serde_json::Map::new();
+        let info = tex
+            .texture_info(
+                &mut bin,
+                &mut attrs,
+                &scene,
+                &mesh,
+                Some(t),
+                true,
+                0,
+                Some(4),
+                "o",
+            )
+            .unwrap()
+            .unwrap();
+        let ext = &info["extensions"]["KHR_texture_transform"];
+        assert_eq!(ext["offset"], json!([0.5, 0.25]));
+        assert_eq!(ext["rotation"], json!(0.5));
+        assert_eq!(ext["scale"], json!([2.0, 3.0]));
+        assert!(tex.transforms);
+        let plain = prt_scene::TextureRef {
+            transform: None,
+            ..t
+        };
+        let info = Textures::default()
+            .texture_info(
+                &mut bin,
+                &mut attrs,
+                &scene,
+                &mesh,
+                Some(plain),
+                true,
+                0,
+                Some(4),
+                "o",
+            )
+            .unwrap()
+            .unwrap();
+        assert!(info.get("extensions").is_none());
     }
 }

@@ -13,8 +13,10 @@
 //! - `POSITION` must be float VEC3; `NORMAL` (float VEC3) is used when present; every
 //!   `TEXCOORD_n` a material reads and `COLOR_0` (float or normalised unsigned bytes/shorts,
 //!   VEC3 or VEC4) are read.
-//! - Errors: a required extension other than `KHR_texture_transform` and
-//!   `KHR_materials_emissive_strength` (which do not affect geometry or our material mapping),
+//! - `KHR_texture_transform` on a texture reference is honoured (offset, rotation, scale and
+//!   its `texCoord` override; [`crate::UvTransform`]).
+//! - Errors: a required extension other than `KHR_texture_transform` (honoured) and
+//!   `KHR_materials_emissive_strength` (emission is warned about, not modelled),
 //!   sparse accessors, accessors that run past their buffer, out-of-range indices and
 //!   non-finite positions.
 //! - Materials: see [`map_material`]. What a material has that nothing here models — a normal,
@@ -23,7 +25,7 @@
 
 use crate::mesh::{finish_mesh, RawMesh, Repairs};
 use crate::obj::file_name;
-use crate::{LoadedMeshes, Material, Mesh, SceneError, Texture, TextureRef, Wrap};
+use crate::{LoadedMeshes, Material, Mesh, SceneError, Texture, TextureRef, UvTransform, Wrap};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
 use glam::{DMat4, Mat4, Vec3};
@@ -69,7 +71,8 @@ fn unmodelled_features(m: &::gltf::Material) -> Vec<String> {
     out
 }
 
-/// Required extensions that can be honoured by ignoring them.
+/// Required extensions the loader accepts: the texture transform is honoured, the emissive
+/// strength only scales emission, which is warned about and not modelled.
 const IGNORABLE_REQUIRED_EXTENSIONS: [&str; 2] =
     ["KHR_texture_transform", "KHR_materials_emissive_strength"];
 
@@ -210,12 +213,6 @@ pub fn load_gltf(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErr
     }
     let mut warnings = out.warnings;
     warnings.extend(out.repairs.warnings(path));
-    if gltf.extensions_used().any(|e| e == "KHR_texture_transform") {
-        warnings.push(format!(
-            "{}: KHR_texture_transform is not applied: textures are read at the untransformed UVs",
-            path.display()
-        ));
-    }
     let mut order: Vec<(usize, Mesh)> = out.meshes;
     order.sort_by_key(|(k, _)| *k);
     Ok(LoadedMeshes {
@@ -431,11 +428,11 @@ impl Loader<'_> {
             ));
         }
         let base_color_texture = match pbr.base_color_texture() {
-            Some(info) => Some(self.texture(&info.texture(), info.tex_coord(), true, &label)?),
+            Some(info) => Some(self.texture_of(&info, true, &label)?),
             None => None,
         };
         let metallic_roughness_texture = match pbr.metallic_roughness_texture() {
-            Some(info) => Some(self.texture(&info.texture(), info.tex_coord(), false, &label)?),
+            Some(info) => Some(self.texture_of(&info, false, &label)?),
             None => None,
         };
         let mat = Material::Pbr {
@@ -455,6 +452,28 @@ impl Loader<'_> {
         Ok(self.materials.len() - 1)
     }
 
+    /// The texture a `textureInfo` refers to, with its `KHR_texture_transform` (whose
+    /// `texCoord`, when given, overrides the info's).
+    fn texture_of(
+        &mut self,
+        info: &::gltf::texture::Info,
+        srgb: bool,
+        material: &str,
+    ) -> Result<TextureRef, SceneError> {
+        let transform = info.texture_transform();
+        let set = transform
+            .as_ref()
+            .and_then(|t| t.tex_coord())
+            .unwrap_or(info.tex_coord());
+        let mut t = self.texture(&info.texture(), set, srgb, material)?;
+        t.transform = transform.map(|t| UvTransform {
+            offset: t.offset(),
+            rotation: t.rotation(),
+            scale: t.scale(),
+        });
+        Ok(t)
+    }
+
     /// The decoded texture `t` (sRGB-decoded when `srgb`), decoding it on first use.
     fn texture(
         &mut self,
@@ -466,7 +485,11 @@ impl Loader<'_> {
         let key = (t.index(), srgb);
         let texcoord = texcoord as usize;
         if let Some(index) = self.texture_keys.iter().position(|k| *k == key) {
-            return Ok(TextureRef { index, texcoord });
+            return Ok(TextureRef {
+                index,
+                texcoord,
+                transform: None,
+            });
         }
         let image = t.source();
         let image_name = match (image.name(), image.source()) {
@@ -521,6 +544,7 @@ impl Loader<'_> {
         Ok(TextureRef {
             index: self.textures.len() - 1,
             texcoord,
+            transform: None,
         })
     }
 

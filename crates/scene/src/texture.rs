@@ -154,6 +154,7 @@ impl Scene {
         let lookup = |t: Option<TextureRef>| -> Option<[f32; 4]> {
             let t = t?;
             let uv = mesh.texcoord(t.texcoord, at)?;
+            let uv = t.transform.map_or(uv, |tr| tr.apply(uv));
             Some(self.textures.get(t.index)?.sample(uv))
         };
         if let Some(c) = mesh.color(at) {
@@ -242,10 +243,12 @@ mod tests {
                 base_color_texture: Some(TextureRef {
                     index: 0,
                     texcoord: 0,
+                    transform: None,
                 }),
                 metallic_roughness_texture: Some(TextureRef {
                     index: 1,
                     texcoord: 1,
+                    transform: None,
                 }),
             },
         );
@@ -276,6 +279,69 @@ mod tests {
         scene.meshes[o].texcoords.truncate(1);
         let err = scene.validate().unwrap_err().to_string();
         assert!(err.contains("TEXCOORD_1") && err.contains("mr"), "{err}");
+    }
+
+    /// `KHR_texture_transform`: `uv' = offset + R (scale ⊙ uv)`, `R` turning +u towards +v
+    /// (the extension's GLSL matrix); the lookup reads the transformed UV.
+    #[test]
+    fn texture_transforms_move_the_lookup() {
+        let t = crate::UvTransform {
+            offset: [0.5, 0.25],
+            rotation: 0.0,
+            scale: [2.0, 0.5],
+        };
+        assert_eq!(t.apply([0.25, 0.5]), [1.0, 0.5]);
+        let quarter = crate::UvTransform {
+            offset: [0.0; 2],
+            rotation: std::f32::consts::FRAC_PI_2,
+            scale: [1.0; 2],
+        };
+        let r = quarter.apply([1.0, 0.0]);
+        assert!(r[0].abs() < 1e-7 && (r[1] - 1.0).abs() < 1e-7, "{r:?}");
+        // A 2 × 1 texture, red then green; the vertices' UV (0.25, 0.5) is red, shifted by
+        // half the width it is green.
+        let mut scene = Scene::new(
+            crate::Camera::default(),
+            crate::Environment::uniform([1.0; 3]),
+        );
+        scene.textures = vec![Texture {
+            name: "rg".into(),
+            width: 2,
+            height: 1,
+            texels: vec![[1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0]],
+            wrap: [Wrap::ClampToEdge; 2],
+        }];
+        let colour = |transform| {
+            let mut scene = scene.clone();
+            let m = scene.add_material(
+                "m",
+                Material::Pbr {
+                    base_color: [1.0; 3],
+                    metallic: 0.0,
+                    roughness: 1.0,
+                    base_color_texture: Some(TextureRef {
+                        index: 0,
+                        texcoord: 0,
+                        transform,
+                    }),
+                    metallic_roughness_texture: None,
+                },
+            );
+            let mut mesh = crate::test_util::floor_quad(1.0, 0.0);
+            mesh.texcoords = vec![vec![[0.25, 0.5]; 4]];
+            let o = scene.add_mesh(mesh, m);
+            match scene.material_at(o, SurfacePoint::Vertex(0)) {
+                Material::Pbr { base_color, .. } => base_color,
+                other => panic!("{other:?}"),
+            }
+        };
+        assert_eq!(colour(None), [1.0, 0.0, 0.0]);
+        let shift = crate::UvTransform {
+            offset: [0.5, 0.0],
+            rotation: 0.0,
+            scale: [1.0; 2],
+        };
+        assert_eq!(colour(Some(shift)), [0.0, 1.0, 0.0]);
     }
 
     #[test]

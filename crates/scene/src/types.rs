@@ -39,13 +39,41 @@ pub struct Environment {
 }
 
 /// A texture used by a material: which of [`Scene::textures`] and which UV set of the mesh.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TextureRef {
     /// Index into [`Scene::textures`] (or into [`LoadedMeshes::textures`] before a scene
     /// takes the file's textures over).
     pub index: usize,
     /// The mesh's UV set (`TEXCOORD_n`).
     pub texcoord: usize,
+    /// `KHR_texture_transform` of the texture reference, applied to the UVs before lookup.
+    pub transform: Option<UvTransform>,
+}
+
+/// A texture reference's UV transform (`KHR_texture_transform`): `uv' = offset + R (scale ⊙ uv)`
+/// with `R = [[cos r, −sin r], [sin r, cos r]]`, the extension's
+/// `translation · rotation · scale` matrix.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvTransform {
+    /// `offset`.
+    pub offset: [f32; 2],
+    /// `rotation`, radians.
+    pub rotation: f32,
+    /// `scale`.
+    pub scale: [f32; 2],
+}
+
+impl UvTransform {
+    /// The transformed UV.
+    #[must_use]
+    pub fn apply(&self, uv: [f32; 2]) -> [f32; 2] {
+        let (s, c) = self.rotation.sin_cos();
+        let (x, y) = (self.scale[0] * uv[0], self.scale[1] * uv[1]);
+        [
+            self.offset[0] + c * x - s * y,
+            self.offset[1] + s * x + c * y,
+        ]
+    }
 }
 
 /// How a texture coordinate outside `[0, 1]` wraps (glTF sampler `wrapS` / `wrapT`).

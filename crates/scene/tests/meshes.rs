@@ -139,7 +139,8 @@ fn test02_real_asset_counts() {
             roughness: 1.0,
             base_color_texture: Some(TextureRef {
                 index: 0,
-                texcoord: 0
+                texcoord: 0,
+                transform: None
             }),
             metallic_roughness_texture: None,
             ..
@@ -384,11 +385,17 @@ fn gltf_json_with_material(
     material_extra: &str,
 ) -> Vec<u8> {
     let (bin, plen) = bin_of(p, idx);
+    // Extra material JSON with its own pbrMetallicRoughness replaces the default one.
+    let default_pbr = if material_extra.contains("pbrMetallicRoughness") {
+        String::new()
+    } else {
+        r#","pbrMetallicRoughness":{"baseColorFactor":[0.5,0.25,1.0,1.0],"metallicFactor":1.0,"roughnessFactor":0.5}"#.to_owned()
+    };
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},{root_extra}"scene":0,"scenes":[{{"nodes":[0]}}],
         "nodes":[{{"mesh":0{node_extra}}}],
         "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1,"mode":{mode},"material":0}}]}}],
-        "materials":[{{"name":"shiny"{material_extra},"pbrMetallicRoughness":{{"baseColorFactor":[0.5,0.25,1.0,1.0],"metallicFactor":1.0,"roughnessFactor":0.5}}}}],
+        "materials":[{{"name":"shiny"{material_extra}{default_pbr}}}],
         "accessors":[{{"bufferView":0,"componentType":5126,"count":{},"type":"VEC3","min":[-9,-9,-9],"max":[9,9,9]{acc_extra}}},
                      {{"bufferView":1,"componentType":5123,"count":{},"type":"SCALAR"}}],
         "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{plen}}},{{"buffer":0,"byteOffset":{plen},"byteLength":{}}}],
@@ -632,4 +639,24 @@ fn test16_gltf_material_features_not_modelled_are_warned() {
     assert!(blend.warnings.iter().any(|l| l.contains("alphaMode BLEND")));
     let plain = load_glb(&gltf_json(&SQUARE, &[0, 1, 2], 4, "", "", "")).unwrap();
     assert!(plain.warnings.is_empty(), "{:?}", plain.warnings);
+}
+
+/// `KHR_texture_transform` on a base-colour texture is honoured, not warned about: its
+/// `texCoord` overrides the texture info's (the primitive here has no UVs, so the loader's
+/// refusal names the set it reads: TEXCOORD_0 of the extension, not TEXCOORD_1 of the info).
+/// (The transform of the UVs is tested where the lookup applies it: `texture.rs`.)
+#[test]
+fn test17_gltf_texture_transform_is_honoured() {
+    // A 2 × 1 RGBA PNG (red, green), embedded.
+    let png = "data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAIAAAABCAYAAAD0In+KAAAADklEQVR4nGP4z8DwHwQBEPgD/U6VwW8AAAAASUVORK5CYII=";
+    let root = format!(
+        r#""extensionsUsed":["KHR_texture_transform"],"textures":[{{"source":0}}],"images":[{{"uri":"{png}"}}],"#
+    );
+    let material = r#","pbrMetallicRoughness":{"baseColorTexture":{"index":0,"texCoord":1,"extensions":{"KHR_texture_transform":{"offset":[0.5,0.25],"rotation":0.5,"scale":[2.0,3.0],"texCoord":0}}}}"#;
+    let bytes = gltf_json_with_material(&SQUARE, &[0, 1, 2], 4, &root, "", "", material);
+    let err = load_glb(&bytes).unwrap_err().to_string();
+    assert!(
+        err.contains("TEXCOORD_0") && !err.contains("TEXCOORD_1"),
+        "{err}"
+    );
 }

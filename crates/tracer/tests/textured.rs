@@ -69,6 +69,7 @@ fn texture_quadrants_land_where_their_uvs_say() {
     let tex = Some(TextureRef {
         index: 0,
         texcoord: 0,
+        transform: None,
     });
     let textured = render(pbr([1.0; 3], tex), Vec::new());
     // Pixels of the image's quadrant middles (the quad spans about 14 of the 16 pixels).
