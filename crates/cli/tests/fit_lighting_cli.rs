@@ -7,41 +7,8 @@
 
 mod common;
 
-use common::{json, prt, run};
+use common::{bunny_scene, json, prt, run};
 use std::path::Path;
-
-/// The low-resolution bunny under the bundled courtyard map, 160 × 120, in `material`.
-fn bunny_scene(dir: &Path, name: &str, material: &str) -> std::path::PathBuf {
-    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
-    let scene = dir.join(format!("{name}.toml"));
-    std::fs::write(
-        &scene,
-        format!(
-            r#"[camera]
-eye = [0.0, 0.55, 1.6]
-target = [0.0, 0.42, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 40.0
-resolution = [160, 120]
-
-[environment]
-file = "{}"
-
-[materials.m]
-{material}
-
-[[objects]]
-mesh = "{}"
-material = "m"
-scale = 0.1
-"#,
-            scenes.join("maps/courtyard.exr").display(),
-            scenes.join("meshes/bunny_lowres.obj").display()
-        ),
-    )
-    .unwrap();
-    scene
-}
 
 /// Bakes `scene` at order 4 and writes `prt relight`'s image of it; returns (bake, image).
 fn bake_and_image(

@@ -121,34 +121,11 @@ fn engine_page_relights_like_prt_in_headless_chromium() {
     }
     let dir = tempfile::tempdir().unwrap();
     let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
-    let scene = dir.path().join("bunny.toml");
-    std::fs::write(
-        &scene,
-        format!(
-            r#"[camera]
-eye = [0.0, 0.55, 1.6]
-target = [0.0, 0.42, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 40.0
-resolution = [160, 120]
-
-[environment]
-file = "{}"
-
-[materials.clay]
-type = "lambert"
-albedo = [0.8, 0.7, 0.6]
-
-[[objects]]
-mesh = "{}"
-material = "clay"
-scale = 0.1
-"#,
-            scenes.join("maps/courtyard.exr").display(),
-            scenes.join("meshes/bunny_lowres.obj").display()
-        ),
-    )
-    .unwrap();
+    let scene = common::bunny_scene(
+        dir.path(),
+        "bunny",
+        "type = \"lambert\"\nalbedo = [0.8, 0.7, 0.6]",
+    );
     // The default scene at 160 × 120: the bunny on a Phong floor, whose specular lobe the page
     // shades too (SPEC §10.1: L ⊛ V products per frame, the lobe's bands at the mirror
     // direction).
@@ -162,13 +139,11 @@ scale = 0.1
     // The bunny in glTF-PBR gold (roughness 0.6): all its light is the fitted lobes' (§10.1
     // "fitted": the tables per view elevation, the Schlick split into two shapes, the
     // `pbr` diffuse factor), which the page shades too.
-    let gold = std::fs::read_to_string(&scene).unwrap().replace(
-        "type = \"lambert\"\nalbedo = [0.8, 0.7, 0.6]",
+    let gold_scene = common::bunny_scene(
+        dir.path(),
+        "gold",
         "type = \"pbr\"\nbase_color = [1.0, 0.78, 0.34]\nmetallic = 1.0\nroughness = 0.6",
     );
-    assert!(gold.contains("pbr"));
-    let gold_scene = dir.path().join("gold.toml");
-    std::fs::write(&gold_scene, gold).unwrap();
     // The bunny on a floor baked per texel (`scenes/hard/figure_on_quad.toml`, the floor's
     // UVs): the floor's transfer is in lightmap textures (§10), which the page samples.
     let hard = scenes.join("hard");

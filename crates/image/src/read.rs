@@ -114,16 +114,25 @@ fn not_an_image(path: &Path, reason: impl std::fmt::Display) -> ImageError {
     }
 }
 
-fn read_exr_bytes(path: &Path, bytes: &[u8]) -> Result<LoadedImage> {
-    use exr::prelude::{read, FlatSamples, ReadChannels, ReadLayers, Vec2};
-    let image = read()
+/// An OpenEXR file's layers with all their channels (flat, largest resolution level).
+type ExrLayers =
+    exr::prelude::Image<exr::prelude::Layers<exr::prelude::AnyChannels<exr::prelude::FlatSamples>>>;
+
+fn parse_exr(path: &Path, bytes: &[u8]) -> Result<ExrLayers> {
+    use exr::prelude::{read, ReadChannels, ReadLayers};
+    read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .all_layers()
         .all_attributes()
         .from_buffered(std::io::Cursor::new(bytes))
-        .map_err(|e| not_an_image(path, format!("damaged or unsupported OpenEXR file: {e}")))?;
+        .map_err(|e| not_an_image(path, format!("damaged or unsupported OpenEXR file: {e}")))
+}
+
+fn read_exr_bytes(path: &Path, bytes: &[u8]) -> Result<LoadedImage> {
+    use exr::prelude::{FlatSamples, Vec2};
+    let image = parse_exr(path, bytes)?;
 
     let mut seen = Vec::new();
     for layer in &image.layer_data {
@@ -324,20 +333,12 @@ pub fn nonzero_mask(path: &Path) -> Result<(usize, usize, Vec<bool>)> {
 /// # Errors
 /// A file that cannot be read, or an EXR that does not parse.
 pub fn read_variance(path: impl AsRef<Path>) -> Result<Option<Vec<[f32; 3]>>> {
-    use exr::prelude::{read, ReadChannels, ReadLayers};
     let path = path.as_ref();
     let bytes = open_bytes(path)?;
     if !bytes.starts_with(&EXR_MAGIC) {
         return Ok(None);
     }
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .all_layers()
-        .all_attributes()
-        .from_buffered(std::io::Cursor::new(&bytes[..]))
-        .map_err(|e| not_an_image(path, format!("damaged or unsupported OpenEXR file: {e}")))?;
+    let image = parse_exr(path, &bytes)?;
     for layer in &image.layer_data {
         let channels = &layer.channel_data.list;
         let find = |name: &str| channels.iter().find(|c| c.name.to_string() == name);

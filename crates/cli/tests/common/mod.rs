@@ -210,3 +210,37 @@ pub fn reflectance_file(scene: &Path, out: &Path, f16: bool) {
     }
     run(cmd.arg("--out").arg(out));
 }
+
+/// The low-resolution bunny of `scenes/` under the bundled courtyard map, 160 × 120, in the
+/// material whose TOML body is `material` (named `m`), written as `DIR/NAME.toml`.
+pub fn bunny_scene(dir: &Path, name: &str, material: &str) -> PathBuf {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let scene = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &scene,
+        format!(
+            r#"[camera]
+eye = [0.0, 0.55, 1.6]
+target = [0.0, 0.42, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 40.0
+resolution = [160, 120]
+
+[environment]
+file = "{}"
+
+[materials.m]
+{material}
+
+[[objects]]
+mesh = "{}"
+material = "m"
+scale = 0.1
+"#,
+            scenes.join("maps/courtyard.exr").display(),
+            scenes.join("meshes/bunny_lowres.obj").display()
+        ),
+    )
+    .unwrap();
+    scene
+}
