@@ -985,8 +985,8 @@ fn independent_relighter_passes_its_self_test() {
 /// attributes per primitive, its transfer in a float data texture within the target's size;
 /// the file validates, reads back to exactly the raw export's numbers, and
 /// `tools/gltf_relight.py` (written from the SPEC alone) relights it to `prt relight`'s
-/// radiance within the f32 bound, at 0 and 1 bounce. A low-order bake that fits is written
-/// byte for byte as `raw`.
+/// radiance within the f32 bound, at 0 and 1 bounce and for a clustered-PCA compressed bake.
+/// A low-order bake that fits is written byte for byte as `raw`.
 #[test]
 fn target_exports_fit_the_attribute_budget_and_relight_like_prt() {
     let dir = tempfile::tempdir().unwrap();
@@ -1038,6 +1038,33 @@ fn target_exports_fit_the_attribute_budget_and_relight_like_prt() {
             gltf_relight_agrees(&glb, &prt_csv, 10, dir.path());
         }
     }
+    // A clustered-PCA compressed bounced bake: its reconstructed transfer in the data
+    // texture, read back as the raw export of it and relit from the file alone like prt relight
+    // relights the compressed bake (from its clusters).
+    let compressed = dir.path().join("o10_b1_cpca.prtb");
+    run(prt()
+        .arg("compress")
+        .arg(dir.path().join("o10_b1.prtb"))
+        .args(["--clusters", "2", "--out"])
+        .arg(&compressed));
+    let export = |target: &str| {
+        let glb = dir.path().join(format!("o10_b1_cpca.{target}.glb"));
+        run(prt()
+            .arg("export")
+            .arg(&scene)
+            .arg("--bake")
+            .arg(&compressed)
+            .args(["--target", target, "--out"])
+            .arg(&glb));
+        glb
+    };
+    let (raw, webgl2) = (export("raw"), export("webgl2"));
+    assert_validates(&webgl2);
+    assert!(prt_gltf::read_export(&webgl2).unwrap() == prt_gltf::read_export(&raw).unwrap());
+    let prt_csv = dir.path().join("o10_b1_cpca.csv");
+    relight_vertex_colours(&scene, &compressed, &prt_csv);
+    gltf_relight_agrees(&webgl2, &prt_csv, 10, dir.path());
+
     // Order 3 fits 16 attributes (3 channels × 3 groups + visibility 3 + POSITION, NORMAL):
     // the same bytes as raw.
     let (bake_path, raw) = bake_and_export(
