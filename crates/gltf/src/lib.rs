@@ -26,6 +26,11 @@
 //! range of that coefficient over the covered texels (so the rounding error is at most
 //! `scale / 510`). Texels no triangle touches are dilated from their covered neighbours (two
 //! rings), so that an engine's plain bilinear filtering does not pull chart borders toward 0.
+//!
+//! For a GPU pipeline ([`export_glb_for`], `--target webgl2|desktop`, SPEC §10.2, [`Target`]),
+//! a primitive stays within 16 vertex attributes: transfer that does not fit goes into an
+//! RGBA32F data texture read by `_PRT_VERTEX_ID`. [`viewer`] writes `prt view`'s live WebGL2
+//! page of an export.
 
 mod target;
 pub mod viewer;

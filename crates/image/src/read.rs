@@ -5,7 +5,7 @@
 //!   f16, f32 and u32 samples become f32. An `A` channel is ignored and reported in
 //!   [`LoadedImage::alpha_ignored`]. A layer with only a `Y` channel is read as grayscale.
 //! - **PNG**: 8- or 16-bit, sRGB-encoded; each value `v/255` (or `v/65535`) is decoded with
-//!   the exact sRGB EOTF ([`srgb_eotf`](crate::srgb_eotf)). Gray and gray+alpha PNGs are read
+//!   the exact sRGB EOTF ([`crate::srgb_eotf`]). Gray and gray+alpha PNGs are read
 //!   as grayscale (the value copied to R, G, B); alpha is ignored and reported.
 //!
 //! The format is recognised by the file's first bytes, not by its name.

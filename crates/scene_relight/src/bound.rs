@@ -99,7 +99,7 @@ impl<'a> Bound<'a> {
     /// Relights every object under `opt`.
     ///
     /// # Errors
-    /// As [`relight`].
+    /// As [`crate::relight`].
     pub fn relight(&self, opt: &RelightOptions) -> Result<Relit, SceneRelightError> {
         relight_prepared(
             self.scene,
@@ -116,7 +116,7 @@ impl<'a> Bound<'a> {
     /// fitting the lighting to an image rests on.
     ///
     /// # Errors
-    /// As [`relight`], and a row count that is not a square.
+    /// As [`crate::relight`], and a row count that is not a square.
     pub fn relight_under(
         &self,
         lighting: &[[f64; 3]],

@@ -6,7 +6,10 @@
 //! the path tracer's ([`imaging`]): Gouraud interpolation of per-vertex radiance over the
 //! triangles hit by the scene camera's rays, bilinear lookups of per-texel bakes at each hit's
 //! lightmap UV, or per-pixel radiance directly. [`target`] relights adaptively to a PSNR
-//! target frame by frame; [`io`] writes the images.
+//! target frame by frame; [`io`] writes the images. [`Bound`] binds a bake once per command
+//! (footprints, lightmaps, the camera's rays) for every relighting and image after it, and
+//! [`inverse`] fits the lighting to an image (Ramamoorthi & Hanrahan 2001, inverse
+//! rendering), relighting being linear in it.
 //!
 //! The relighting follows Sloan, Kautz & Snyder 2002 (diffuse PRT) and Lee & Kim 2014
 //! (specular PRT through SH products and locally adaptive SH), whose scene-free kernels are
