@@ -3,6 +3,7 @@
 difference against the two renders' own noise.
 
 Setup (once): python3 -m venv tools/.venv && tools/.venv/bin/pip install mitsuba numpy
+              (for --suite: tools/requirements-peers.txt, which adds bpy, and libllvm19)
 Run:          tools/.venv/bin/python tools/mitsuba_compare.py [--spp 64] [--bounces 1]
 
 The script writes its own comparison scene into --work (default out/mitsuba_compare/) so both
@@ -25,34 +26,58 @@ E[MSE(ours, mitsuba)] = mean var(ours) + mean var(mitsuba), so the reported
 `mse_ratio` = MSE / that sum should be ≈ 1; a bias shows up as a ratio well above 1 and as a
 large |z| of the image-mean difference.
 
-Suite mode (`--suite`): one command renders six scenes with prt and with Mitsuba 3's
-`scalar_rgb` and `llvm_ad_rgb` variants and prints two Markdown tables (also suite.json, PNG
-views and per-pixel z maps in <work>/suite/):
-  tools/.venv/bin/python tools/mitsuba_compare.py --suite [--spp 1024] [--repeats 3]
+Suite mode (`--suite`): prt against the peers a user would pick, in one command, on six scenes
+(plus `probe`, a mirror sphere that shows whether the environment lines up in every renderer):
+  tools/.venv/bin/python tools/mitsuba_compare.py --suite [--spp 1024] [--table FILE.md]
       [--prt PATH] [--scenes sphere,bunny_floor,mirror,far,millimetre,teapot] [--ref-factor 16]
+      [--peers llvm_independent,llvm_multijitter,llvm_ldsampler,cycles]
+- peers: Mitsuba 3 `llvm_ad_rgb` with its `independent`, `multijitter` and `ldsampler` samplers
+  (`scalar_<sampler>` too, on request) and Blender Cycles through bpy (tools/cycles_render.py:
+  CPU, Tabulated Sobol, no denoiser, no clamping, no adaptive sampling, box filter of one
+  pixel, light tree off and light threshold 0, filter glossy 0, caustics on, bump-map
+  correction and shadow-terminator offsets off, the map with `Closest` lookup; the defaults it
+  changed are listed in the output). Setup for the peers: tools/requirements-peers.txt
+  (`apt-get install -y libllvm19`; the LLVM library is found at Debian's path or through
+  $DRJIT_LIBLLVM_PATH).
 - scenes: `sphere` (Lambert, 0 bounces), `bunny_floor` (full-res bunny 1 tall on a floor, 1),
   `mirror` (teapot with our `mirror` material on a floor, 2; in Mitsuba a `blendbsdf` of
-  `diffuse` albedo/(1−w) and a `conductor` "none" of reflectance specular/w, w = s/(a+s)),
-  `far` (bunny_floor translated by (577, 577, 577), camera too), `millimetre` (teapot 1 mm
-  wide resting exactly on a ±3 m two-triangle floor, 1), `teapot` (rotated by prt's `rotate`
-  key, Mitsuba gets the same T·Rz·Ry·Rx·S matrix, 1). All Mitsuba BSDFs are `twosided`
-  (prt shades back faces as front faces); perspective near_clip scales with the scene.
-- timing: prt = whole process (median of --repeats, seeds 0..R−1); Mitsuba = `mi.render` only
-  (scene loading excluded), median of --repeats, each variant in its own process; llvm_ad_rgb
-  first does one warm-up render (its time is reported as "first": JIT tracing + compilation or
-  Dr.Jit's on-disk kernel cache).
-- reference: llvm_ad_rgb, --ref-factor passes of --spp (16 → its noise is 1/4 of one image's),
-  cached in <work>/suite/refs by content, rendered with the scene in *canonical placement*
-  (translation removed, scale 1): radiance under a distant map does not change under those maps,
-  but Mitsuba's ray offset (1 + max|p|)·8.9e-5 does, so the native-placement Mitsuba reference of
-  `far` and `millimetre` is also rendered and compared (last column of the second table).
-- relL2 = sqrt(Σ(a−ref)²/Σref²) over all and over surface pixels (prt depth AOV ≠ 0); cost =
-  seconds × relL2²; cost ratios prt/scalar and prt/llvm (< 1: prt cheaper). The bias check is the
-  statistic above, of each image against the reference (the reference's variance from the spread
-  of its passes, a Mitsuba image's from the spread of its --repeats seeds), plus the single-scene
-  form (prt against the mean of two scalar_rgb renders); pixels beyond 5 standard errors are
-  grouped into clusters in suite.json (`outliers_*`: box, part/floor/background, distance to the
-  part in pixels, mean z).
+  `diffuse` albedo/(1−w) and a `conductor` "none" of reflectance specular/w, w = s/(a+s); in
+  Cycles Diffuse + Glossy of roughness 0), `far` (bunny_floor translated by (577, 577, 577),
+  camera too), `millimetre` (teapot 1 mm wide resting exactly on a ±3 m two-triangle floor, 1),
+  `teapot` (rotated by prt's `rotate` key, the peers get the same T·Rz·Ry·Rx·S matrix, 1). All
+  Mitsuba BSDFs are `twosided` (prt shades back faces as front faces; so does Cycles);
+  perspective near_clip scales with the scene.
+- timing, render only for every method, mean of the two timed renders (seeds 0 and 1): prt's
+  own render time (it prints it; scene loading and BVH build excluded; the whole process's
+  wall time is in the JSON); Mitsuba `mi.render` after one warm-up render of the same sampler
+  (JIT tracing + compilation excluded, reported as "first"; scene loading excluded), each
+  variant in its own process; Cycles a render after a 1-spp warm-up with persistent data (scene
+  sync and BVH build excluded; Cycles' own render/sync times from its EXR are in the JSON).
+- error: each method renders seeds 0 and 1; E‖X₁ − X₂‖² = 2 Var, so one render's error is
+  err = sqrt(mean((X₁ − X₂)²)/2) / RMS(reference) on surface pixels (prt depth AOV ≠ 0). The
+  reference (llvm_ad_rgb, --ref-factor passes of --spp, cached in <work>/suite/refs by
+  content, rendered with the scene in *canonical placement*, translation removed, scale 1) only
+  gives the norm, so err stays right where a method is less noisy than the reference. cost =
+  seconds × err² (time at equal error); cost ratios prt / each peer and prt / the best peer;
+  time per sample prt / the fastest llvm sampler. tools/test_peer_compare.py tests these
+  functions on synthetic data (numpy only).
+- bias check: the mean of each method's two renders against the reference (mse_ratio and z of
+  the single-scene mode, per-pixel variance from the two seeds); the background pixels of each
+  peer against prt's (a turned or mirrored map shows as tens of %); for `far` and
+  `millimetre` the native-placement Mitsuba reference too (Mitsuba's ray offset
+  (1 + max|p|)·8.9e-5 changes under translation and scale); prt's pixels beyond 5 standard
+  errors grouped into clusters (`outliers_*`).
+- output: a Markdown summary table and one table per scene in FILE.md (default
+  <work>/suite/suite.md), the same figures in FILE.json, PNG views (`<scene>_side_by_side.png`:
+  reference, prt, then each peer) and prt's z map in <work>/suite/.
+- The issue-32 table, one run on a quiet machine (nothing else running):
+    tools/.venv/bin/python tools/mitsuba_compare.py --suite --spp 1024 --table out/peers.md
+  It takes about 15 min on 2 quiet cores (estimate: `teapot` alone took 5.2 min at load 6–7 on
+  this shared machine, where Mitsuba ran 2.6× slower than on a quiet one; 64×48 / 64-spp runs
+  of two scenes take 30 s). About a third of a first run is the Mitsuba references (16 renders
+  of 1024 spp per scene, 16 more for the native placement of `far` and `millimetre`), cached
+  by content in out/mitsuba_compare/suite/refs, so a re-run takes about 10 min. A quick end-to-end check: --spp 64 --width 64 --height 48
+  --scenes probe,mirror.
 """
 
 import argparse
@@ -127,11 +152,14 @@ def main():
                     help="nearest-neighbour upsampling of the map for Mitsuba (FACTS.md says ×4; "
                          "more shrinks the bilinear blend zone at texel edges)")
     ap.add_argument("--suite", action="store_true",
-                    help="render the six-scene suite with prt, Mitsuba scalar_rgb and llvm_ad_rgb "
-                         "(see 'Suite mode' above)")
-    ap.add_argument("--repeats", type=int, default=3, help="--suite: timed runs per renderer (median)")
+                    help="render the six-scene suite with prt and its peers (see 'Suite mode' above)")
     ap.add_argument("--scenes", default=",".join(SUITE_SCENES),
-                    help="--suite: comma-separated subset of " + ",".join(SUITE_SCENES))
+                    help="--suite: comma-separated subset of " + ",".join(SUITE_SCENES + EXTRA_SCENES))
+    ap.add_argument("--peers", default=",".join(DEFAULT_PEERS),
+                    help="--suite: methods prt is measured against: 'cycles' and <llvm|scalar>_"
+                         "<independent|multijitter|ldsampler>")
+    ap.add_argument("--table", help="--suite: Markdown output (default <work>/suite/suite.md); the JSON "
+                                    "goes next to it with the suffix .json")
     ap.add_argument("--ref-factor", type=int, default=16,
                     help="--suite: the reference is this many llvm_ad_rgb passes of --spp each")
     ap.add_argument("--worker", help=argparse.SUPPRESS)  # internal: one Mitsuba variant per process
@@ -284,8 +312,10 @@ seed = 0
 # ---------------------------------------------------------------------------------------------
 
 SUITE_SCENES = ["sphere", "bunny_floor", "mirror", "far", "millimetre", "teapot"]
+EXTRA_SCENES = ["probe"]  # a mirror sphere: checks that the environment lines up in every renderer
 LLVM_LIB = os.path.join(ROOT, "tools", ".venv", "llvm19", "usr", "lib", "x86_64-linux-gnu",
                         "libLLVM.so.19.1")
+SYSTEM_LLVM_LIB = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"  # apt-get install libllvm19
 SUITE_UPSAMPLE_NAME = "env_up.exr"
 
 SUITE_MATERIALS = {
@@ -293,6 +323,7 @@ SUITE_MATERIALS = {
     "floor": {"type": "lambert", "albedo": [0.5, 0.5, 0.5]},
     # grey on purpose: Mitsuba's blend weight w = s / (a + s) is one scalar for all channels.
     "chrome": {"type": "mirror", "albedo": [0.2, 0.2, 0.2], "specular": [0.6, 0.6, 0.6]},
+    "probe_chrome": {"type": "mirror", "albedo": [0.05, 0.05, 0.05], "specular": [0.9, 0.9, 0.9]},
 }
 
 
@@ -427,6 +458,11 @@ def suite_specs(work):
             "placement": [1e-3, [0.0, 0.0, 0.0]],
             "what": "teapot 1 mm wide resting exactly on a ±3 m floor (2 triangles)",
         },
+        "probe": {
+            "bounces": 0, "camera": cam([0, 0, 3.6], [0, 0, 0], 40),
+            "objects": [obj("sphere.obj", "probe_chrome")],
+            "what": "mirror sphere (albedo 0.05 + specular 0.9): the environment's line-up",
+        },
         "teapot": {
             "bounces": 1, "camera": cam([0, 0.85, 2.1], [0, 0.35, 0], 40),
             "objects": [obj("teapot_raw.obj", "clay", teapot_rest_translate(work, tp_rot, tp_scale), tp_rot,
@@ -506,7 +542,7 @@ def mitsuba_desc(spec, work, args, canonical=False):
     }
 
 
-def build_mitsuba_scene(mi, desc, spp):
+def build_mitsuba_scene(mi, desc, spp, sampler="independent"):
     cam = desc["camera"]
     d = {
         "type": "scene",
@@ -517,7 +553,7 @@ def build_mitsuba_scene(mi, desc, spp):
             "to_world": mi.ScalarTransform4f().look_at(origin=cam["eye"], target=cam["target"], up=cam["up"]),
             "film": {"type": "hdrfilm", "width": desc["width"], "height": desc["height"],
                      "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-            "sampler": {"type": "independent", "sample_count": spp},
+            "sampler": {"type": sampler, "sample_count": spp},
         },
         "env": {"type": "envmap", "filename": desc["env"]},
     }
@@ -527,41 +563,57 @@ def build_mitsuba_scene(mi, desc, spp):
     return mi.load_dict(d)
 
 
+def llvm_library():
+    """libLLVM for Dr.Jit's LLVM backend: $DRJIT_LIBLLVM_PATH, else Debian's libllvm19, else a
+    copy unpacked into the venv (older set-up)."""
+    for path in (os.environ.get("DRJIT_LIBLLVM_PATH"), SYSTEM_LLVM_LIB, LLVM_LIB):
+        if path and os.path.exists(path):
+            return path
+    return None
+
+
 def mitsuba_worker(job_path):
     """Runs in its own process (one Mitsuba variant per process)."""
     with open(job_path) as f:
         job = json.load(f)
-    if job["variant"].startswith("llvm") and "DRJIT_LIBLLVM_PATH" not in os.environ and os.path.exists(LLVM_LIB):
-        os.environ["DRJIT_LIBLLVM_PATH"] = LLVM_LIB
+    if job["variant"].startswith("llvm") and llvm_library():
+        os.environ["DRJIT_LIBLLVM_PATH"] = llvm_library()
     import mitsuba as mi
 
     mi.set_variant(job["variant"])
     spp = job["spp"]
-    t = time.perf_counter()
-    scene = build_mitsuba_scene(mi, job["desc"], spp)
-    out = {"variant": job["variant"], "load_seconds": time.perf_counter() - t, "mitsuba": mi.__version__}
+    out = {"variant": job["variant"], "mitsuba": mi.__version__}
 
-    def render(seed):
+    def render(scene, seed):
         t = time.perf_counter()
         img = mi.render(scene, seed=seed, spp=spp)
         a = np.array(img, dtype=np.float32)[..., :3]  # forces evaluation of a JIT variant
         return a, time.perf_counter() - t
 
     if job["mode"] == "timed":
-        if job.get("warmup_seed") is not None:
-            _, out["first_seconds"] = render(job["warmup_seed"])
-        out["seconds"] = []
-        for seed, path in zip(job["seeds"], job["outs"]):
-            a, secs = render(seed)
-            out["seconds"].append(secs)
-            np.save(path, a)
-        if "first_seconds" not in out:
-            out["first_seconds"] = out["seconds"][0]
+        # Per sampler: load, one warm-up render (JIT tracing + compilation for llvm), then the
+        # timed renders. Only mi.render is timed: scene loading and the warm-up are excluded.
+        out["samplers"] = {}
+        for sampler in job["samplers"]:
+            t = time.perf_counter()
+            scene = build_mitsuba_scene(mi, job["desc"], spp, sampler)
+            r = {"load_seconds": time.perf_counter() - t,
+                 "sample_count": int(scene.sensors()[0].sampler().sample_count())}
+            if job.get("warmup_seed") is not None:
+                _, r["first_seconds"] = render(scene, job["warmup_seed"])
+            r["seconds"] = []
+            for seed, path in zip(job["seeds"], job["outs"][sampler]):
+                a, secs = render(scene, seed)
+                r["seconds"].append(secs)
+                np.save(path, a)
+            r.setdefault("first_seconds", r["seconds"][0])
+            out["samplers"][sampler] = r
     else:  # reference: the mean of passes, with the variance of that mean from their spread
+        scene = build_mitsuba_scene(mi, job["desc"], spp)
         s1 = s2 = 0.0
         out["seconds"] = []
         for seed in job["seeds"]:
-            a, secs = render(seed)
+            a, secs = render(scene, seed)
             out["seconds"].append(secs)
             a = a.astype(np.float64)
             s1, s2 = s1 + a, s2 + a * a
@@ -573,15 +625,18 @@ def mitsuba_worker(job_path):
         json.dump(out, f)
 
 
-def run_worker(job, work, tag):
+def run_worker(job, work, tag, script=None):
+    """Runs a Mitsuba worker (this file, --worker) or another script (`script JOB.json`) in its
+    own process; returns its result JSON."""
     path = os.path.join(work, f"job_{tag}.json")
     job["result"] = os.path.join(work, f"job_{tag}.result.json")
     with open(path, "w") as f:
         json.dump(job, f)
-    run = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", path],
-                         capture_output=True, text=True)
+    cmd = [sys.executable, os.path.abspath(__file__), "--worker", path] if script is None else \
+        [sys.executable, script, path]
+    run = subprocess.run(cmd, capture_output=True, text=True)
     if run.returncode != 0:
-        sys.exit(f"Mitsuba worker {tag} failed ({run.returncode}):\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}")
+        sys.exit(f"worker {tag} failed ({run.returncode}):\n{run.stdout[-3000:]}\n{run.stderr[-3000:]}")
     with open(job["result"]) as f:
         return json.load(f)
 
@@ -701,10 +756,6 @@ def z_png(path, a, var_a, b, var_b, scale_up=3):
     write_png(path, img ** 2.2, scale_up)  # undo the sRGB curve roughly: linear z / 8 as shown
 
 
-def median(x):
-    return float(np.median(np.array(x)))
-
-
 def loadavg():
     try:
         with open("/proc/loadavg") as f:
@@ -713,25 +764,191 @@ def loadavg():
         return None
 
 
+# Methods of the suite: prt and its peers. A Mitsuba peer is "<variant>_<sampler>".
+DEFAULT_PEERS = ["llvm_independent", "llvm_multijitter", "llvm_ldsampler", "cycles"]
+MITSUBA_VARIANTS = {"llvm": "llvm_ad_rgb", "scalar": "scalar_rgb"}
+MITSUBA_SAMPLERS = ["independent", "multijitter", "ldsampler"]
+SEEDS = (0, 1)  # two independent renders per method: its error comes from their difference
+CYCLES_SCRIPT = os.path.join(ROOT, "tools", "cycles_render.py")
+
+
+def parse_peers(text):
+    peers = [p for p in text.split(",") if p]
+    for p in peers:
+        v, _, smp = p.partition("_")
+        if p != "cycles" and (v not in MITSUBA_VARIANTS or smp not in MITSUBA_SAMPLERS):
+            raise ValueError(f"unknown peer {p!r}: 'cycles' or <{'|'.join(MITSUBA_VARIANTS)}>_"
+                             f"<{'|'.join(MITSUBA_SAMPLERS)}>")
+    return peers
+
+
+def two_seed_error(x1, x2, ref, mask):
+    """One render's relative RMS error from two renders with independent seeds:
+    err = sqrt(mean((x1 − x2)²) / 2) / sqrt(mean(ref²)) over `mask`. For unbiased renders with
+    the same expectation E(x1 − x2)² = 2 Var per pixel, so mean((x1 − x2)²)/2 estimates the mean
+    variance of one render; the reference enters only through its norm, so the figure stays
+    right when a method's error is below the reference's own noise (where a distance to the
+    reference measures the reference). A bias does not show here: bias_stats checks for it."""
+    d = (x1 - x2)[mask]
+    return float(np.sqrt(np.mean(d * d) / 2.0 / np.mean(ref[mask] ** 2)))
+
+
+def cost_at_equal_error(seconds, err):
+    """time × err²: the time to reach a common error, up to a constant, since err² ∝ 1/samples."""
+    return seconds * err * err
+
+
+def cost_ratios(costs, me="prt"):
+    """`me`'s cost over each other method's, and over the cheapest other's: (ratios, best, ratio)."""
+    peers = {k: v for k, v in costs.items() if k != me}
+    ratios = {k: costs[me] / v for k, v in peers.items()}
+    best = min(peers, key=peers.get)
+    return ratios, best, costs[me] / peers[best]
+
+
+def parse_prt_render_seconds(stderr):
+    """`prt render` prints `rendered W×H at N spp, … in S s (…)`: S is the render alone (scene
+    loading and BVH build excluded)."""
+    import re
+    m = re.search(r"^rendered .* in ([0-9.]+) s \(", stderr, re.M)
+    if not m:
+        raise ValueError(f"no 'rendered … in S s' line in prt's output:\n{stderr[-2000:]}")
+    return float(m.group(1))
+
+
+def run_prt(args, work, name, spec):
+    """prt at seeds 0 and 1: images, render seconds, whole-process seconds, seed 0's AOVs."""
+    import mitsuba as mi
+    w = lambda f: os.path.join(work, f)
+    write_prt_toml(w(f"{name}.toml"), spec, args)
+    out = {"imgs": [], "seconds": [], "wall": []}
+    for seed in SEEDS:
+        exr = w(f"{name}_prt_s{seed}.exr")
+        cmd = [args.prt, "render", w(f"{name}.toml"), "--spp", str(args.spp), "--bounces",
+               str(spec["bounces"]), "--seed", str(seed), "--aovs", "--quiet", "--out", exr]
+        t0 = time.perf_counter()
+        run = subprocess.run(cmd, capture_output=True, text=True)
+        out["wall"].append(time.perf_counter() - t0)
+        if run.returncode != 0:
+            sys.exit(f"prt render failed on {name}: {run.stderr}")
+        out["seconds"].append(parse_prt_render_seconds(run.stderr))
+        warnings = [l for l in run.stderr.splitlines() if l.startswith("warning")]
+        if warnings:
+            out["warnings"] = warnings
+        ch = read_exr_channels(mi, exr)
+        out["imgs"].append(np.stack([ch["R"], ch["G"], ch["B"]], axis=-1))
+        if seed == SEEDS[0]:
+            out["aov"] = ch
+    return out
+
+
+def run_mitsuba_peers(args, work, name, desc, peers):
+    """One worker process per Mitsuba variant, rendering each of its samplers at seeds 0 and 1
+    after one warm-up render; returns {peer: {imgs, seconds, ...}}."""
+    out = {}
+    for vshort, variant in MITSUBA_VARIANTS.items():
+        samplers = [p.partition("_")[2] for p in peers if p.partition("_")[0] == vshort]
+        if not samplers:
+            continue
+        outs = {smp: [os.path.join(work, f"{name}_{vshort}_{smp}_s{seed}.npy") for seed in SEEDS]
+                for smp in samplers}
+        res = run_worker({"variant": variant, "mode": "timed", "spp": args.spp, "desc": desc,
+                          "samplers": samplers, "seeds": list(SEEDS), "outs": outs, "warmup_seed": 100},
+                         work, f"{name}_{vshort}")
+        for smp in samplers:
+            r = res["samplers"][smp]
+            out[f"{vshort}_{smp}"] = {
+                "imgs": [np.load(p).astype(np.float64) for p in outs[smp]], "seconds": r["seconds"],
+                "samples": r["sample_count"], "first_seconds": r["first_seconds"],
+                "load_seconds": r["load_seconds"], "version": "Mitsuba " + res["mitsuba"]}
+    return out
+
+
+def run_cycles(args, work, name, spec):
+    objs, cam = placed(spec)
+    shapes = [{"filename": os.path.join(work, o["mesh"]), "material": o["material"],
+               "to_world": object_matrix(o["translate"], o["rotate"], o["scale"]).tolist()} for o in objs]
+    outs = [os.path.join(work, f"{name}_cycles_s{seed}.npy") for seed in SEEDS]
+    job = {"width": args.width, "height": args.height, "bounces": spec["bounces"], "spp": args.spp,
+           "camera": cam, "env": os.path.join(work, CYCLES_ENV_NAME), "shapes": shapes,
+           "materials": {o["material"]: SUITE_MATERIALS[o["material"]] for o in objs},
+           "seeds": list(SEEDS), "outs": [p[:-4] for p in outs], "warmup_seed": 100}
+    res = run_worker(job, work, f"{name}_cycles", script=CYCLES_SCRIPT)
+    return {"imgs": [np.load(p).astype(np.float64) for p in outs], "seconds": res["seconds"],
+            "samples": res["samples"], "first_seconds": res["warmup_seconds"],
+            "load_seconds": res["build_seconds"], "version": "Blender " + res["blender"],
+            "changed_defaults": res["changed_defaults"], "cycles_own_times": res["cycles_times"]}
+
+
+CYCLES_ENV_NAME = "env_cycles.exr"
+
+
+def write_cycles_env(mi, work):
+    """Our 64×32 map with its columns rolled by W/4 (see tools/cycles_render.py): Cycles'
+    equirectangular u is ours + 1/4 once our +Y-up axes are turned into Blender's +Z-up."""
+    from cycles_render import cycles_env_columns_shift
+    small = np.array(mi.Bitmap(os.path.join(work, "env.exr")), dtype=np.float32)[..., :3]
+    rolled = np.ascontiguousarray(np.roll(small, cycles_env_columns_shift(small.shape[1]), axis=1))
+    mi.Bitmap(rolled).write(os.path.join(work, CYCLES_ENV_NAME))
+
+
+def method_figures(m, ref, ref_var, masks, spp):
+    """Seconds (mean of the timed renders), two-seed error, cost, relL2 and bias of the mean of
+    the two renders against the reference, on surface pixels."""
+    x1, x2 = m["imgs"]
+    surf = masks["surface"]
+    mean = 0.5 * (x1 + x2)
+    var_mean = (x1 - x2) ** 2 / 4.0  # per pixel: an unbiased estimate of Var((x1 + x2)/2)
+    f = {"seconds": float(np.mean(m["seconds"])), "seconds_each": m["seconds"],
+         "samples": m.get("samples", spp), "err": two_seed_error(x1, x2, ref, surf)}
+    f["seconds_per_sample"] = f["seconds"] / f["samples"]
+    f["cost"] = cost_at_equal_error(f["seconds"], f["err"])
+    f["rel_l2_mean_vs_reference"] = rel_l2(mean, ref, surf)
+    f["bias_vs_reference"] = {k: bias_stats(mean, var_mean, ref, ref_var, masks[k]) for k in masks}
+    for k in ("first_seconds", "load_seconds", "version", "changed_defaults", "cycles_own_times"):
+        if k in m:
+            f[k] = m[k]
+    return f
+
+
+def side_by_side_png(path, images, scale_up=3):
+    """Images left to right with a 2-pixel black gap."""
+    h = images[0].shape[0]
+    gap = np.zeros((h, 2, 3))
+    row = []
+    for img in images:
+        row += [img, gap]
+    write_png(path, np.concatenate(row[:-1], axis=1), scale_up)
+
+
 def suite(args):
     import mitsuba as mi
 
     mi.set_variant("scalar_rgb")  # this process only reads and writes images; workers render
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    peers = parse_peers(args.peers)
     work = os.path.join(args.work, "suite")
     os.makedirs(work, exist_ok=True)
     w = lambda name: os.path.join(work, name)
     names = [n for n in args.scenes.split(",") if n]
-    bad = [n for n in names if n not in SUITE_SCENES]
+    bad = [n for n in names if n not in SUITE_SCENES + EXTRA_SCENES]
     if bad:
-        sys.exit(f"unknown scene(s) {bad}: choose from {SUITE_SCENES}")
+        sys.exit(f"unknown scene(s) {bad}: choose from {SUITE_SCENES + EXTRA_SCENES}")
     if not os.path.exists(args.prt):
         sys.exit(f"no prt binary at {args.prt} (--prt)")
+    if any(p.startswith("llvm") for p in peers) and llvm_library() is None:
+        sys.exit("llvm_ad_rgb needs libLLVM: apt-get install -y libllvm19 (or set DRJIT_LIBLLVM_PATH)")
     write_env(mi, work, args.upsample, SUITE_UPSAMPLE_NAME)
+    if "cycles" in peers:
+        write_cycles_env(mi, work)
     write_suite_meshes(work)
     specs = suite_specs(work)
-    R = args.repeats
-    report = {"spp": args.spp, "repeats": R, "size": [args.width, args.height], "prt": args.prt,
-              "reference": f"llvm_ad_rgb, {args.ref_factor} passes × {args.spp} spp, scene in canonical placement",
+    table = args.table or w("suite.md")
+    json_path = os.path.splitext(table)[0] + ".json"
+    report = {"spp": args.spp, "seeds": list(SEEDS), "size": [args.width, args.height], "prt": args.prt,
+              "peers": peers, "llvm_library": llvm_library(),
+              "reference": f"llvm_ad_rgb independent, {args.ref_factor} passes × {args.spp} spp, scene in "
+                           "canonical placement",
               "env_upsample_for_mitsuba": args.upsample, "loadavg_start": loadavg(), "scenes": {}}
     t_start = time.time()
     for name in names:
@@ -747,21 +964,11 @@ def suite(args):
         if native_differs:
             nref, nref_var, r["reference_native"] = suite_reference(desc, args, work, name + "_native", 2000)
 
-        # prt: whole-process wall time, seeds 0..R-1.
-        write_prt_toml(w(f"{name}.toml"), spec, args)
-        walls = []
-        for seed in range(R):
-            cmd = [args.prt, "render", w(f"{name}.toml"), "--spp", str(args.spp), "--bounces",
-                   str(spec["bounces"]), "--seed", str(seed), "--aovs", "--quiet", "--out", w(f"{name}_prt_s{seed}.exr")]
-            t0 = time.perf_counter()
-            run = subprocess.run(cmd, capture_output=True, text=True)
-            walls.append(time.perf_counter() - t0)
-            if run.returncode != 0:
-                sys.exit(f"prt render failed on {name}: {run.stderr}")
-            if run.stderr.strip():
-                r.setdefault("prt_stderr", run.stderr.strip()[-2000:])
-        ch = read_exr_channels(mi, w(f"{name}_prt_s0.exr"))
-        prt_img = np.stack([ch["R"], ch["G"], ch["B"]], axis=-1)
+        methods = {"prt": run_prt(args, work, name, spec)}
+        methods.update(run_mitsuba_peers(args, work, name, desc, peers))
+        if "cycles" in peers:
+            methods["cycles"] = run_cycles(args, work, name, spec)
+        ch = methods["prt"].pop("aov")
         prt_var = np.stack([ch["variance.R"], ch["variance.G"], ch["variance.B"]], axis=-1)
         surface2 = ch["depth.Z"] != 0.0
         alb = np.stack([ch["albedo.R"], ch["albedo.G"], ch["albedo.B"]], axis=-1)
@@ -769,123 +976,131 @@ def suite(args):
         surface = surface2[..., None].repeat(3, axis=-1)
         masks = {"all": np.ones_like(surface), "surface": surface, "background": ~surface}
 
-        # Mitsuba: scalar_rgb (no warm-up: nothing to compile) and llvm_ad_rgb (one warm-up render).
-        mits = {}
-        for variant, warm in (("scalar_rgb", None), ("llvm_ad_rgb", 100)):
-            outs = [w(f"{name}_{variant}_s{seed}.npy") for seed in range(R)]
-            res = run_worker({"variant": variant, "mode": "timed", "spp": args.spp, "desc": desc,
-                              "seeds": list(range(R)), "outs": outs, "warmup_seed": warm}, work, f"{name}_{variant}")
-            imgs = [np.load(p).astype(np.float64) for p in outs]
-            var1 = np.var(np.stack(imgs), axis=0, ddof=1) if R >= 2 else None  # one render's pixel variance
-            mits[variant] = {"img": imgs[0], "imgs": imgs, "var": var1, "res": res}
-        r["seconds"] = {"prt_wall": median(walls), "prt_wall_all": walls}
-        for v in mits:
-            r["seconds"][v] = median(mits[v]["res"]["seconds"])
-            r["seconds"][v + "_all"] = mits[v]["res"]["seconds"]
-            r["seconds"][v + "_first"] = mits[v]["res"]["first_seconds"]
-            r["seconds"][v + "_scene_load"] = mits[v]["res"]["load_seconds"]
-
-        # Errors against the reference and the cost figure of merit.
-        images = {"prt": prt_img, "scalar_rgb": mits["scalar_rgb"]["img"], "llvm_ad_rgb": mits["llvm_ad_rgb"]["img"]}
-        secs = {"prt": r["seconds"]["prt_wall"], "scalar_rgb": r["seconds"]["scalar_rgb"],
-                "llvm_ad_rgb": r["seconds"]["llvm_ad_rgb"]}
-        r["rel_l2"], r["rel_l2_ref_noise_removed"], r["cost"] = {}, {}, {}
-        for k, img in images.items():
-            r["rel_l2"][k], r["rel_l2_ref_noise_removed"][k], r["cost"][k] = {}, {}, {}
-            for m in ("all", "surface"):
-                e = rel_l2(img, ref, masks[m])
-                ref_part = float(np.sum(ref_var[masks[m]]) / np.sum(ref[masks[m]] ** 2))
-                r["rel_l2"][k][m] = e
-                r["rel_l2_ref_noise_removed"][k][m] = float(np.sqrt(max(e * e - ref_part, 0.0)))
-                r["cost"][k][m] = secs[k] * e * e
-        r["cost_ratio"] = {f"prt/{v}": {m: r["cost"]["prt"][m] / r["cost"][v][m] for m in ("all", "surface")}
-                           for v in ("scalar_rgb", "llvm_ad_rgb")}
-        if native_differs:
-            r["rel_l2_vs_native_reference"] = {k: {m: rel_l2(img, nref, masks[m]) for m in ("all", "surface")}
-                                               for k, img in images.items()}
-
-        # Bias checks (noise-aware): prt vs the reference; each Mitsuba variant vs the reference;
-        # the single-scene statistic (prt vs the mean of two scalar_rgb renders).
-        r["bias"] = {"prt_vs_reference": {m: bias_stats(prt_img, prt_var, ref, ref_var, masks[m]) for m in masks}}
-        for v in mits:
-            if mits[v]["var"] is not None:
-                r["bias"][f"{v}_vs_reference"] = {m: bias_stats(mits[v]["img"], mits[v]["var"], ref, ref_var, masks[m])
-                                                  for m in masks}
-        if R >= 2:
-            m0, m1 = mits["scalar_rgb"]["imgs"][:2]
-            r["bias"]["prt_vs_scalar_pair"] = {m: bias_stats(prt_img, prt_var, 0.5 * (m0 + m1),
-                                                             np.full(m0.shape, float(np.mean(((m0 - m1) ** 2)[masks[m]]) / 4.0)),
-                                                             masks[m]) for m in masks}
+        r["methods"] = {k: method_figures(m, ref, ref_var, masks, args.spp) for k, m in methods.items()}
+        r["methods"]["prt"]["wall_seconds_each"] = methods["prt"]["wall"]
+        if "warnings" in methods["prt"]:
+            r["prt_warnings"] = methods["prt"]["warnings"]
+        # Environment line-up: background pixels show the map directly, so each peer's mean
+        # image there should match prt's up to noise and Mitsuba's bilinear blend at texel edges;
+        # a turned or mirrored map shows as a difference of order 1.
+        prt_mean = 0.5 * sum(methods["prt"]["imgs"])
+        for k, m in methods.items():
+            if masks["background"].any():
+                r["methods"][k]["background_rel_l2_vs_prt"] = rel_l2(0.5 * sum(m["imgs"]), prt_mean,
+                                                                     masks["background"])
+        costs = {k: f["cost"] for k, f in r["methods"].items()}
+        r["cost_ratio"], r["best_peer"], r["cost_ratio_best_peer"] = cost_ratios(costs)
+        llvm = [k for k in r["methods"] if k.startswith("llvm_")]
+        if llvm:
+            fastest = min(llvm, key=lambda k: r["methods"][k]["seconds_per_sample"])
+            r["time_per_sample_prt_over_llvm"] = (r["methods"]["prt"]["seconds_per_sample"]
+                                                  / r["methods"][fastest]["seconds_per_sample"])
+            r["time_per_sample_llvm_sampler"] = fastest
         if native_differs:
             r["native_reference_rel_l2"] = {m: rel_l2(nref, ref, masks[m]) for m in ("all", "surface")}
-            r["bias"]["native_reference_vs_reference"] = {m: bias_stats(nref, nref_var, ref, ref_var, masks[m])
-                                                          for m in masks}
-        # Where: groups of pixels beyond 5 standard errors.
+            r["bias_native_reference_vs_reference"] = {m: bias_stats(nref, nref_var, ref, ref_var, masks[m])
+                                                       for m in masks}
+        # Where prt differs: groups of pixels beyond 5 standard errors (prt's variance AOV).
+        prt_img = methods["prt"]["imgs"][0]
         r["outliers_prt_vs_reference"] = outlier_clusters(prt_img, prt_var, ref, ref_var, part2, surface2)
         z_png(w(f"{name}_z_prt_vs_ref.png"), prt_img, prt_var, ref, ref_var)
-        write_png(w(f"{name}_prt.png"), prt_img)
         write_png(w(f"{name}_ref.png"), ref)
-        write_png(w(f"{name}_llvm.png"), mits["llvm_ad_rgb"]["img"])
-        if native_differs:
-            r["outliers_native_reference_vs_reference"] = outlier_clusters(nref, nref_var, ref, ref_var, part2, surface2)
-            r["outliers_prt_vs_native_reference"] = outlier_clusters(prt_img, prt_var, nref, nref_var, part2, surface2)
-            z_png(w(f"{name}_z_native_vs_ref.png"), nref, nref_var, ref, ref_var)
-            write_png(w(f"{name}_ref_native.png"), nref)
+        for k, m in methods.items():
+            write_png(w(f"{name}_{k}.png"), m["imgs"][0])
+        side_by_side_png(w(f"{name}_side_by_side.png"), [ref] + [m["imgs"][0] for m in methods.values()])
+        r["side_by_side_order"] = ["reference"] + list(methods)
         r["loadavg_after"] = loadavg()
         report["scenes"][name] = r
-        with open(w("suite.json"), "w") as f:  # written after every scene: a partial run is kept
+        with open(json_path, "w") as f:  # written after every scene: a partial run is kept
             json.dump(report, f, indent=2)
     report["loadavg_end"] = loadavg()
     report["total_seconds"] = time.time() - t_start
-    with open(w("suite.json"), "w") as f:
+    with open(json_path, "w") as f:
         json.dump(report, f, indent=2)
-    print(suite_table(report))
-    print(f"\nwritten: {w('suite.json')}  (load average start: {report['loadavg_start']}; "
+    text = suite_table(report)
+    with open(table, "w") as f:
+        f.write(text + "\n")
+    print(text)
+    print(f"\nwritten: {table} and {json_path}  (load average start: {report['loadavg_start']}; "
           f"end: {report['loadavg_end']}; {report['total_seconds'] / 60:.1f} min)")
+
+
+def peer_label(k):
+    return {"prt": "prt", "cycles": "Cycles"}.get(k, k.replace("_", " "))
 
 
 def suite_table(report):
     f2 = lambda x: f"{x:.2f}"
     pct = lambda x: f"{100 * x:.2f}%"
+    scenes = report["scenes"]
+    methods = list(next(iter(scenes.values()))["methods"]) if scenes else []
+    peers = [k for k in methods if k != "prt"]
     lines = [
-        f"spp {report['spp']}, {report['size'][0]}×{report['size'][1]}, median of {report['repeats']}; "
-        f"reference: {report['reference']}. relL2 as all / surface pixels; cost = s × relL2²; "
-        "cost ratio < 1: prt is cheaper.",
+        f"{report['spp']} spp, {report['size'][0]}×{report['size'][1]}, seeds {report['seeds']}; reference: "
+        f"{report['reference']}. s = seconds of one render, render only for every method (mean of the two "
+        "seeds' renders; prt: its own render time, BVH build excluded; Mitsuba: `mi.render` after a warm-up "
+        "render of the same sampler, i.e. JIT compilation and scene loading excluded; Cycles: a render after "
+        "a 1-spp warm-up with persistent data, i.e. BVH build and scene sync excluded). err = one render's "
+        "relative RMS error on surface pixels from its two seeds, sqrt(mean((X₁−X₂)²)/2)/RMS(reference). "
+        "cost = s × err² (time at equal error, up to a constant); cost ratio < 1: prt is cheaper.",
         "",
-        "| scene | tris | B | prt wall s | scalar s | llvm s (first) | relL2 prt | relL2 scalar | relL2 llvm "
-        "| cost prt/scalar | cost prt/llvm |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| scene | B | " + " | ".join(f"{peer_label(k)} s / err" for k in methods)
+        + " | time/sample prt/llvm | " + " | ".join(f"cost prt/{peer_label(k)}" for k in peers)
+        + " | cost prt/best peer |",
+        "|---|---|" + "---|" * (len(methods) + 1 + len(peers) + 1),
     ]
-    for name, r in report["scenes"].items():
-        s, e, c = r["seconds"], r["rel_l2"], r["cost_ratio"]
-        el = lambda k: f"{pct(e[k]['all'])} / {pct(e[k]['surface'])}"
-        cr = lambda k: f"{f2(c[k]['all'])} / {f2(c[k]['surface'])}"
-        lines.append(f"| {name} | {r['triangles']} | {r['bounces']} | {f2(s['prt_wall'])} | {f2(s['scalar_rgb'])} "
-                     f"| {f2(s['llvm_ad_rgb'])} ({f2(s['llvm_ad_rgb_first'])}) | {el('prt')} | {el('scalar_rgb')} "
-                     f"| {el('llvm_ad_rgb')} | {cr('prt/scalar_rgb')} | {cr('prt/llvm_ad_rgb')} |")
+    for name, r in scenes.items():
+        mf = r["methods"]
+        tps = f2(r["time_per_sample_prt_over_llvm"]) if "time_per_sample_prt_over_llvm" in r else "–"
+        lines.append(f"| {name} | {r['bounces']} | "
+                     + " | ".join(f"{f2(mf[k]['seconds'])} / {mf[k]['err']:.4f}" for k in methods)
+                     + f" | {tps} | " + " | ".join(f2(r["cost_ratio"][k]) for k in peers)
+                     + f" | **{f2(r['cost_ratio_best_peer'])}** ({peer_label(r['best_peer'])}) |")
+    for name, r in scenes.items():
+        mf = r["methods"]
+        lines += [
+            "", f"### {name}: {r['what']} ({r['triangles']} triangles, {r['bounces']} bounces)", "",
+            "| method | samples | s | s first render | err | cost s×err² | cost prt/this | relL2 mean-vs-ref "
+            "| bias: mse_ratio / z (surface) | background relL2 vs prt |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for k in methods:
+            f = mf[k]
+            b = f["bias_vs_reference"]["surface"]
+            bg = f.get("background_rel_l2_vs_prt")
+            lines.append(
+                f"| {peer_label(k)} | {f['samples']} | {f2(f['seconds'])} | "
+                f"{f2(f['first_seconds']) if 'first_seconds' in f else '–'} | {f['err']:.4f} | {f['cost']:.3g} | "
+                f"{f2(r['cost_ratio'][k]) if k in r['cost_ratio'] else '–'} | {pct(f['rel_l2_mean_vs_reference'])} | "
+                f"{f2(b['mse_ratio'])} / {b['mean_difference_z']:+.1f} | {pct(bg) if bg is not None else '–'} |")
+        extra = []
+        if "time_per_sample_prt_over_llvm" in r:
+            extra.append(f"time per sample prt / {r['time_per_sample_llvm_sampler']}: "
+                         f"{f2(r['time_per_sample_prt_over_llvm'])}")
+        extra.append(f"cost prt / best peer ({peer_label(r['best_peer'])}): {f2(r['cost_ratio_best_peer'])}")
+        if "native_reference_rel_l2" in r:
+            extra.append(f"Mitsuba's native-placement reference is {pct(r['native_reference_rel_l2']['surface'])} "
+                         "(surface relL2) off the canonical one")
+        lines += ["", "; ".join(extra) + "."]
     lines += [
-        "",
-        "Bias against the reference (surface pixels): mse_ratio ≈ 1 and |z| ≲ 3 mean noise only; "
-        "'px>5σ' counts surface pixels whose difference (channel sum) exceeds 5 standard errors.",
-        "",
-        "| scene | prt mse_ratio | prt z | prt mean diff | prt px>5σ | scalar mse_ratio / z | llvm mse_ratio / z "
-        "| prt vs scalar pair: mse_ratio / z | Mitsuba native-placement ref: relL2 surf, mse_ratio, z |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "", "Notes:",
+        "- bias: the mean of the two seeds against the reference, mse_ratio = MSE / expected MSE from both "
+        "images' noise (≈ 1 and |z| ≲ 3 when they differ by noise only; the two-seed variance per pixel).",
+        "- background relL2 vs prt: pixels that show the map directly; a misaligned environment shows as "
+        "tens of %. Mitsuba's envmap is bilinear (its map is upsampled by nearest neighbour to keep the blend "
+        "near texel edges), Cycles' lookup is `Closest` like prt's.",
+        "- first render: Mitsuba's warm-up (JIT tracing + compilation of that sampler's kernels, or Dr.Jit's "
+        "on-disk cache); Cycles' 1-spp warm-up (scene sync, BVH build).",
     ]
-    for name, r in report["scenes"].items():
-        b = r["bias"]
-        p = b["prt_vs_reference"]["surface"]
-        mz = lambda k: (f"{f2(b[k]['surface']['mse_ratio'])} / {b[k]['surface']['mean_difference_z']:+.1f}"
-                        if k in b else "–")
-        nat = "–"
-        if "native_reference_vs_reference" in b:
-            n = b["native_reference_vs_reference"]["surface"]
-            nat = (f"{pct(r['native_reference_rel_l2']['surface'])}, "
-                   f"{f2(n['mse_ratio'])}, {n['mean_difference_z']:+.1f}")
-        lines.append(f"| {name} | {f2(p['mse_ratio'])} | {p['mean_difference_z']:+.1f} | "
-                     f"{100 * p['relative_mean_difference']:+.3f}% | {r['outliers_prt_vs_reference']['surface_pixels_over']} "
-                     f"| {mz('scalar_rgb_vs_reference')} | {mz('llvm_ad_rgb_vs_reference')} | {mz('prt_vs_scalar_pair')} "
-                     f"| {nat} |")
+    changed = next((r["methods"]["cycles"].get("changed_defaults") for r in scenes.values()
+                    if "cycles" in r["methods"]), None)
+    if changed is not None:
+        ver = next(r["methods"]["cycles"]["version"] for r in scenes.values() if "cycles" in r["methods"])
+        lines += [f"- Cycles ({ver}, CPU): defaults switched off or changed, read back from Blender: "
+                  + "; ".join(changed) + ". Also: bounces = prt's (max/diffuse/glossy/transmission); "
+                  "box filter of width 1 px = the pixel's square (Cycles samples [−w/2, w/2]² around the "
+                  "pixel centre; its minimum width 0.01 would point-sample pixel centres); the map with "
+                  "`Closest` interpolation, rolled by W/4 for Blender's +Z-up axes."]
     return "\n".join(lines)
 
 

@@ -1,0 +1,150 @@
+#!/usr/bin/env python3
+"""Self-test of the pure functions of tools/mitsuba_compare.py --suite and tools/cycles_render.py
+(numpy only: neither Mitsuba nor bpy is imported). Not part of CI (the tool is not run there).
+
+Run: python3 tools/test_peer_compare.py   (or tools/.venv/bin/python tools/test_peer_compare.py)
+"""
+
+import math
+import os
+import sys
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cycles_render as cr  # noqa: E402
+import mitsuba_compare as mc  # noqa: E402
+
+
+def synthetic(seed, shape=(100, 100, 3)):
+    """A positive 'true image' t and a per-pixel noise level σ (known variance σ² per render)."""
+    rng = np.random.default_rng(seed)
+    t = 0.2 + rng.random(shape)
+    sigma = 0.02 + 0.08 * rng.random(shape)
+    return rng, t, sigma
+
+
+def tolerance_of_error(sigma, k=5.0):
+    """k standard deviations of the two-seed estimate, relative. For Gaussian noise each
+    (x1 − x2)²/2 is σ² χ²₁ (mean σ², variance 2σ⁴), so the relative standard deviation of
+    mean((x1 − x2)²/2) is sqrt(2 Σσ⁴)/Σσ², and that of its square root half of it."""
+    s2 = sigma.ravel() ** 2
+    return k * 0.5 * math.sqrt(2.0 * np.sum(s2 * s2)) / np.sum(s2)
+
+
+class TwoSeedError(unittest.TestCase):
+    def test_matches_known_variance(self):
+        rng, t, sigma = synthetic(1)
+        x1 = t + sigma * rng.standard_normal(t.shape)
+        x2 = t + sigma * rng.standard_normal(t.shape)
+        mask = np.ones(t.shape, dtype=bool)
+        want = math.sqrt(np.mean(sigma ** 2) / np.mean(t ** 2))
+        got = mc.two_seed_error(x1, x2, t, mask)
+        self.assertLess(abs(got / want - 1.0), tolerance_of_error(sigma), (got, want))
+
+    def test_below_the_reference_noise(self):
+        """A reference 3× noisier than the method: the distance to the reference measures the
+        reference (≈ sqrt(1 + 9) = 3.2× the true error), the two-seed estimate does not. The
+        reference's noise only enters through its norm, so the expected value uses that norm."""
+        rng, t, sigma = synthetic(2)
+        ref = t + 3.0 * sigma * rng.standard_normal(t.shape)
+        x1 = t + sigma * rng.standard_normal(t.shape)
+        x2 = t + sigma * rng.standard_normal(t.shape)
+        mask = np.ones(t.shape, dtype=bool)
+        want = math.sqrt(np.mean(sigma ** 2) / np.mean(ref ** 2))
+        got = mc.two_seed_error(x1, x2, ref, mask)
+        self.assertLess(abs(got / want - 1.0), tolerance_of_error(sigma))
+        naive = mc.rel_l2(x1, ref, mask)
+        self.assertGreater(naive / want, 2.5)  # sqrt(10) = 3.16 expected; 2.5 is far outside noise
+
+    def test_mask_and_bias(self):
+        """Only masked pixels count; a bias common to both seeds does not change the estimate
+        (the bias check is bias_stats' job, and it sees this one)."""
+        rng, t, sigma = synthetic(3)
+        mask = np.zeros(t.shape, dtype=bool)
+        mask[:50] = True
+        n1, n2 = (sigma * rng.standard_normal(t.shape) for _ in range(2))
+        x1, x2 = t + n1, t + n2
+        x1[~mask] = 1e6  # outside the mask: must not matter
+        a = mc.two_seed_error(x1, x2, t, mask)
+        b = mc.two_seed_error(x1 + 0.05, x2 + 0.05, t, mask)
+        self.assertAlmostEqual(a, b, places=12)
+        var_mean = (x1 - x2) ** 2 / 4.0
+        zero = np.zeros_like(t)
+        unbiased = mc.bias_stats(0.5 * (x1 + x2), var_mean, t, zero, mask)
+        biased = mc.bias_stats(0.5 * (x1 + x2) + 0.05, var_mean, t, zero, mask)
+        # mse_ratio of an unbiased image: 1 within a few times sqrt(2/N) (N = 15000 here);
+        # z of its mean difference is standard normal.
+        self.assertLess(abs(unbiased["mse_ratio"] - 1.0), 0.1)
+        self.assertLess(abs(unbiased["mean_difference_z"]), 5.0)
+        self.assertGreater(biased["mean_difference_z"], 50.0)
+
+
+class Costs(unittest.TestCase):
+    def test_cost_and_ratios(self):
+        self.assertAlmostEqual(mc.cost_at_equal_error(4.0, 0.01), 4e-4)
+        costs = {"prt": 2.0, "a": 4.0, "b": 1.0, "c": 8.0}
+        ratios, best, r = mc.cost_ratios(costs)
+        self.assertEqual(ratios, {"a": 0.5, "b": 2.0, "c": 0.25})
+        self.assertEqual((best, r), ("b", 2.0))
+
+    def test_equal_error_meaning(self):
+        """err² ∝ 1/time for a Monte Carlo method: halving the error takes 4× the time, and the
+        cost does not change."""
+        self.assertAlmostEqual(mc.cost_at_equal_error(1.0, 0.02), mc.cost_at_equal_error(4.0, 0.01))
+
+    def test_parse_peers(self):
+        self.assertEqual(mc.parse_peers("llvm_multijitter,cycles"), ["llvm_multijitter", "cycles"])
+        for bad in ("llvm_stratified", "cuda_independent", "blender"):
+            with self.assertRaises(ValueError):
+                mc.parse_peers(bad)
+
+    def test_parse_prt_seconds(self):
+        err = ("warning: x\nrendered 64×48 at 64 spp, bounces 1, seed 0 in 0.27 s (1117916 samples/s), "
+               "noise 3.4 % → out.exr\n")
+        self.assertEqual(mc.parse_prt_render_seconds(err), 0.27)
+        with self.assertRaises(ValueError):
+            mc.parse_prt_render_seconds("nothing here")
+
+
+class CyclesEnvironment(unittest.TestCase):
+    def test_rolled_map_reads_the_same_texel(self):
+        """For directions all over the sphere, Cycles' equirectangular lookup of the Blender
+        direction in the rolled map returns the texel that CONVENTIONS.md's lat-long lookup of
+        our direction returns in the original map."""
+        rng = np.random.default_rng(4)
+        h, w = 32, 64
+        env = rng.random((h, w))
+        rolled = np.roll(env, cr.cycles_env_columns_shift(w), axis=1)
+        d = rng.standard_normal((20000, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        u = np.mod(np.arctan2(d[:, 0], -d[:, 2]) / (2 * math.pi), 1.0)
+        v = np.arccos(d[:, 1]) / math.pi
+        ours = env[np.minimum((v * h).astype(int), h - 1), np.minimum((u * w).astype(int), w - 1)]
+        uc, vc = cr.cycles_equirect_uv(d @ cr.TO_BLENDER.T)
+        col = np.mod(np.floor(uc * w).astype(int), w)
+        row_from_bottom = np.minimum(np.floor(vc * h).astype(int), h - 1)
+        theirs = rolled[h - 1 - row_from_bottom, col]  # Blender's v = 0 is the file's last row
+        # Directions within float rounding of a texel edge may land on either side: allow 0.1 %.
+        self.assertLess(np.mean(ours != theirs), 1e-3)
+
+    def test_axes(self):
+        """+Y up becomes +Z up, −Z (our u = 0 direction) becomes +Y; the map is right-handed."""
+        m = cr.TO_BLENDER
+        np.testing.assert_array_equal(m @ [0, 1, 0], [0, 0, 1])
+        np.testing.assert_array_equal(m @ [0, 0, -1], [0, 1, 0])
+        self.assertAlmostEqual(np.linalg.det(m), 1.0)
+        with self.assertRaises(ValueError):
+            cr.cycles_env_columns_shift(62)
+
+    def test_camera_matrix(self):
+        m = cr.look_at_matrix([0, -3, 1], [0, 0, 1], [0, 0, 1])
+        np.testing.assert_allclose(m[:3, 3], [0, -3, 1])
+        np.testing.assert_allclose(m[:3, 2], [0, -1, 0], atol=1e-12)  # local +Z points backwards
+        np.testing.assert_allclose(m[:3, 1], [0, 0, 1], atol=1e-12)   # local +Y is up
+        np.testing.assert_allclose(m[:3, :3].T @ m[:3, :3], np.eye(3), atol=1e-12)
+
+
+if __name__ == "__main__":
+    unittest.main()
