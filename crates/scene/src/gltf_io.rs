@@ -15,66 +15,77 @@
 //!   VEC3 or VEC4) are read.
 //! - `KHR_texture_transform` on a texture reference is honoured (offset, rotation, scale and
 //!   its `texCoord` override; [`crate::UvTransform`]).
-//! - Errors: a required extension other than `KHR_texture_transform` (honoured) and
-//!   `KHR_materials_emissive_strength` (emission is warned about, not modelled),
-//!   sparse accessors, accessors that run past their buffer, out-of-range indices and
-//!   non-finite positions.
-//! - Materials: see [`map_material`]. What a material has that nothing here models — a normal,
-//!   occlusion or emissive input, an alpha mode other than OPAQUE — is a warning naming the
-//!   file, the material and the feature.
+//! - Errors: a required extension other than `KHR_texture_transform` and
+//!   `KHR_materials_emissive_strength` (both honoured), sparse accessors, accessors that run
+//!   past their buffer, out-of-range indices and non-finite positions.
+//! - Materials: see [`map_material`] and the material inputs of [`crate::SurfaceInputs`]:
+//!   `normalTexture` (with its `scale`, UV set and `KHR_texture_transform`) and the tangents
+//!   it needs (`TANGENT`, transformed to world space, or MikkTSpace tangents generated on the
+//!   world-space mesh when the primitive has none), `emissiveFactor`, `emissiveTexture`
+//!   (sRGB) and `KHR_materials_emissive_strength`, `alphaMode MASK` with `alphaCutoff`
+//!   (alpha = `baseColorFactor` A × `baseColorTexture` A; `COLOR_0`'s alpha is not read).
+//!   What a material has that nothing here models — the occlusion map (the path tracer and
+//!   the bakes compute occlusion), `alphaMode BLEND` (treated as opaque) — and any extension
+//!   the file uses that is not one of the two above, is a warning naming the file, the
+//!   material (or the extension) and the feature.
 
 use crate::mesh::{finish_mesh, RawMesh, Repairs};
 use crate::obj::file_name;
-use crate::{LoadedMeshes, Material, Mesh, SceneError, Texture, TextureRef, UvTransform, Wrap};
+use crate::surface::mikktspace_tangents;
+use crate::{
+    AlphaMode, LoadedMeshes, Material, Mesh, NormalMap, SceneError, SurfaceInputs, Texture,
+    TextureRef, UvTransform, Wrap,
+};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
-use glam::{DMat4, Mat4, Vec3};
+use glam::{DMat3, DMat4, Mat4, Vec3};
 use std::path::Path;
 
-/// What of a glTF material the renderer, the bakes and the relighting do not model, each as a
-/// sentence for a warning: the normal, occlusion and emissive inputs and the alpha modes.
+/// What of a glTF material nothing here models, each as a sentence for a warning: the
+/// occlusion map and `alphaMode BLEND`.
 fn unmodelled_features(m: &::gltf::Material) -> Vec<String> {
     let mut out = Vec::new();
-    if m.normal_texture().is_some() {
-        out.push(
-            "normalTexture (normal map) is not modelled: shading uses the mesh's interpolated normals"
-                .to_owned(),
-        );
-    }
     if m.occlusion_texture().is_some() {
         out.push(
-            "occlusionTexture is not used: the path tracer and the bakes compute occlusion themselves"
+            "occlusionTexture is ignored: the path tracer and the bakes compute occlusion themselves"
                 .to_owned(),
         );
     }
-    let emissive = m.emissive_factor();
-    if m.emissive_texture().is_some() || emissive.iter().any(|&e| e != 0.0) {
-        out.push(format!(
-            "emission (emissiveFactor {emissive:?}{}) is not modelled: the surface emits no light",
-            if m.emissive_texture().is_some() {
-                ", emissiveTexture"
-            } else {
-                ""
-            }
-        ));
-    }
-    match m.alpha_mode() {
-        ::gltf::material::AlphaMode::Opaque => {}
-        ::gltf::material::AlphaMode::Mask => out.push(format!(
-            "alphaMode MASK (cutoff {}) is not modelled: the surface is opaque everywhere",
-            m.alpha_cutoff().unwrap_or(0.5)
-        )),
-        ::gltf::material::AlphaMode::Blend => out.push(
-            "alphaMode BLEND is not modelled: the surface is opaque (alpha ignored)".to_owned(),
-        ),
+    if m.alpha_mode() == ::gltf::material::AlphaMode::Blend {
+        out.push(
+            "alphaMode BLEND is treated as OPAQUE: the surface is opaque everywhere (alpha ignored)"
+                .to_owned(),
+        );
     }
     out
 }
 
-/// Required extensions the loader accepts: the texture transform is honoured, the emissive
-/// strength only scales emission, which is warned about and not modelled.
-const IGNORABLE_REQUIRED_EXTENSIONS: [&str; 2] =
+/// Extensions the loader reads (a required one outside this list is an error; a used one, a
+/// warning): the texture transform and the emissive strength are honoured.
+const SUPPORTED_EXTENSIONS: [&str; 2] =
     ["KHR_texture_transform", "KHR_materials_emissive_strength"];
+
+/// A `KHR_texture_transform` given as JSON (the `gltf` crate does not parse it on a
+/// `normalTexture`): `(transform, texCoord override)`.
+fn parse_texture_transform(v: &::gltf::json::Value) -> (UvTransform, Option<u32>) {
+    let pair = |key: &str, default: [f32; 2]| -> [f32; 2] {
+        v.get(key)
+            .and_then(|a| a.as_array())
+            .filter(|a| a.len() == 2)
+            .and_then(|a| Some([a[0].as_f64()? as f32, a[1].as_f64()? as f32]))
+            .unwrap_or(default)
+    };
+    let t = UvTransform {
+        offset: pair("offset", [0.0; 2]),
+        rotation: v.get("rotation").and_then(|r| r.as_f64()).unwrap_or(0.0) as f32,
+        scale: pair("scale", [1.0; 2]),
+    };
+    let set = v
+        .get("texCoord")
+        .and_then(|t| t.as_u64())
+        .and_then(|t| u32::try_from(t).ok());
+    (t, set)
+}
 
 /// Maps a glTF metallic-roughness material's factors to our older BRDFs (before `pbr`
 /// existed; kept for scenes that want a Cook–Torrance stand-in). With `c` = baseColorFactor
@@ -135,7 +146,7 @@ pub fn load_gltf(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErr
         .map_err(|e| SceneError::mesh(path, format!("not a readable glTF 2.0 file: {e}")))?;
     let unsupported: Vec<&str> = unchecked
         .extensions_required()
-        .filter(|e| !IGNORABLE_REQUIRED_EXTENSIONS.contains(e))
+        .filter(|e| !SUPPORTED_EXTENSIONS.contains(e))
         .collect();
     if !unsupported.is_empty() {
         return Err(SceneError::mesh(
@@ -184,8 +195,18 @@ pub fn load_gltf(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErr
         buffers: &buffers,
         meshes: Vec::new(),
         materials: Vec::new(),
+        inputs: Vec::new(),
         repairs: Repairs::default(),
-        warnings: Vec::new(),
+        warnings: gltf
+            .extensions_used()
+            .filter(|e| !SUPPORTED_EXTENSIONS.contains(e))
+            .map(|e| {
+                format!(
+                    "{}: extension {e} is used by the file but not modelled (ignored)",
+                    path.display()
+                )
+            })
+            .collect(),
         textures: Vec::new(),
         texture_keys: Vec::new(),
     };
@@ -213,10 +234,13 @@ pub fn load_gltf(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErr
     }
     let mut warnings = out.warnings;
     warnings.extend(out.repairs.warnings(path));
-    let mut order: Vec<(usize, Mesh)> = out.meshes;
-    order.sort_by_key(|(k, _)| *k);
+    let mut order: Vec<(usize, Mesh, Vec<[f32; 4]>)> = out.meshes;
+    order.sort_by_key(|(k, _, _)| *k);
+    let (meshes, tangents) = order.into_iter().map(|(_, m, t)| (m, t)).unzip();
     Ok(LoadedMeshes {
-        meshes: order.into_iter().map(|(_, m)| m).collect(),
+        meshes,
+        tangents,
+        surface_inputs: out.inputs,
         material_indices: out.materials.iter().map(|(i, _, _)| *i).collect(),
         materials: out.materials.into_iter().map(|(_, n, m)| (n, m)).collect(),
         textures: out.textures,
@@ -229,10 +253,13 @@ struct Loader<'a> {
     path: &'a Path,
     file: String,
     buffers: &'a [::gltf::buffer::Data],
-    /// (node index × 65536 + primitive, mesh): sorted at the end so the order is the file's.
-    meshes: Vec<(usize, Mesh)>,
+    /// (node index × 65536 + primitive, mesh, its tangents or nothing): sorted at the end so
+    /// the order is the file's.
+    meshes: Vec<(usize, Mesh, Vec<[f32; 4]>)>,
     /// (glTF material index or None, name, material).
     materials: Vec<(Option<usize>, String, Material)>,
+    /// Parallel to `materials`: normal map, emission, alpha mode.
+    inputs: Vec<SurfaceInputs>,
     repairs: Repairs,
     warnings: Vec<String>,
     /// Decoded textures, and for each its (glTF texture index, decoded from sRGB).
@@ -305,18 +332,21 @@ impl Loader<'_> {
         let material = self.material(prim.material())?;
         // The UV sets the material reads, and the vertex colours.
         let mut sets = 0;
+        let inputs = self.inputs[material];
+        let mut used = vec![
+            inputs.normal_map.map(|n| n.texture),
+            inputs.emissive_texture,
+        ];
         if let Material::Pbr {
             base_color_texture,
             metallic_roughness_texture,
             ..
         } = self.materials[material].2
         {
-            for t in [base_color_texture, metallic_roughness_texture]
-                .into_iter()
-                .flatten()
-            {
-                sets = sets.max(t.texcoord + 1);
-            }
+            used.extend([base_color_texture, metallic_roughness_texture]);
+        }
+        for t in used.into_iter().flatten() {
+            sets = sets.max(t.texcoord + 1);
         }
         let mut texcoords = Vec::with_capacity(sets);
         for set in 0..sets {
@@ -379,9 +409,81 @@ impl Loader<'_> {
         };
         let (mesh, repairs) = finish_mesh(self.path, raw, world, material)?;
         self.repairs.add(repairs);
+        let tangents = match inputs.normal_map {
+            Some(map) => self.tangents(prim, &mesh, map, world, &mesh.name)?,
+            None => Vec::new(),
+        };
         self.meshes
-            .push((node.index() * 65536 + prim.index(), mesh));
+            .push((node.index() * 65536 + prim.index(), mesh, tangents));
         Ok(())
+    }
+
+    /// World-space tangents of a normal-mapped primitive: its `TANGENT` (xyz by the linear
+    /// part of `world`, renormalised; `w` negated by a mirroring transform, which keeps the
+    /// bitangent `w · n × t` the image of the file's) when it has a usable one, else
+    /// MikkTSpace's on the world-space mesh with the normal texture's UVs (exact for the
+    /// rotations and uniform scales of ordinary node transforms; a non-uniform scale changes
+    /// the Gram–Schmidt step slightly, as it would for any tool that generates after the
+    /// transform). A `TANGENT` that cannot be used is a warning, and tangents are generated.
+    fn tangents(
+        &mut self,
+        prim: &::gltf::Primitive,
+        mesh: &Mesh,
+        map: NormalMap,
+        world: &DMat4,
+        name: &str,
+    ) -> Result<Vec<[f32; 4]>, SceneError> {
+        if let Some(acc) = prim.get(&Semantic::Tangents) {
+            let problem = match self.read_floats::<4>(&acc, name, "TANGENT") {
+                Ok(t) if t.len() != mesh.positions.len() => format!(
+                    "TANGENT has {} values for {} positions",
+                    t.len(),
+                    mesh.positions.len()
+                ),
+                Ok(t) if t.iter().flatten().any(|x| !x.is_finite()) => {
+                    "TANGENT has non-finite values".to_owned()
+                }
+                Ok(t) => {
+                    let linear = DMat3::from_mat4(*world);
+                    let flip = if linear.determinant() < 0.0 {
+                        -1.0
+                    } else {
+                        1.0
+                    };
+                    return Ok(t
+                        .into_iter()
+                        .map(|[x, y, z, w]| {
+                            let v = (linear * glam::DVec3::new(x.into(), y.into(), z.into()))
+                                .normalize_or_zero()
+                                .as_vec3();
+                            let w = if w < 0.0 { -flip } else { flip };
+                            [v.x, v.y, v.z, w as f32]
+                        })
+                        .collect());
+                }
+                Err(e) => e.to_string(),
+            };
+            self.warnings.push(format!(
+                "{}: {name}: {problem}; MikkTSpace tangents generated instead",
+                self.path.display()
+            ));
+        }
+        let t = map.texture;
+        let uv: Vec<[f32; 2]> = mesh
+            .texcoords
+            .get(t.texcoord)
+            .map(|set| {
+                set.iter()
+                    .map(|&uv| t.transform.map_or(uv, |tr| tr.apply(uv)))
+                    .collect()
+            })
+            .unwrap_or_default();
+        mikktspace_tangents(mesh, &uv).ok_or_else(|| {
+            SceneError::mesh(
+                self.path,
+                format!("{name}: MikkTSpace could not generate tangents for the normal map"),
+            )
+        })
     }
 
     /// Index of `m` in `self.materials`, adding it (and decoding its textures) on first use.
@@ -442,6 +544,7 @@ impl Loader<'_> {
             base_color_texture,
             metallic_roughness_texture,
         };
+        let inputs = self.surface_inputs(&m, base_color_texture, &label)?;
         for feature in unmodelled_features(&m) {
             self.warnings.push(format!(
                 "{}: material `{label}`: {feature}",
@@ -449,7 +552,93 @@ impl Loader<'_> {
             ));
         }
         self.materials.push((m.index(), name, mat));
+        self.inputs.push(inputs);
         Ok(self.materials.len() - 1)
+    }
+
+    /// A material's normal map, emission and alpha mode (see [`SurfaceInputs`]); factors
+    /// that are not finite or negative are warned about and replaced (glTF's defaults).
+    fn surface_inputs(
+        &mut self,
+        m: &::gltf::Material,
+        base_color_texture: Option<TextureRef>,
+        label: &str,
+    ) -> Result<SurfaceInputs, SceneError> {
+        let mut fixed = Vec::new();
+        let normal_map = match m.normal_texture() {
+            None => None,
+            Some(n) => {
+                let (transform, set) = n
+                    .extension_value("KHR_texture_transform")
+                    .map(parse_texture_transform)
+                    .map_or((None, None), |(t, s)| (Some(t), s));
+                let mut texture =
+                    self.texture(&n.texture(), set.unwrap_or(n.tex_coord()), false, label)?;
+                texture.transform = transform;
+                let mut scale = n.scale();
+                if !scale.is_finite() {
+                    fixed.push(format!("normalTexture.scale {scale} (1 used)"));
+                    scale = 1.0;
+                }
+                Some(NormalMap { texture, scale })
+            }
+        };
+        let mut strength = m.emissive_strength().unwrap_or(1.0);
+        if !(strength.is_finite() && strength >= 0.0) {
+            fixed.push(format!("emissiveStrength {strength} (1 used)"));
+            strength = 1.0;
+        }
+        let emissive = m.emissive_factor().map(|e| {
+            if (0.0..=1.0).contains(&e) {
+                e * strength
+            } else {
+                fixed.push(format!("emissiveFactor {e} outside [0, 1] (clamped)"));
+                if e.is_finite() {
+                    e.clamp(0.0, 1.0) * strength
+                } else {
+                    0.0
+                }
+            }
+        });
+        let emissive_texture = match m.emissive_texture() {
+            Some(info) if emissive.iter().any(|&e| e > 0.0) => {
+                Some(self.texture_of(&info, true, label)?)
+            }
+            _ => None,
+        };
+        let alpha = match m.alpha_mode() {
+            ::gltf::material::AlphaMode::Mask => {
+                let mut cutoff = m.alpha_cutoff().unwrap_or(0.5);
+                if !(cutoff.is_finite() && cutoff >= 0.0) {
+                    fixed.push(format!("alphaCutoff {cutoff} (0.5 used)"));
+                    cutoff = 0.5;
+                }
+                let factor = m.pbr_metallic_roughness().base_color_factor()[3];
+                AlphaMode::Mask {
+                    cutoff,
+                    factor: if factor.is_finite() {
+                        factor.clamp(0.0, 1.0)
+                    } else {
+                        1.0
+                    },
+                    texture: base_color_texture,
+                }
+            }
+            _ => AlphaMode::Opaque,
+        };
+        if !fixed.is_empty() {
+            self.warnings.push(format!(
+                "{}: material `{label}`: {}",
+                self.path.display(),
+                fixed.join(", ")
+            ));
+        }
+        Ok(SurfaceInputs {
+            normal_map,
+            emissive,
+            emissive_texture,
+            alpha,
+        })
     }
 
     /// The texture a `textureInfo` refers to, with its `KHR_texture_transform` (whose

@@ -61,6 +61,15 @@
 //! image, or reads a UV set the primitive lacks is an error naming the file and the material.
 //! The older factor-only mapping to our own BRDFs is still available as [`map_material`].
 //!
+//! Besides its BRDF a glTF material brings [`SurfaceInputs`] (in [`Scene::surface_inputs`],
+//! parallel to the materials): `normalTexture` with the mesh's tangents
+//! ([`Scene::tangents`]: `TANGENT`, or MikkTSpace's when absent), emission
+//! (`emissiveFactor`, `emissiveTexture`, `KHR_materials_emissive_strength`) and
+//! `alphaMode MASK`, resolved at a surface point by [`Scene::shading_normal`] /
+//! [`Scene::normal_mapped`], [`Scene::emission_at`] and [`Scene::alpha_covers`] /
+//! [`Scene::alpha_mask`]. `occlusionTexture` and `alphaMode BLEND` (treated as opaque) are
+//! warned about.
+//!
 //! # Meshes
 //! Positions must be finite and indices in range; degenerate triangles (a repeated index or
 //! exactly zero area) are dropped and counted in a warning; a mesh with no triangle left is an
@@ -88,6 +97,7 @@ mod load;
 mod mesh;
 mod obj;
 mod scene_file;
+mod surface;
 pub mod test_util;
 mod texture;
 mod types;
@@ -100,5 +110,6 @@ pub use load::load_mesh;
 pub use mesh::{angle_weighted_normals, normal_matrix, object_transform};
 pub use obj::load_obj;
 pub use scene_file::{load_scene, parse_scene_str};
+pub use surface::AlphaMask;
 pub use texture::SurfacePoint;
 pub use types::*;

@@ -93,8 +93,8 @@ pub fn load_obj(path: &Path, to_world: &DMat4) -> Result<LoadedMeshes, SceneErro
         meshes: vec![mesh],
         materials: Vec::new(),
         material_indices: Vec::new(),
-        textures: Vec::new(),
         warnings: repairs.warnings(path),
+        ..LoadedMeshes::default()
     })
 }
 

@@ -238,12 +238,13 @@ pub fn parse_scene_str(text: &str, path: &Path) -> Result<LoadedScene, SceneErro
             None => None,
         };
         let to_world = object_transform(translate, rotate, scale);
-        let loaded = load_mesh(&mesh_path, &to_world).map_err(|err| SceneError::Referenced {
-            path: path.into(),
-            key: key("mesh"),
-            source: Box::new(err),
-        })?;
-        warnings.extend(loaded.warnings);
+        let mut loaded =
+            load_mesh(&mesh_path, &to_world).map_err(|err| SceneError::Referenced {
+                path: path.into(),
+                key: key("mesh"),
+                source: Box::new(err),
+            })?;
+        warnings.append(&mut loaded.warnings);
         if material.is_none() && loaded.materials.is_empty() {
             return Err(invalid(
                 &key("material"),
@@ -251,69 +252,101 @@ pub fn parse_scene_str(text: &str, path: &Path) -> Result<LoadedScene, SceneErro
             ));
         }
         // Map the file's own materials to scene indices, reusing identical ones.
-        let mut file_to_scene = Vec::with_capacity(loaded.materials.len());
-        if material.is_none() {
-            // The file's textures join the scene's (an identical one, e.g. from a second
-            // instance of the file, is shared); its materials' references move with them.
-            let texture_to_scene: Vec<usize> = loaded
-                .textures
-                .into_iter()
-                .map(|t| {
-                    let same = |s: &crate::Texture| {
-                        s.name == t.name
-                            && (s.width, s.height, s.wrap) == (t.width, t.height, t.wrap)
-                            && s.texels == t.texels
-                    };
-                    scene.textures.iter().position(same).unwrap_or_else(|| {
-                        scene.textures.push(t);
-                        scene.textures.len() - 1
-                    })
-                })
-                .collect();
-            let indices = loaded.material_indices;
-            for (k, (name, mut m)) in loaded.materials.into_iter().enumerate() {
-                if let Material::Pbr {
-                    base_color_texture,
-                    metallic_roughness_texture,
-                    ..
-                } = &mut m
-                {
-                    for t in [base_color_texture, metallic_roughness_texture]
-                        .into_iter()
-                        .flatten()
-                    {
-                        t.index = texture_to_scene[t.index];
-                    }
-                }
-                let found = scene
-                    .material_names
-                    .iter()
-                    .zip(&scene.materials)
-                    .position(|(n, s)| *n == name && *s == m);
-                file_to_scene.push(found.unwrap_or_else(|| {
-                    let index = scene.add_material(&name, m);
-                    scene.material_sources[index] =
-                        indices
-                            .get(k)
-                            .copied()
-                            .flatten()
-                            .map(|material| crate::MaterialSource {
-                                asset: o.mesh.display().to_string(),
-                                material,
-                            });
-                    index
-                }));
-            }
-        }
-        for mesh in loaded.meshes {
+        let file_to_scene = if material.is_none() {
+            adopt_materials(&mut scene, &mut loaded, &o.mesh.display().to_string())
+        } else {
+            Vec::new()
+        };
+        let mut tangents = loaded.tangents;
+        tangents.resize(loaded.meshes.len(), Vec::new());
+        for (mesh, t) in loaded.meshes.into_iter().zip(tangents) {
             let index = material.unwrap_or_else(|| file_to_scene[mesh.material]);
-            scene.add_mesh(mesh, index);
+            let o = scene.add_mesh(mesh, index);
+            // Tangents only serve the file's own material's normal map.
+            if material.is_none() && !t.is_empty() {
+                scene.set_tangents(o, t);
+            }
         }
     }
     scene
         .validate()
         .map_err(|e| SceneError::format(path, format!("the loaded scene is invalid: {e}")))?;
     Ok(LoadedScene { scene, warnings })
+}
+
+/// Adds a mesh file's own materials (and the textures they read, and their surface inputs)
+/// to the scene, reusing an identical material already there, and returns the scene index
+/// of each; `asset` is the file as the scene names it (the materials' source).
+fn adopt_materials(scene: &mut Scene, loaded: &mut crate::LoadedMeshes, asset: &str) -> Vec<usize> {
+    let mut file_to_scene = Vec::with_capacity(loaded.materials.len());
+    // The file's textures join the scene's (an identical one, e.g. from a second
+    // instance of the file, is shared); its materials' references move with them.
+    let texture_to_scene: Vec<usize> = std::mem::take(&mut loaded.textures)
+        .into_iter()
+        .map(|t| {
+            let same = |s: &crate::Texture| {
+                s.name == t.name
+                    && (s.width, s.height, s.wrap) == (t.width, t.height, t.wrap)
+                    && s.texels == t.texels
+            };
+            scene.textures.iter().position(same).unwrap_or_else(|| {
+                scene.textures.push(t);
+                scene.textures.len() - 1
+            })
+        })
+        .collect();
+    let indices = std::mem::take(&mut loaded.material_indices);
+    let mut inputs = std::mem::take(&mut loaded.surface_inputs);
+    inputs.resize(loaded.materials.len(), crate::SurfaceInputs::default());
+    for (k, ((name, mut m), mut input)) in std::mem::take(&mut loaded.materials)
+        .into_iter()
+        .zip(inputs)
+        .enumerate()
+    {
+        let mut refs = vec![
+            input.normal_map.as_mut().map(|n| &mut n.texture),
+            input.emissive_texture.as_mut(),
+        ];
+        if let crate::AlphaMode::Mask { texture, .. } = &mut input.alpha {
+            refs.push(texture.as_mut());
+        }
+        for t in refs.into_iter().flatten() {
+            t.index = texture_to_scene[t.index];
+        }
+        if let Material::Pbr {
+            base_color_texture,
+            metallic_roughness_texture,
+            ..
+        } = &mut m
+        {
+            for t in [base_color_texture, metallic_roughness_texture]
+                .into_iter()
+                .flatten()
+            {
+                t.index = texture_to_scene[t.index];
+            }
+        }
+        let found = (0..scene.materials.len()).position(|i| {
+            scene.material_names[i] == name
+                && scene.materials[i] == m
+                && scene.surface_inputs(i) == input
+        });
+        file_to_scene.push(found.unwrap_or_else(|| {
+            let index = scene.add_material(&name, m);
+            scene.set_surface_inputs(index, input);
+            scene.material_sources[index] =
+                indices
+                    .get(k)
+                    .copied()
+                    .flatten()
+                    .map(|material| crate::MaterialSource {
+                        asset: asset.to_owned(),
+                        material,
+                    });
+            index
+        }));
+    }
+    file_to_scene
 }
 
 /// Resolves `rel` against the scene folder and checks that it is a file.

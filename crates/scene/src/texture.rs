@@ -88,7 +88,11 @@ pub enum SurfacePoint {
 }
 
 impl Mesh {
-    fn attribute<const N: usize>(&self, values: &[[f32; N]], at: SurfacePoint) -> Option<[f32; N]> {
+    pub(crate) fn attribute<const N: usize>(
+        &self,
+        values: &[[f32; N]],
+        at: SurfacePoint,
+    ) -> Option<[f32; N]> {
         if values.len() != self.positions.len() {
             return None;
         }

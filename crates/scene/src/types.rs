@@ -176,6 +176,64 @@ pub enum Material {
     },
 }
 
+/// How a material's alpha decides coverage (glTF `alphaMode`).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub enum AlphaMode {
+    /// Opaque everywhere (`OPAQUE`, and our reading of `BLEND`, which is warned about).
+    #[default]
+    Opaque,
+    /// `MASK`: the surface exists where `alpha ≥ cutoff` and is cut out (no hit for any ray)
+    /// elsewhere, with `alpha = factor × A of the base-colour texture`.
+    Mask {
+        /// `alphaCutoff` (glTF default 0.5).
+        cutoff: f32,
+        /// `baseColorFactor`'s alpha.
+        factor: f32,
+        /// The texture whose A channel is the alpha (`baseColorTexture`), if any.
+        texture: Option<TextureRef>,
+    },
+}
+
+/// A tangent-space normal map (glTF `normalTexture`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NormalMap {
+    /// The texture (linear RGB, `n = 2·rgb − 1`).
+    pub texture: TextureRef,
+    /// `normalTexture.scale`: multiplies the X and Y of the tangent-space normal.
+    pub scale: f32,
+}
+
+/// What a glTF material has besides its BRDF, read at a surface point by
+/// [`Scene::shading_normal`], [`Scene::emission_at`] and [`Scene::alpha_covers`]: a normal
+/// map, emission and the alpha mode. The default is none of them (every material of a scene
+/// file, and OBJ).
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct SurfaceInputs {
+    /// `normalTexture`, used with the mesh's tangents ([`Scene::tangents`]).
+    pub normal_map: Option<NormalMap>,
+    /// `emissiveFactor × KHR_materials_emissive_strength` (linear RGB radiance, W/(m² sr)
+    /// in the scene's units).
+    pub emissive: Rgb,
+    /// `emissiveTexture` (sRGB-decoded RGB multiplies `emissive`).
+    pub emissive_texture: Option<TextureRef>,
+    /// `alphaMode` (`BLEND` is stored as `Opaque`, with a warning).
+    pub alpha: AlphaMode,
+}
+
+impl SurfaceInputs {
+    /// Whether the material emits light anywhere (a non-zero emissive factor).
+    #[must_use]
+    pub fn emits(&self) -> bool {
+        self.emissive.iter().any(|&e| e > 0.0)
+    }
+
+    /// Whether any input is present.
+    #[must_use]
+    pub fn is_none(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
 /// The glTF asset a material came from (a bake records it, SPEC §3.9.1, so that an engine can
 /// find the asset's own textures and vertex colours).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -262,6 +320,14 @@ pub struct Scene {
     pub material_sources: Vec<Option<MaterialSource>>,
     /// Meshes in world space, one per `[[objects]]` entry (glTF files may add several).
     pub meshes: Vec<Mesh>,
+    /// The non-BRDF inputs of each material (normal map, emission, alpha), parallel to
+    /// `materials`; a missing entry means none ([`Scene::surface_inputs`]).
+    pub surface_inputs: Vec<SurfaceInputs>,
+    /// Per-vertex world-space tangents `(x, y, z, w)` of each mesh (`w = ±1` the handedness,
+    /// bitangent `w · n × t`, glTF's `TANGENT`), parallel to `meshes`; empty (or missing) for
+    /// meshes whose material has no normal map. Set by the glTF loader from `TANGENT` or
+    /// MikkTSpace; [`Scene::set_tangents`] sets them in code.
+    pub tangents: Vec<Vec<[f32; 4]>>,
     /// `[render]` defaults.
     pub render: RenderSettings,
 }
@@ -277,6 +343,10 @@ pub struct LoadedMeshes {
     /// Parallel to `materials`: each one's index in the glTF file's `materials` (`None` for
     /// glTF's default material, used by primitives that name none).
     pub material_indices: Vec<Option<usize>>,
+    /// Parallel to `materials`: each one's normal map, emission and alpha mode.
+    pub surface_inputs: Vec<SurfaceInputs>,
+    /// Parallel to `meshes`: world-space tangents (empty when the material has no normal map).
+    pub tangents: Vec<Vec<[f32; 4]>>,
     /// Textures of the file's materials (glTF only).
     pub textures: Vec<Texture>,
     /// Things a user should know; each names the file.

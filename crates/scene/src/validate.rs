@@ -230,6 +230,8 @@ impl Scene {
             material_sources: Vec::new(),
             textures: Vec::new(),
             meshes: Vec::new(),
+            surface_inputs: Vec::new(),
+            tangents: Vec::new(),
             render: RenderSettings::default(),
         }
     }
@@ -331,6 +333,21 @@ impl Scene {
             if let Err(m) = check_mesh(mesh, self.materials.len()) {
                 return fail(format!("mesh {i} (`{}`): {m}", mesh.name));
             }
+            let t = self.tangents.get(i).map_or(&[][..], Vec::as_slice);
+            if !t.is_empty() && t.len() != mesh.positions.len() {
+                return fail(format!(
+                    "mesh {i} (`{}`): {} tangents for {} vertices",
+                    mesh.name,
+                    t.len(),
+                    mesh.positions.len()
+                ));
+            }
+            if t.iter().flatten().any(|x| !x.is_finite()) {
+                return fail(format!(
+                    "mesh {i} (`{}`): a tangent is not finite",
+                    mesh.name
+                ));
+            }
             if let Err(m) = self.check_textures_of(mesh) {
                 return fail(format!(
                     "mesh {i} (`{}`), material `{}`: {m}",
@@ -398,16 +415,27 @@ impl Scene {
         {
             return Err(format!("COLOR_0 of vertex {k} is not finite"));
         }
+        let inputs = self.surface_inputs(mesh.material);
+        let mut refs = vec![
+            ("normalTexture", inputs.normal_map.map(|n| n.texture)),
+            ("emissiveTexture", inputs.emissive_texture),
+        ];
         if let Material::Pbr {
             base_color_texture,
             metallic_roughness_texture,
             ..
         } = self.materials[mesh.material]
         {
-            for (what, t) in [
+            refs.extend([
                 ("baseColorTexture", base_color_texture),
                 ("metallicRoughnessTexture", metallic_roughness_texture),
-            ] {
+            ]);
+        }
+        if let crate::AlphaMode::Mask { texture, .. } = inputs.alpha {
+            refs.push(("alpha (baseColorTexture)", texture));
+        }
+        {
+            for (what, t) in refs {
                 let Some(t) = t else { continue };
                 if t.index >= self.textures.len() {
                     return Err(format!(

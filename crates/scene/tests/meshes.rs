@@ -593,38 +593,69 @@ fn test15_gltf_missing_buffer_file_is_named() {
     );
 }
 
-/// Issue 34: a glTF material's inputs that nothing here models — normal, occlusion and
-/// emissive maps and factors, alpha modes — each get a warning naming the file, the material
-/// and the feature; a plain material gets none.
+/// Issue 34: a glTF material's inputs. The normal map, emission (factor, texture,
+/// `KHR_materials_emissive_strength`) and `alphaMode MASK` are read into the material's
+/// [`prt_scene::SurfaceInputs`] without a warning; what nothing models — the occlusion map,
+/// `alphaMode BLEND` (treated as opaque), an extension the loader does not read — gets a
+/// warning naming the file, the material (or extension) and the feature; a plain material
+/// gets none.
 #[test]
-fn test16_gltf_material_features_not_modelled_are_warned() {
-    let textures = r#""textures":[{"source":0}],"images":[{"uri":"unused.png"}],"#;
-    let extra = r#","normalTexture":{"index":0},"occlusionTexture":{"index":0},"emissiveFactor":[1.0,0.5,0.0],"alphaMode":"MASK","alphaCutoff":0.3"#;
-    let loaded = load_glb(&gltf_json_with_material(
+fn test16_gltf_material_inputs_read_or_warned() {
+    // A 2 × 1 RGBA PNG (red, green), embedded.
+    let png = "data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAIAAAABCAYAAAD0In+KAAAADklEQVR4nGP4z8DwHwQBEPgD/U6VwW8AAAAASUVORK5CYII=";
+    let textures = format!(
+        r#""extensionsUsed":["KHR_materials_emissive_strength","KHR_materials_clearcoat"],"textures":[{{"source":0}}],"images":[{{"uri":"{png}"}}],"#
+    );
+    let extra = r#","normalTexture":{"index":0,"scale":0.5},"occlusionTexture":{"index":0},"emissiveFactor":[1.0,0.5,0.0],"emissiveTexture":{"index":0},"extensions":{"KHR_materials_emissive_strength":{"emissiveStrength":4.0}},"alphaMode":"MASK","alphaCutoff":0.3"#;
+    let err = load_glb(&gltf_json_with_material(
         &SQUARE,
         &[0, 1, 2],
         4,
-        textures,
+        &textures,
         "",
         "",
         extra,
     ))
+    .unwrap_err()
+    .to_string();
+    // The square has no UVs: the texture's set is named.
+    assert!(err.contains("TEXCOORD_0"), "{err}");
+    let loaded = load_glb(&gltf_json_with_material(
+        &SQUARE,
+        &[0, 1, 2],
+        4,
+        &textures,
+        "",
+        "",
+        &extra
+            .replace(r#""emissiveTexture":{"index":0},"#, "")
+            .replace(r#""normalTexture":{"index":0,"scale":0.5},"#, ""),
+    ))
     .unwrap();
     let w = loaded.warnings.join("\n");
-    for needle in [
-        "normalTexture",
-        "occlusionTexture",
-        "emissiveFactor [1.0, 0.5, 0.0]",
-        "alphaMode MASK (cutoff 0.3)",
-    ] {
+    for needle in ["occlusionTexture is ignored", "KHR_materials_clearcoat"] {
         assert!(w.contains(needle), "no warning about {needle}:\n{w}");
     }
+    for modelled in ["emissi", "alphaMode", "normalTexture"] {
+        assert!(!w.contains(modelled), "{modelled} is modelled:\n{w}");
+    }
+    assert!(loaded.warnings.iter().all(|l| l.contains("t.glb")), "{w}");
     assert!(
         loaded
             .warnings
             .iter()
-            .all(|l| l.contains("t.glb") && l.contains("`shiny`")),
+            .any(|l| l.contains("`shiny`") && l.contains("occlusionTexture")),
         "{w}"
+    );
+    let inputs = loaded.surface_inputs[0];
+    assert_eq!(inputs.emissive, [4.0, 2.0, 0.0]);
+    assert_eq!(
+        inputs.alpha,
+        prt_scene::AlphaMode::Mask {
+            cutoff: 0.3,
+            factor: 1.0,
+            texture: None
+        }
     );
     let blend = load_glb(&gltf_json_with_material(
         &SQUARE,
@@ -636,7 +667,10 @@ fn test16_gltf_material_features_not_modelled_are_warned() {
         r#","alphaMode":"BLEND""#,
     ))
     .unwrap();
-    assert!(blend.warnings.iter().any(|l| l.contains("alphaMode BLEND")));
+    assert!(blend
+        .warnings
+        .iter()
+        .any(|l| l.contains("alphaMode BLEND is treated as OPAQUE")));
     let plain = load_glb(&gltf_json(&SQUARE, &[0, 1, 2], 4, "", "", "")).unwrap();
     assert!(plain.warnings.is_empty(), "{:?}", plain.warnings);
 }

@@ -55,7 +55,7 @@ use obvhs::{
     triangle::Triangle,
     Boundable, BvhBuildParams,
 };
-use prt_scene::{Mesh, Scene};
+use prt_scene::{AlphaMask, Mesh, Scene, SurfacePoint};
 use std::time::Duration;
 
 /// Relative bound for moving a secondary ray's origin off its surface: `2^-18 ≈ 3.8e-6` of the
@@ -209,6 +209,8 @@ struct Group {
     hi: DVec3,
     /// The padding in world units.
     pad_world: f64,
+    /// Whether a mesh of the group has an alpha mask (only such groups test coverage).
+    masked: bool,
 }
 
 /// The ray of one query in f64 (exact copies of the caller's f32 values).
@@ -252,6 +254,13 @@ impl WorldRay {
     /// with `0 ≤ t ≤ tmax`.
     #[inline]
     fn intersect(&self, tri: &[Vec3; 3], tmax: f64) -> Option<f64> {
+        self.intersect_uv(tri, tmax).map(|(t, _, _)| t)
+    }
+
+    /// [`WorldRay::intersect`] with the barycentric weights `(u, v)` of the second and third
+    /// vertex at the hit.
+    #[inline]
+    fn intersect_uv(&self, tri: &[Vec3; 3], tmax: f64) -> Option<(f64, f64, f64)> {
         let [a, b, c] = tri.map(Vec3::as_dvec3);
         let (e1, e2) = (b - a, c - a);
         let p = self.dir.cross(e2);
@@ -271,7 +280,7 @@ impl WorldRay {
             return None;
         }
         let t = e2.dot(q) * inv;
-        (t >= 0.0 && t <= tmax).then_some(t)
+        (t >= 0.0 && t <= tmax).then_some((t, u, v))
     }
 }
 
@@ -297,11 +306,45 @@ impl Group {
         )
     }
 
+    /// Whether the hit `(u, v)` on BVH slot `slot` is on a covered part of its mesh (always,
+    /// unless the mesh has an alpha mask).
+    fn covers(&self, slot: usize, u: f64, v: f64, masks: &Masks) -> bool {
+        let (mesh, tri) = self.refs[slot];
+        match masks.masks.get(mesh as usize) {
+            Some(Some(mask)) => mask.covers(
+                &masks.meshes[mesh as usize],
+                SurfacePoint::Triangle {
+                    tri,
+                    u: u as f32,
+                    v: v as f32,
+                },
+            ),
+            _ => true,
+        }
+    }
+
     /// The closest hit closer than `best.t` in this group; updates `best`.
-    fn closest(&self, group: usize, ray: &WorldRay, t0: f64, best: &mut Best) {
+    fn closest(&self, group: usize, ray: &WorldRay, t0: f64, best: &mut Best, masks: &Masks) {
         let (local, start) = self.local_ray(ray, t0, best.t);
         let mut hit = RayHit::none();
         let scale = self.scale;
+        if self.masked {
+            self.bvh.ray_traverse(local, &mut hit, |_, slot| {
+                match ray.intersect_uv(&self.world[slot], best.t) {
+                    Some((t, u, v)) if self.covers(slot, u, v, masks) => {
+                        if t < best.t || best.slot.is_none() {
+                            *best = Best {
+                                t,
+                                slot: Some((group, slot)),
+                            };
+                        }
+                        (((t - start) * scale) as f32).max(0.0)
+                    }
+                    _ => f32::INFINITY,
+                }
+            });
+            return;
+        }
         self.bvh.ray_traverse(local, &mut hit, |_, slot| {
             match ray.intersect(&self.world[slot], best.t) {
                 Some(t) => {
@@ -319,9 +362,19 @@ impl Group {
     }
 
     /// Whether anything in this group is hit with `t ≤ tmax`.
-    fn occluded(&self, ray: &WorldRay, t0: f64, tmax: f64) -> bool {
+    fn occluded(&self, ray: &WorldRay, t0: f64, tmax: f64, masks: &Masks) -> bool {
         let (local, start) = self.local_ray(ray, t0, tmax);
         let scale = self.scale;
+        if self.masked {
+            return !self.bvh.ray_traverse_miss(local, |_, slot| {
+                match ray.intersect_uv(&self.world[slot], tmax) {
+                    Some((t, u, v)) if self.covers(slot, u, v, masks) => {
+                        (((t - start) * scale) as f32).max(0.0)
+                    }
+                    _ => f32::INFINITY,
+                }
+            });
+        }
         !self.bvh.ray_traverse_miss(local, |_, slot| {
             match ray.intersect(&self.world[slot], tmax) {
                 Some(t) => (((t - start) * scale) as f32).max(0.0),
@@ -337,10 +390,18 @@ struct Best {
     slot: Option<(usize, usize)>,
 }
 
+/// The meshes and their alpha masks (`alphaMode MASK`), for the coverage test of a hit.
+struct Masks {
+    meshes: Vec<Mesh>,
+    /// One per mesh (`None`: opaque); empty when no mesh has one.
+    masks: Vec<Option<AlphaMask>>,
+}
+
 /// The acceleration structure: per-scale groups of objects, each with its own CWBVH.
 pub struct Accel {
     groups: Vec<Group>,
-    meshes: Vec<Mesh>,
+    /// The meshes (`masks.meshes`) with their alpha masks.
+    masks: Masks,
     /// Extent (largest side of the bounding box) of each mesh; 0 for empty meshes.
     extents: Vec<f32>,
     max_abs: f32,
@@ -413,24 +474,44 @@ fn group_meshes(bounds: &[Option<(DVec3, DVec3)>]) -> Vec<Vec<usize>> {
 }
 
 impl Accel {
-    /// Builds over all triangles of `scene` with the default options (`medium_build`).
+    /// Builds over all triangles of `scene` with the default options (`medium_build`), with
+    /// the alpha masks of its `MASK` materials ([`Scene::alpha_mask`]): every query skips
+    /// the cut-out parts of those meshes.
     ///
     /// # Errors
     /// When a vertex is not finite, an index is out of range, or a mesh has a normal count
     /// different from its vertex count (an empty normal list means flat shading).
     pub fn build(scene: &Scene) -> Result<Self, TracerError> {
-        Self::from_meshes(&scene.meshes, AccelOptions::default())
+        Self::build_with(scene, AccelOptions::default())
     }
 
-    /// Builds over all triangles of `scene` with explicit options.
+    /// Builds over all triangles of `scene` with explicit options (and its alpha masks, as
+    /// [`Accel::build`]).
     ///
     /// # Errors
     /// As [`Accel::build`].
     pub fn build_with(scene: &Scene, options: AccelOptions) -> Result<Self, TracerError> {
-        Self::from_meshes(&scene.meshes, options)
+        let mut accel = Self::from_meshes(&scene.meshes, options)?;
+        let masks: Vec<Option<AlphaMask>> = (0..scene.meshes.len())
+            .map(|m| scene.alpha_mask(m))
+            .collect();
+        if masks.iter().any(Option::is_some) {
+            for g in &mut accel.groups {
+                g.masked = g.refs.iter().any(|&(m, _)| masks[m as usize].is_some());
+            }
+            accel.masks.masks = masks;
+        }
+        Ok(accel)
     }
 
-    /// Builds over the triangles of `meshes` (mesh ids are positions in this slice).
+    /// Whether mesh `mesh` has an alpha mask (its cut-out parts are never hit).
+    #[must_use]
+    pub fn is_masked(&self, mesh: usize) -> bool {
+        matches!(self.masks.masks.get(mesh), Some(Some(_)))
+    }
+
+    /// Builds over the triangles of `meshes` (mesh ids are positions in this slice), all
+    /// opaque (no alpha masks: [`Accel::build`] adds a scene's).
     ///
     /// # Errors
     /// As [`Accel::build`].
@@ -476,7 +557,10 @@ impl Accel {
             .collect();
         Ok(Self {
             groups,
-            meshes: meshes.to_vec(),
+            masks: Masks {
+                meshes: meshes.to_vec(),
+                masks: Vec::new(),
+            },
             extents,
             max_abs,
             triangle_count: meshes.iter().map(|m| m.indices.len()).sum(),
@@ -570,6 +654,7 @@ impl Accel {
             lo: lo - DVec3::splat(pad_world),
             hi: hi + DVec3::splat(pad_world),
             pad_world,
+            masked: false,
         }
     }
 
@@ -582,7 +667,7 @@ impl Accel {
     /// The meshes this was built from.
     #[must_use]
     pub fn meshes(&self) -> &[Mesh] {
-        &self.meshes
+        &self.masks.meshes
     }
 
     /// Largest absolute vertex coordinate (world units).
@@ -645,13 +730,13 @@ impl Accel {
         };
         if let [g] = self.groups.as_slice() {
             let (t0, _) = ray.clip(g.lo, g.hi)?;
-            g.closest(0, &ray, t0.max(0.0), &mut best);
+            g.closest(0, &ray, t0.max(0.0), &mut best, &self.masks);
         } else {
             for (gi, t0) in self.groups_on(&ray, tmax) {
                 if t0 > best.t {
                     break;
                 }
-                self.groups[gi].closest(gi, &ray, t0, &mut best);
+                self.groups[gi].closest(gi, &ray, t0, &mut best, &self.masks);
             }
         }
         let (gi, slot) = best.slot?;
@@ -666,12 +751,12 @@ impl Accel {
         };
         let ray = WorldRay::new(origin, dir);
         if let [g] = self.groups.as_slice() {
-            return ray
-                .clip(g.lo, g.hi)
-                .is_some_and(|(t0, _)| t0 <= tmax && g.occluded(&ray, t0.max(0.0), tmax));
+            return ray.clip(g.lo, g.hi).is_some_and(|(t0, _)| {
+                t0 <= tmax && g.occluded(&ray, t0.max(0.0), tmax, &self.masks)
+            });
         }
         self.groups_on(&ray, tmax)
-            .any(|(gi, t0)| self.groups[gi].occluded(&ray, t0, tmax))
+            .any(|(gi, t0)| self.groups[gi].occluded(&ray, t0, tmax, &self.masks))
     }
 
     /// Whether the segment from `from` to `to` is blocked, stopping `SHADOW_RAY_SHORTEN` short
@@ -689,7 +774,7 @@ impl Accel {
     /// World-space vertices of triangle `tri` of mesh `mesh`.
     #[must_use]
     pub fn triangle(&self, mesh: u32, tri: u32) -> [Vec3; 3] {
-        let m = &self.meshes[mesh as usize];
+        let m = &self.masks.meshes[mesh as usize];
         let idx = m.indices[tri as usize];
         idx.map(|i| m.positions[i as usize])
     }
@@ -697,7 +782,7 @@ impl Accel {
     fn hit_record(&self, group: usize, slot: usize, ray: &WorldRay, t: f64) -> Hit {
         let g = &self.groups[group];
         let (mesh, tri) = g.refs[slot];
-        let m = &self.meshes[mesh as usize];
+        let m = &self.masks.meshes[mesh as usize];
         let [v0, v1, v2] = g.world[slot];
         // Bug B: barycentrics by Möller–Trumbore in f64 (u weights v1, v weights v2).
         let (a0, a1, a2) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
@@ -765,6 +850,7 @@ impl Accel {
             ));
         }
         let mut seen: Vec<Vec<bool>> = self
+            .masks
             .meshes
             .iter()
             .map(|m| vec![false; m.indices.len()])

@@ -2,9 +2,15 @@
 //! sampling combined by Veach's multiple importance sampling, the unshadowed estimate, and
 //! ambient occlusion.
 //!
+//! Emissive surfaces (glTF emission) add their radiance where a camera ray or a
+//! BRDF-sampled ray hits them, with weight 1: nothing else samples them (no next-event
+//! estimation towards emissive triangles; an environment shadow ray that hits one counts as
+//! blocked), so BRDF sampling is the only strategy that produces those paths and the
+//! estimator stays unbiased, only noisier for small bright emitters.
+//!
 //! At every surface vertex the geometric normal and the shading normal are both turned
 //! towards the outgoing direction `ω_o` (CONVENTIONS.md: a back-facing shading normal is
-//! flipped toward the viewer). A direction on the other side of the *geometric* surface
+//! flipped toward the viewer; a normal-mapped one as `Vertex::oriented` says). A direction on the other side of the *geometric* surface
 //! would pass through it, so it contributes nothing (no light leaks through thin geometry)
 //! except in the unshadowed mode, which by definition ignores geometry.
 
@@ -35,8 +41,8 @@ impl Renderer<'_> {
     /// Radiance leaving `v` towards `wo` (or the AO fraction as grey), per the mode.
     pub(crate) fn li_surface(&self, v: Vertex, wo: Vec3, s: &mut Sampler) -> Vec3 {
         match self.settings.mode {
-            Mode::Path => self.li_path(v, wo, s),
-            Mode::Unshadowed => self.li_unshadowed(v, wo, s),
+            Mode::Path => v.le + self.li_path(v, wo, s),
+            Mode::Unshadowed => v.le + self.li_unshadowed(v, wo, s),
             Mode::AmbientOcclusion { max_distance } => Vec3::splat(self.ambient_occlusion(
                 &v,
                 wo,
@@ -100,6 +106,9 @@ impl Renderer<'_> {
                 radiance += beta * l * w;
                 break;
             };
+            // Emission at the hit: direct light from an emitter, counted before the bounce
+            // limit (like the environment seen by the same ray).
+            radiance += beta * self.emitted(&hit);
             indirect += 1;
             if self.settings.bounces >= 0 {
                 if indirect > self.settings.bounces as u32 {

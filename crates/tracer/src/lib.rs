@@ -15,6 +15,10 @@
 //!   (mirror) lobes take no MIS weight. Bounces count as in CONVENTIONS.md (`-1`: unlimited
 //!   with Russian roulette). Modes: [`Mode::Path`], [`Mode::Unshadowed`],
 //!   [`Mode::AmbientOcclusion`]; and radiance at given points ([`Renderer::radiance_at_points`]).
+//! - glTF material inputs (issue 34): shading with the normal-mapped shading normal
+//!   (`prt_scene::Scene::normal_mapped`), emitted radiance where camera and BRDF-sampled rays
+//!   hit emissive surfaces (weight 1: no next-event estimation towards them, so unbiased),
+//!   and `alphaMode MASK` cut-outs skipped by every [`Accel`] query of a scene's BVH.
 //! - Determinism: every random number comes from a PCG32 stream keyed by (seed, purpose,
 //!   pixel or point, sample) through SplitMix64 mixing ([`rng`]); images are bit-identical for
 //!   any thread count.

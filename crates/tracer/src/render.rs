@@ -229,13 +229,28 @@ impl<'s> Renderer<'s> {
             u: hit.u,
             v: hit.v,
         };
+        let m = hit.mesh as usize;
+        let mapped = self.scene.normal_mapped(m, at, hit.shading_normal);
         Vertex {
             p: hit.position,
             ng: hit.geometric_normal,
-            ns: hit.shading_normal,
+            ns: mapped.unwrap_or(hit.shading_normal),
+            mapped: mapped.is_some(),
+            le: self.emitted(hit),
             offset: hit.offset,
-            mat: self.scene.material_at(hit.mesh as usize, at),
+            mat: self.scene.material_at(m, at),
         }
+    }
+
+    /// Radiance the surface emits at a hit (zero, after one table lookup, for surfaces
+    /// without emission).
+    pub(crate) fn emitted(&self, hit: &Hit) -> Vec3 {
+        let at = prt_scene::SurfacePoint::Triangle {
+            tri: hit.tri,
+            u: hit.u,
+            v: hit.v,
+        };
+        Vec3::from_array(self.scene.emission_at(hit.mesh as usize, at))
     }
 
     fn run<T: Send>(&self, job: impl FnOnce() -> T + Send) -> Result<T, TracerError> {
@@ -493,7 +508,7 @@ impl<'s> Renderer<'s> {
                             let v = self.vertex(&hit);
                             p.hits += 1;
                             if aov {
-                                let ns = if v.ns.dot(dir) > 0.0 { -v.ns } else { v.ns };
+                                let (_, ns) = v.oriented(-dir);
                                 p.normal += ns.as_dvec3();
                                 p.albedo += Vec3::from_array(v.mat.albedo()).as_dvec3();
                                 p.depth += f64::from(hit.t);
@@ -518,8 +533,10 @@ impl<'s> Renderer<'s> {
 
     /// Radiance leaving each point towards its `view_dir` (or the AO fraction, per the mode),
     /// estimated with `spp` samples from streams `(seed, Point, point index, sample)`: the
-    /// same estimator as an image pixel whose camera ray hits the point. The first vertex's
-    /// spawn offset is [`point_offset`] since no triangle is known.
+    /// same estimator as an image pixel whose camera ray hits the point, except that a given
+    /// point emits nothing (it names no mesh; emission reaching it from other surfaces is
+    /// counted). The first vertex's spawn offset is [`point_offset`] since no triangle is
+    /// known.
     ///
     /// # Errors
     /// When `spp` is 0, a point or direction is not finite, or the thread pool fails.
@@ -557,6 +574,8 @@ impl<'s> Renderer<'s> {
                         p: p.position,
                         ng: n,
                         ns: n,
+                        mapped: false,
+                        le: Vec3::ZERO,
                         offset: point_offset(p.position, max_abs),
                         mat: p.material,
                     };

@@ -187,5 +187,7 @@ pub fn scene(
         meshes,
         render: RenderSettings::default(),
         textures: Vec::new(),
+        surface_inputs: Vec::new(),
+        tangents: Vec::new(),
     }
 }
