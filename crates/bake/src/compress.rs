@@ -153,6 +153,19 @@ fn residual(x: &[f32], model: &Model, m: usize) -> f64 {
 /// If `dimension` is 0 or does not divide `data.len()`.
 #[must_use]
 pub fn cpca(data: &[f32], dimension: usize, opt: &CpcaOptions) -> Cpca {
+    let fit = cpca_fit(data, dimension, opt);
+    let m = fit.components_for(opt);
+    fit.stored(data, m)
+}
+
+/// Clusters `data` and fits every cluster's mean and full principal basis (k-means, then
+/// CPCA's refinement with the `M` of `opt`): the stored form of any `M` is then a truncation
+/// ([`CpcaFit::stored`]), so a caller can try several without clustering again.
+///
+/// # Panics
+/// If `dimension` is 0 or does not divide `data.len()`.
+#[must_use]
+pub fn cpca_fit(data: &[f32], dimension: usize, opt: &CpcaOptions) -> CpcaFit {
     let d = dimension;
     assert!(
         d > 0 && data.len().is_multiple_of(d),
@@ -169,8 +182,61 @@ pub fn cpca(data: &[f32], dimension: usize, opt: &CpcaOptions) -> Cpca {
     };
     let mut centres = block.kmeans_pp_start(opt.seed);
     let assign = block.kmeans(&mut centres, opt.kmeans_iterations);
-    let (assign, models, m) = block.refine(assign, opt);
-    block.stored_form(&models, &assign, m)
+    let (assign, models, _) = block.refine(assign, opt);
+    CpcaFit {
+        d,
+        k: block.k,
+        total_energy: block.total_energy,
+        assign,
+        models,
+    }
+}
+
+/// A block's clusters and their full principal bases ([`cpca_fit`]).
+pub struct CpcaFit {
+    d: usize,
+    k: usize,
+    total_energy: f64,
+    assign: Vec<usize>,
+    models: Vec<Model>,
+}
+
+impl CpcaFit {
+    /// The basis vectors per cluster `opt` asks for: `opt.components`, or the fewest whose
+    /// discarded variance keeps the block's relative L2 error within `opt.error_target`.
+    #[must_use]
+    pub fn components_for(&self, opt: &CpcaOptions) -> usize {
+        let block = Block {
+            data: &[],
+            d: self.d,
+            points: self.assign.len(),
+            k: self.k,
+            total_energy: self.total_energy,
+        };
+        block.choose_m(&self.models, &self.assign, opt)
+    }
+
+    /// The stored form with `m` basis vectors per cluster (at most the dimension) of `data`,
+    /// the block this was fitted to, and its measured error.
+    ///
+    /// # Panics
+    /// If `data` is not the fitted block's size.
+    #[must_use]
+    pub fn stored(&self, data: &[f32], m: usize) -> Cpca {
+        assert_eq!(
+            data.len(),
+            self.assign.len() * self.d,
+            "not the fitted block"
+        );
+        let block = Block {
+            data,
+            d: self.d,
+            points: self.assign.len(),
+            k: self.k,
+            total_energy: self.total_energy,
+        };
+        block.stored_form(&self.models, &self.assign, m.min(self.d))
+    }
 }
 
 /// One block being compressed: `points` rows of `d` scalars, into `k` clusters.
@@ -537,39 +603,105 @@ fn check_compressible(
     Ok(())
 }
 
-/// `prt compress`: replaces every diffuse transfer block (unshadowed, shadowed,
-/// interreflected) of every object of `bake` by its clustered-PCA form (SPEC §3.13), keeping
-/// the reconstructed vectors as the block's data; visibility blocks, which the specular path
-/// reads, stay as they are. Records the decision in the bake. `scalar_size`: bytes per scalar
-/// of the file the bake came from (for the reported sizes).
+/// How many basis vectors a block keeps: a fixed count, or the fewest that bring its
+/// relative L2 error (over the coefficients) within a target.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Components {
+    /// This many (at most the block's dimension).
+    Fixed(usize),
+    /// The fewest meeting this relative L2 error.
+    Error(f64),
+}
+
+/// One fitted block of a bake.
+struct FittedBlock {
+    object: usize,
+    block: usize,
+    fit: CpcaFit,
+}
+
+/// Every transfer block of a bake clustered and fitted once ([`fit_bake`]), so that stored
+/// forms of several sizes can be tried ([`BakeFit::apply`]) without clustering again.
+pub struct BakeFit {
+    blocks: Vec<FittedBlock>,
+}
+
+/// Clusters and fits every transfer block of every object of `bake` — the diffuse ones
+/// (unshadowed, shadowed, interreflected) and the visibility that the glossy path reads —
+/// refining the clusters with the `M` the policy's error target (or component count) asks for.
 ///
 /// # Errors
 /// [`CompressError`]: options out of range, an intermediate or shard file, a bake that is
 /// compressed already, more components than an object has scalars per point.
-pub fn compress_bake(
-    bake: &mut prt_bakefile::Bake,
+pub fn fit_bake(
+    bake: &prt_bakefile::Bake,
     policy: &CompressPolicy,
-    scalar_size: usize,
-) -> Result<Vec<BlockCompression>, CompressError> {
+) -> Result<BakeFit, CompressError> {
     check_compressible(bake, policy)?;
     let seed = bake.meta.seed;
-    let mut rows = Vec::new();
-    for (oi, o) in bake.objects.iter_mut().enumerate() {
+    let mut blocks = Vec::new();
+    for (oi, o) in bake.objects.iter().enumerate() {
         let d = o.scalars_per_point() as usize;
         let points = o.points_in_file as usize;
-        let clusters = policy.clusters_for(points);
-        for b in &mut o.blocks {
-            if b.kind == prt_bakefile::TransferKind::Visibility || points == 0 {
-                continue;
-            }
+        if points == 0 {
+            continue;
+        }
+        for (bi, b) in o.blocks.iter().enumerate() {
             let opt = CpcaOptions {
-                clusters,
+                clusters: policy.clusters_for(points),
                 components: policy.components,
                 error_target: policy.error_target,
-                seed: seed ^ (oi as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15),
+                seed: seed
+                    ^ (oi as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+                    ^ u64::from(b.kind.code()).wrapping_mul(0xbf58_476d_1ce4_e5b9),
                 ..CpcaOptions::default()
             };
-            let c = cpca(&b.data, d, &opt);
+            blocks.push(FittedBlock {
+                object: oi,
+                block: bi,
+                fit: cpca_fit(&b.data, d, &opt),
+            });
+        }
+    }
+    Ok(BakeFit { blocks })
+}
+
+impl BakeFit {
+    /// Replaces every fitted block of `bake` (the bake this was fitted to, uncompressed) by
+    /// its clustered-PCA form (SPEC §3.13) with the components `diffuse` (diffuse kinds) or
+    /// `visibility` ask for, keeping the reconstructed vectors as the block's data, and
+    /// records the decision with `reason`. `scalar_size`: bytes per scalar of the file the
+    /// bake came from (for the reported sizes).
+    ///
+    /// # Panics
+    /// If `bake` is not the bake this was fitted to.
+    pub fn apply(
+        &self,
+        bake: &mut prt_bakefile::Bake,
+        diffuse: Components,
+        visibility: Components,
+        scalar_size: usize,
+        reason: String,
+    ) -> Vec<BlockCompression> {
+        let mut rows = Vec::new();
+        for fb in &self.blocks {
+            let o = &mut bake.objects[fb.object];
+            let d = o.scalars_per_point() as usize;
+            let points = o.points_in_file as usize;
+            let b = &mut o.blocks[fb.block];
+            let choice = match b.kind {
+                prt_bakefile::TransferKind::Visibility => visibility,
+                _ => diffuse,
+            };
+            let m = match choice {
+                Components::Fixed(m) => m.min(d),
+                Components::Error(e) => fb.fit.components_for(&CpcaOptions {
+                    components: None,
+                    error_target: e,
+                    ..CpcaOptions::default()
+                }),
+            };
+            let c = fb.fit.stored(&b.data, m);
             rows.push(BlockCompression {
                 object: o.name.clone(),
                 kind: b.kind.name(),
@@ -585,22 +717,51 @@ pub fn compress_bake(
             b.data = c.reconstruct();
             b.cpca = Some(c);
         }
+        bake.meta.decisions.push(prt_bakefile::Decision {
+            object: None,
+            decision: "clustered PCA compression of every transfer block (diffuse and the glossy path's visibility)".into(),
+            reason,
+        });
+        rows
     }
-    bake.meta.decisions.push(prt_bakefile::Decision {
-        object: None,
-        decision: "clustered PCA compression of the diffuse transfer".into(),
-        reason: format!(
-            "prt compress: clusters {}, components {}, error target {}",
-            policy
-                .clusters
+}
+
+/// `prt compress` to a coefficient error: replaces every transfer block of every object of
+/// `bake` — diffuse (unshadowed, shadowed, interreflected) and visibility, which the glossy
+/// path reads — by its clustered-PCA form (SPEC §3.13) with the policy's components (or the
+/// fewest meeting its relative L2 error), keeping the reconstructed vectors as the block's
+/// data. Records the decision in the bake. `scalar_size`: bytes per scalar of the file the
+/// bake came from (for the reported sizes). (`prt compress` aims at the relit image when it
+/// has the scene: it tries the stored forms of one [`fit_bake`] with [`BakeFit::apply`].)
+///
+/// # Errors
+/// [`CompressError`]: options out of range, an intermediate or shard file, a bake that is
+/// compressed already, more components than an object has scalars per point.
+pub fn compress_bake(
+    bake: &mut prt_bakefile::Bake,
+    policy: &CompressPolicy,
+    scalar_size: usize,
+) -> Result<Vec<BlockCompression>, CompressError> {
+    let fit = fit_bake(bake, policy)?;
+    let choice = policy
+        .components
+        .map_or(Components::Error(policy.error_target), Components::Fixed);
+    Ok(fit.apply(bake, choice, choice, scalar_size, policy.describe()))
+}
+
+impl CompressPolicy {
+    /// The policy as a decision's reason.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        format!(
+            "prt compress: clusters {}, components {}, error target {} (relative L2 of the coefficients)",
+            self.clusters
                 .map_or("per object (points/256, 1..64)".into(), |k| k.to_string()),
-            policy
-                .components
+            self.components
                 .map_or("from the error target".into(), |m| m.to_string()),
-            policy.error_target
-        ),
-    });
-    Ok(rows)
+            self.error_target
+        )
+    }
 }
 
 #[cfg(test)]
@@ -730,6 +891,43 @@ mod tests {
             assert!(
                 c.rel_error <= target + 1e-6,
                 "target {target}: {}",
+                c.rel_error
+            );
+        }
+    }
+
+    #[test]
+    fn one_fit_serves_every_stored_size() {
+        // Truncating one fit's bases: the error falls with M, the size the error target asks
+        // for meets it, and M = D is exact (up to f32 rounding, relative ~1e-7).
+        let data = planted(3, 4, 10, 80, 5);
+        let fit = cpca_fit(
+            &data,
+            10,
+            &CpcaOptions {
+                clusters: 3,
+                components: Some(2),
+                ..CpcaOptions::default()
+            },
+        );
+        let mut last = f64::INFINITY;
+        for m in 0..=10 {
+            let c = fit.stored(&data, m);
+            assert_eq!(c.components as usize, m);
+            assert!(c.rel_error <= last + 1e-9, "M = {m}: {}", c.rel_error);
+            last = c.rel_error;
+        }
+        assert!(last < 1e-5, "{last}");
+        for e in [0.3, 0.1, 0.01] {
+            let m = fit.components_for(&CpcaOptions {
+                error_target: e,
+                ..CpcaOptions::default()
+            });
+            let c = fit.stored(&data, m);
+            // Chosen on the f64 model; the stored f32 form adds ~1e-7.
+            assert!(
+                c.rel_error <= e + 1e-6,
+                "target {e}: M = {m}, {}",
                 c.rel_error
             );
         }

@@ -73,8 +73,9 @@ pub struct BakeArgs {
     /// Per-vertex bakes: refine the meshes where the transfer changes fast (after D3DX's
     /// adaptive subdivision): split every edge whose midpoint's transfer (or whose triangle's
     /// centroid's) differs from the interpolation of the corners by more than
-    /// --subdivide-error, bake the new vertices, repeat up to --max-subdivision levels. The
-    /// file holds the refined meshes; relight and export use them.
+    /// --subdivide-error, repeat up to --max-subdivision levels, deciding from cheap probes
+    /// (--subdivide-probe-rays), then bake the refined meshes with the full rays. The file
+    /// holds the refined meshes; relight and export use them.
     #[arg(long, conflicts_with_all = ["per_pixel", "shard", "pass", "target_psnr"])]
     pub subdivide: bool,
     /// Relative difference between the transfer at a midpoint (or centroid) and its
@@ -84,6 +85,11 @@ pub struct BakeArgs {
     /// Refinement levels at most (each can double a region's vertex density).
     #[arg(long, default_value_t = 5, requires = "subdivide")]
     pub max_subdivision: u32,
+    /// Directions of each probe --subdivide decides with (default: --rays / 4, at least 128;
+    /// at most --rays; about half are traced): every point of an object probes the same world
+    /// directions, so probes agree exactly where the points see the same sky.
+    #[arg(long, requires = "subdivide", value_parser = clap::value_parser!(u32).range(1..))]
+    pub subdivide_probe_rays: Option<u32>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -197,6 +203,7 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
             .then_some(prt_bake::subdivide::SubdivideOptions {
                 error: args.subdivide_error,
                 max_levels: args.max_subdivision,
+                probe_rays: args.subdivide_probe_rays,
                 ..prt_bake::subdivide::SubdivideOptions::default()
             }),
         progress: true,
@@ -493,82 +500,6 @@ pub fn run_merge(args: &MergeArgs) -> Result<()> {
     let merged = prt_bakefile::merge(&shards)?;
     prt_bakefile::write_bake(&args.out, &merged, scalar.unwrap_or(ScalarType::F32))?;
     outln!("merged {} shards into {}", shards.len(), args.out.display());
-    Ok(())
-}
-
-/// Options of `prt compress`.
-#[derive(Args)]
-pub struct CompressArgs {
-    /// The bake to compress (.prtb).
-    pub input: PathBuf,
-    /// Output file (.prtb).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Clusters per object (default: one per 256 points, 1 to 64).
-    #[arg(long)]
-    pub clusters: Option<usize>,
-    /// Basis vectors per cluster (default: the fewest that reach --error).
-    #[arg(long)]
-    pub components: Option<usize>,
-    /// Relative L2 error of the compressed transfer that the default --components aims at.
-    #[arg(long, default_value_t = 0.01)]
-    pub error: f64,
-    /// Print one JSON object.
-    #[arg(long)]
-    pub json: bool,
-}
-
-/// Runs `prt compress`: every diffuse transfer block (unshadowed, shadowed, interreflected)
-/// of every object is replaced by its clustered-PCA form (SPEC §3.13); visibility blocks,
-/// which the specular path reads, stay as they are.
-pub fn run_compress(args: &CompressArgs) -> Result<()> {
-    let bytes = std::fs::read(&args.input)
-        .with_context(|| format!("{}: cannot read", args.input.display()))?;
-    let view = BakeView::new(&bytes).map_err(|e| e.in_file(&args.input))?;
-    let scalar = view.scalar_type();
-    let mut bake = view.to_bake().map_err(|e| e.in_file(&args.input))?;
-    let policy = prt_bake::compress::CompressPolicy {
-        clusters: args.clusters,
-        components: args.components,
-        error_target: args.error,
-    };
-    let rows = prt_bake::compress::compress_bake(&mut bake, &policy, scalar.size()).map_err(
-        |e| match e.is_about_the_file() {
-            true => anyhow::anyhow!("{}: {e}", args.input.display()),
-            false => anyhow::anyhow!("{e}"),
-        },
-    )?;
-    prt_bakefile::write_bake(&args.out, &bake, scalar)?;
-    let size_in = bytes.len() as u64;
-    let size_out = std::fs::metadata(&args.out).map(|m| m.len()).unwrap_or(0);
-    if args.json {
-        outln!(
-            "{}",
-            serde_json::to_string(&serde_json::json!({
-                "input": args.input.display().to_string(), "output": args.out.display().to_string(),
-                "file_bytes_before": size_in, "file_bytes_after": size_out,
-                "blocks": rows.iter().map(|r| serde_json::json!({
-                    "object": r.object, "kind": r.kind, "points": r.points, "dimension": r.dimension,
-                    "clusters": r.clusters, "components": r.components, "rel_error": r.rel_error,
-                    "bytes_before": r.bytes_before, "bytes_after": r.bytes_after,
-                })).collect::<Vec<_>>(),
-            }))?
-        );
-    } else {
-        for r in &rows {
-            outln!(
-                "{} {}: {} points × {} → {} clusters × {} components, relative L2 error {:.3} %, {} → {} bytes",
-                r.object, r.kind, r.points, r.dimension, r.clusters, r.components,
-                100.0 * r.rel_error, r.bytes_before, r.bytes_after
-            );
-        }
-        outln!(
-            "{}: {size_in} bytes → {}: {size_out} bytes ({:.1}× smaller)",
-            args.input.display(),
-            args.out.display(),
-            size_in as f64 / size_out.max(1) as f64
-        );
-    }
     Ok(())
 }
 

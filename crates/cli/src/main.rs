@@ -20,6 +20,7 @@ mod bake_cmd;
 mod bench_cmd;
 mod common;
 mod compare_cmd;
+mod compress_cmd;
 mod fit_cmd;
 mod reflectance_cmd;
 mod relight_cmd;
@@ -52,8 +53,9 @@ enum Command {
     Inspect(bake_cmd::InspectArgs),
     /// Merge the shard files of a sharded bake into one file.
     Merge(bake_cmd::MergeArgs),
-    /// Compress a bake's diffuse transfer by clustered PCA (Sloan et al. 2003).
-    Compress(bake_cmd::CompressArgs),
+    /// Compress every transfer block of a bake by clustered PCA (Sloan et al. 2003), to a PSNR
+    /// target on the relit image when the scene is given.
+    Compress(compress_cmd::CompressArgs),
     /// Write a per-vertex or per-texel bake as binary glTF 2.0: the meshes with their own
     /// materials, the transfer as vertex attributes (or lightmap textures) and the
     /// view-dependent terms prt relight shades with (SPEC §10).
@@ -87,7 +89,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => bake_cmd::run_bake(&args),
         Command::Inspect(args) => bake_cmd::run_inspect(&args),
         Command::Merge(args) => bake_cmd::run_merge(&args),
-        Command::Compress(args) => bake_cmd::run_compress(&args),
+        Command::Compress(args) => compress_cmd::run(&args),
         Command::Export(args) => bake_cmd::run_export(&args),
         Command::Relight(args) => relight_cmd::run(&args),
         Command::Reflectance(args) => reflectance_cmd::run(&args),

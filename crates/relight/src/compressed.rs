@@ -31,26 +31,19 @@ pub struct CpcaTransfer<'a> {
 /// Points per parallel chunk.
 const CHUNK: usize = 1024;
 
-/// Relights every point of `t` at order `order` (at most the transfer's and the lighting's)
-/// under `lighting`: `(albedo/π) · (L · t̃_p)` per colour, with `t̃_p` the clustered-PCA
-/// approximation — equal, up to f32 rounding, to relighting the reconstructed vectors.
-///
-/// # Errors
-/// Inconsistent sizes, an order beyond the transfer's or the lighting's, a cluster index out
-/// of range, or non-finite parameters.
-pub fn diffuse_cpca(
+/// Checks a clustered-PCA block for relighting at `order` under lighting of `lighting_order`:
+/// the order within both, 1 or 3 channels, the table and weight sizes, the cluster indices.
+pub(crate) fn check_cpca(
     order: usize,
     t: &CpcaTransfer<'_>,
-    lighting: &Lighting,
-    params: &DiffuseParams,
-) -> Result<Vec<[f32; 3]>, RelightError> {
-    let (b2, n2) = (t.order * t.order, order * order);
-    let d = t.channels * b2;
+    lighting_order: usize,
+) -> Result<(), RelightError> {
+    let d = t.channels * t.order * t.order;
     let rows = t.clusters * (t.components + 1);
-    if order == 0 || order > t.order || order > lighting.order {
+    if order == 0 || order > t.order || order > lighting_order {
         return Err(RelightError::InvalidParameter(format!(
-            "order {order} for transfer of order {} under lighting of order {}",
-            t.order, lighting.order
+            "order {order} for transfer of order {} under lighting of order {lighting_order}",
+            t.order
         )));
     }
     if !(t.channels == 1 || t.channels == 3)
@@ -72,6 +65,26 @@ pub fn diffuse_cpca(
             t.cluster_of[p], t.clusters
         )));
     }
+    Ok(())
+}
+
+/// Relights every point of `t` at order `order` (at most the transfer's and the lighting's)
+/// under `lighting`: `(albedo/π) · (L · t̃_p)` per colour, with `t̃_p` the clustered-PCA
+/// approximation — equal, up to f32 rounding, to relighting the reconstructed vectors.
+///
+/// # Errors
+/// Inconsistent sizes, an order beyond the transfer's or the lighting's, a cluster index out
+/// of range, or non-finite parameters.
+pub fn diffuse_cpca(
+    order: usize,
+    t: &CpcaTransfer<'_>,
+    lighting: &Lighting,
+    params: &DiffuseParams,
+) -> Result<Vec<[f32; 3]>, RelightError> {
+    check_cpca(order, t, lighting.order)?;
+    let (b2, n2) = (t.order * t.order, order * order);
+    let d = t.channels * b2;
+    let rows = t.clusters * (t.components + 1);
     if params.albedo_over_pi.iter().any(|a| !a.is_finite()) {
         return Err(RelightError::NonFinite("albedo/π"));
     }

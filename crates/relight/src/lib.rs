@@ -34,6 +34,12 @@
 //!   ([`AdaptiveParams::cost_exponent`]); and [`Threshold::Display`] measures every change on the 8-bit view (exposure, clamp, sRGB), as
 //!   the thesis' "T = 0.02 on 8-bit normalised values" and `psnr_ldr` do. See
 //!   [`Relighter::adaptive`] and the crate README for what each buys on a real bake.
+//! - **Clustered PCA** (Sloan, Hall, Hart & Snyder 2003, "Clustered principal components for
+//!   precomputed radiance transfer"): a block stored as per-cluster means and bases plus
+//!   per-point weights is relit without reconstructing it — [`diffuse_cpca`] relights each
+//!   cluster row once per frame, [`specular_cpca`] multiplies each visibility row by the
+//!   lighting's product matrix once per frame (`L ⊛ V` is linear in `V`), and a point then
+//!   costs `M` (diffuse) or `3(M+1)n²` (glossy) multiply-adds instead of `3n²` or `≈3n⁴`.
 //!
 //! # The specular approximation, precisely
 //! `CONVENTIONS.md`'s Phong term gives the outgoing radiance
@@ -93,6 +99,7 @@
 mod adaptive;
 mod adjacency;
 mod compressed;
+mod compressed_specular;
 mod error;
 mod filter;
 mod input;
@@ -107,6 +114,7 @@ pub use adaptive::{
 };
 pub use adjacency::Adjacency;
 pub use compressed::{diffuse_cpca, CpcaTransfer};
+pub use compressed_specular::specular_cpca;
 pub use error::RelightError;
 pub use input::{
     low_bands, DiffuseParams, FittedLobe, Lighting, PhongParams, SpecularInput, SpecularLobe,

@@ -91,6 +91,9 @@ pub(crate) struct ObjectTerms<'a> {
     pub(crate) cpca: Option<CpcaTransfer<'a>>,
     /// The fitted or Phong specular.
     pub(crate) specular: Option<SpecularInput<'a>>,
+    /// The specular term's visibility in clustered-PCA form, relit from it instead (full
+    /// order only).
+    pub(crate) visibility_cpca: Option<CpcaTransfer<'a>>,
 }
 
 impl ObjectTerms<'_> {
@@ -141,15 +144,18 @@ impl ObjectTerms<'_> {
             let timed = k.checked_sub(frames.warmup);
             let (lighting, rotate) = frames.light(timed.unwrap_or(0))?;
             let prep = Instant::now();
-            let frame = relighter.frame_lighting(&lighting, self.specular.is_some())?;
+            // The compressed glossy path forms its own cluster products (timed, below).
+            let products = self.specular.is_some() && self.visibility_cpca.is_none();
+            let frame = relighter.frame_lighting(&lighting, products)?;
             let start = Instant::now();
             let d = match &self.cpca {
                 Some(c) => prt_relight::diffuse_cpca(self.order, c, &lighting, &self.dparams)?,
                 None => relighter.diffuse(&self.diffuse, &frame, &self.dparams)?,
             };
-            let s = match &self.specular {
-                Some(si) => relighter.specular(si, &frame)?,
-                None => Vec::new(),
+            let s = match (&self.specular, &self.visibility_cpca) {
+                (Some(si), Some(v)) => prt_relight::specular_cpca(relighter, si, v, &lighting)?,
+                (Some(si), None) => relighter.specular(si, &frame)?,
+                (None, _) => Vec::new(),
             };
             let Some(i) = timed else { continue };
             timing.times[i] += start.elapsed().as_secs_f64();
