@@ -108,7 +108,8 @@ impl Renderer<'_> {
             };
             // Emission at the hit: direct light from an emitter, counted before the bounce
             // limit (like the environment seen by the same ray).
-            radiance += beta * self.emitted(&hit);
+            let le = self.emitted(&hit);
+            radiance += beta * le;
             indirect += 1;
             if self.settings.bounces >= 0 {
                 if indirect > self.settings.bounces as u32 {
@@ -121,7 +122,7 @@ impl Renderer<'_> {
                 }
                 beta /= survive;
             }
-            v = self.vertex(&hit);
+            v = self.vertex_emitting(&hit, le);
             wo = -bs.wi;
         }
         radiance

@@ -223,6 +223,11 @@ impl<'s> Renderer<'s> {
     }
 
     pub(crate) fn vertex(&self, hit: &Hit) -> Vertex {
+        self.vertex_emitting(hit, self.emitted(hit))
+    }
+
+    /// [`Renderer::vertex`] with the hit's emitted radiance already looked up.
+    pub(crate) fn vertex_emitting(&self, hit: &Hit, le: Vec3) -> Vertex {
         // Textures and vertex colours resolved at the hit (a copy of the material otherwise).
         let at = prt_scene::SurfacePoint::Triangle {
             tri: hit.tri,
@@ -236,7 +241,7 @@ impl<'s> Renderer<'s> {
             ng: hit.geometric_normal,
             ns: mapped.unwrap_or(hit.shading_normal),
             mapped: mapped.is_some(),
-            le: self.emitted(hit),
+            le,
             offset: hit.offset,
             mat: self.scene.material_at(m, at),
         }
