@@ -411,51 +411,6 @@ impl Relighter {
         Ok(out)
     }
 
-    /// The lobe-weighted visibility of every point, `k = Σ_i w_i V_i / ∫ w H_n` clamped to
-    /// `[0, 1]`: the share of the point's lobe `w` (Phong or fitted, at this order) that its
-    /// baked visibility leaves open, against the open hemisphere `H_n` of its normal
-    /// (`∫ w H_n = 2π Σ_l A_l Σ_m w_lm y_lm(n)` with `A_l` the bands of the normalised
-    /// `e = 0` lobe, so an unoccluded point scores 1 up to the truncation of `V`). 1 where the
-    /// point faces away or the lobe has no weight above the horizon. A specular-occlusion
-    /// factor for lobes shaded otherwise (spherical harmonic reflection maps), at one basis
-    /// evaluation per lobe axis and one per normal.
-    ///
-    /// # Errors
-    /// As [`Self::specular`].
-    pub fn lobe_visibility(&self, input: &SpecularInput<'_>) -> Result<Vec<f32>, RelightError> {
-        let n = self.check_specular(input)?;
-        let lobe = self.lobe(&input.lobe)?;
-        let hemi: Vec<f32> = zonal::phong_lobe_bands(0.0, self.order)?
-            .into_iter()
-            .map(|a| (2.0 * std::f64::consts::PI * a) as f32)
-            .collect();
-        let n2 = self.order * self.order;
-        let mut out = vec![1.0f32; n];
-        out.par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(ci, chunk)| {
-                let mut w = vec![0.0f32; n2];
-                let mut scratch = vec![0.0f32; n2];
-                let mut rows = [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
-                for (k, o) in chunk.iter_mut().enumerate() {
-                    let p = ci * CHUNK + k;
-                    let g = specular_point(input, p, &lobe, self.order, &mut rows);
-                    if !g.active {
-                        continue;
-                    }
-                    self.point_weights(&g, &mut w, &mut scratch);
-                    let v = input.visibility.point(p);
-                    let open: f32 = w.iter().zip(v).map(|(a, b)| a * b).sum();
-                    self.weights(&hemi, Vec3::from_array(input.surface.normals[p]), &mut scratch);
-                    let full: f32 = w.iter().zip(&scratch).map(|(a, b)| a * b).sum();
-                    if full > 0.0 {
-                        *o = (open / full).clamp(0.0, 1.0);
-                    }
-                }
-            });
-        Ok(out)
-    }
-
     /// Full-order products of a point: diffuse and specular (3 channels).
     pub(crate) fn full_products(&self) -> (u64, u64) {
         (
