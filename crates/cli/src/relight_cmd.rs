@@ -170,10 +170,13 @@ pub struct RelightArgs {
     /// Print one JSON object.
     #[arg(long, help_heading = "Output")]
     pub json: bool,
-    /// With --adaptive: pick each frame's threshold so that its PSNR against full order
-    /// (8-bit view, whole image) is at least this many dB, estimated from a random sample of
-    /// pixels relit at full order (--threshold is where the first frame starts). Runs the
-    /// --frames frames (rotated by --rotate-y-step) and prints each frame's threshold,
+    /// Relight with the cheapest representation whose image reaches this PSNR against full
+    /// order (8-bit view, whole image) at --target-rotations turns of the environment: uniform
+    /// order truncation, the adaptive scheme (from --threshold, halved), or — for a compressed
+    /// bake — its clustered-PCA blocks; says which in a decision line and writes the image
+    /// (--out, --png) at --rotate-y. With --study (and --adaptive): instead pick each frame's
+    /// adaptive threshold from a random sample of pixels relit at full order, over the
+    /// --frames frames (rotated by --rotate-y-step), and print each frame's threshold,
     /// estimate and time.
     #[arg(
         long,
@@ -192,6 +195,14 @@ pub struct RelightArgs {
     /// print the PSNR reached and the best uniform truncation meeting the same target.
     #[arg(long, help_heading = "Adaptive to a PSNR target")]
     pub verify: bool,
+    /// With --target-psnr: the environment rotations (evenly spaced about +Y from --rotate-y)
+    /// the chosen representation must reach the target at.
+    #[arg(long, help_heading = "Adaptive to a PSNR target", default_value_t = 8)]
+    pub target_rotations: usize,
+    /// With --target-psnr and --adaptive: the per-frame study of adaptive relighting to the
+    /// target (no image) instead of choosing a representation.
+    #[arg(long, help_heading = "Adaptive to a PSNR target")]
+    pub study: bool,
 }
 
 /// `--glossy` values (see [`prt_scene_relight::GlossyPath`]).
@@ -249,16 +260,22 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     let (scene, accel) = prepare_sh(args, &scene, &bake)?;
     let adaptive = args.adaptive.then(|| adaptive_params(args));
     if let Some(target) = args.target_psnr {
+        if !args.study {
+            if args.verify {
+                bail!("--verify is for the --study of --target-psnr");
+            }
+            return run_choose(args, &scene, &accel, &bake, target);
+        }
         let Some(params) = adaptive else {
-            bail!("--target-psnr needs --adaptive");
+            bail!("--study needs --adaptive");
         };
         if args.out.is_some() || args.png.is_some() || args.roi_png.is_some() {
-            bail!("--target-psnr prints a per-frame study; write an image with --threshold set to a frame's threshold");
+            bail!("--study prints a per-frame study; without --study, --target-psnr writes the image of the representation it chooses");
         }
         return run_target(args, &scene, &accel, &bake, params, target);
     }
-    if args.verify {
-        bail!("--verify needs --target-psnr");
+    if args.verify || args.study {
+        bail!("--verify and --study need --target-psnr");
     }
     let mut opt = RelightOptions {
         order: args.order,
@@ -662,7 +679,100 @@ fn write_point_colours(
     Ok(())
 }
 
-/// `prt relight --adaptive --target-psnr P`: the per-frame study.
+/// `prt relight --target-psnr P`: the cheapest representation meeting the target at the
+/// rotations, a decision line saying which, and its image.
+fn run_choose(
+    args: &RelightArgs,
+    scene: &prt_scene::Scene,
+    accel: &prt_tracer::Accel,
+    bake: &prt_bakefile::Bake,
+    target: f64,
+) -> Result<()> {
+    use prt_scene_relight::target::{Candidate, Representation};
+    anyhow::ensure!(
+        args.target_rotations >= 1,
+        "--target-rotations must be at least 1"
+    );
+    let n = args.target_rotations;
+    let base = RelightOptions {
+        order: args.order,
+        glossy: glossy_path(args)?,
+        ..Default::default()
+    };
+    let adaptive = adaptive_params(args);
+    let opt = prt_scene_relight::target::ChooseOptions {
+        target_psnr: target,
+        rotations: (0..n)
+            .map(|k| args.rotate_y + 360.0 * k as f64 / n as f64)
+            .collect(),
+        base: base.clone(),
+        adaptive,
+        adaptive_tries: 4,
+    };
+    let bound = prt_scene_relight::Bound::new(scene, accel, bake)?;
+    let choice = prt_scene_relight::target::choose_representation(&bound, &opt)
+        .with_context(|| format!("{}", args.bake.display()))?;
+    let name = |c: &Candidate| match c.representation {
+        Representation::Uniform { order } if choice.compressed => {
+            format!("clustered-PCA blocks at order {order}")
+        }
+        Representation::Uniform { order } => format!("uniform order {order}"),
+        Representation::Adaptive { threshold } => format!("adaptive, threshold {threshold}"),
+    };
+    let relit = bound.relight(&prt_scene_relight::target::chosen_options(
+        &base,
+        &choice.chosen.representation,
+        &adaptive,
+        args.rotate_y,
+    ))?;
+    let image = bound.form_image(&relit, args.rotate_y)?;
+    let attrs = vec![
+        ("kind", "relit".to_string()),
+        ("order", relit.stats.order.to_string()),
+        ("representation", name(&choice.chosen)),
+        ("target_psnr", target.to_string()),
+        ("rotate_y", args.rotate_y.to_string()),
+    ];
+    if let Some(p) = &args.out {
+        prt_scene_relight::io::write_exr(p, &image, &attrs)?;
+    }
+    if let Some(p) = &args.png {
+        prt_scene_relight::io::write_png(p, &image, args.exposure)?;
+    }
+    if args.json {
+        outln!("{}", serde_json::to_string(&choice)?);
+        return Ok(());
+    }
+    let figures = |c: &Candidate| {
+        format!(
+            "{}: lowest {:.2} dB, {:.3e} products/frame",
+            name(c),
+            c.min_psnr,
+            c.cost
+        )
+    };
+    outln!(
+        "decision: {} — the cheapest representation whose image reaches {target} dB against full order at {n} rotations ({:.2} dB lowest, {:.3e} modelled products/frame)",
+        name(&choice.chosen),
+        choice.chosen.min_psnr,
+        choice.chosen.cost
+    );
+    for c in &choice.tried {
+        outln!("  tried {}", figures(c));
+    }
+    outln!(
+        "  per vertex or per pixel: not compared (one bake given; bake the other kind and run this again on it)"
+    );
+    outln!(
+        "shading: {:.3} ms/frame chosen, {:.3} ms/frame the best uniform order ({}; median of 5 frames)",
+        choice.shade_ms.0,
+        choice.shade_ms.1,
+        name(&choice.best_uniform)
+    );
+    Ok(())
+}
+
+/// `prt relight --adaptive --target-psnr P --study`: the per-frame study.
 fn run_target(
     args: &RelightArgs,
     scene: &prt_scene::Scene,

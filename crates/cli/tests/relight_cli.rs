@@ -264,6 +264,7 @@ fn target_psnr_meets_the_target_on_every_frame() {
             "--rotate-y-step",
             "90",
             "--verify",
+            "--study",
             "--json",
         ])))
     };
@@ -292,12 +293,65 @@ fn target_psnr_meets_the_target_on_every_frame() {
         }
     }
     for bad in ["0", "-3", "NaN", "inf"] {
-        let err = fail(relight(&scene, &b).args(["--adaptive", "--target-psnr", bad]));
-        assert!(err.contains("--target-psnr"), "{bad}: {err}");
-        assert!(!err.contains("panicked"), "{err}");
+        for study in [&["--study"][..], &[]] {
+            let err = fail(
+                relight(&scene, &b)
+                    .args(["--adaptive", "--target-psnr", bad])
+                    .args(study),
+            );
+            assert!(err.contains("--target-psnr"), "{bad}: {err}");
+            assert!(!err.contains("panicked"), "{err}");
+        }
     }
-    let err = fail(relight(&scene, &b).args(["--target-psnr", "40"]));
-    assert!(err.contains("needs --adaptive"), "{err}");
+    let err = fail(relight(&scene, &b).args(["--target-psnr", "40", "--study"]));
+    assert!(err.contains("--study needs --adaptive"), "{err}");
+}
+
+/// `--target-psnr P --out X` (issue 34): the representation chosen reaches `P` against full
+/// order at every rotation tried (measured again here, on the written image, through
+/// `prt compare`), costs no more than the lowest uniform order meeting it, and its image is
+/// written in the same command.
+#[test]
+fn target_psnr_chooses_a_representation_and_writes_its_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), 3);
+    let b = dir.path().join("scene.prtb");
+    bake(&scene, &b, &[]);
+    let out = dir.path().join("chosen.exr");
+    let png = dir.path().join("chosen.png");
+    let j = json(&run(relight(&scene, &b)
+        .args(["--target-psnr", "40", "--target-rotations", "2", "--json"])
+        .arg("--out")
+        .arg(&out)
+        .arg("--png")
+        .arg(&png)));
+    let chosen = &j["chosen"];
+    // JSON writes ∞ (full order) as null.
+    assert!(
+        chosen["min_psnr"].as_f64().unwrap_or(f64::INFINITY) >= 40.0,
+        "{j}"
+    );
+    assert!(
+        chosen["cost"].as_f64().unwrap() <= j["best_uniform"]["cost"].as_f64().unwrap(),
+        "{j}"
+    );
+    assert!(png.exists());
+    let full = dir.path().join("full.exr");
+    run(relight(&scene, &b).arg("--out").arg(&full));
+    // Identical images (full order chosen) compare as ∞, which JSON writes as null.
+    let cmp = json(&run(prt()
+        .arg("compare")
+        .arg(&out)
+        .arg(&full)
+        .arg("--json")));
+    let psnr = cmp["psnr_ldr"].as_f64().unwrap_or(f64::INFINITY);
+    assert!(psnr >= 40.0, "{psnr} dB: {j}");
+    // The decision line names the choice.
+    let text = String::from_utf8(
+        run(relight(&scene, &b).args(["--target-psnr", "40", "--target-rotations", "2"])).stdout,
+    )
+    .unwrap();
+    assert!(text.starts_with("decision: "), "{text}");
 }
 
 /// `prt bake --target-psnr P`: per object the lowest order whose PSNR against a path-traced
@@ -459,6 +513,7 @@ fn old_relight_command_lines_still_work() {
             "--adaptive",
             "--target-psnr",
             "30",
+            "--study",
             "--frames",
             "2",
             "--rotate-y-step",

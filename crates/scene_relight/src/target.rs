@@ -25,6 +25,13 @@
 //! reproducible. When the estimate beats the target by more than
 //! 3 dB the next frame starts 1.5× higher. The cost of a frame (`shade_ms`) is the shading time
 //! of every try plus that of the probe's full-order vertices.
+//!
+//! **Choosing a representation** ([`choose_representation`], `prt relight --target-psnr P
+//! --out X`): instead of a per-frame threshold, one representation for the whole run — the
+//! lowest uniform order that reaches `P` against full order at every rotation, or the adaptive
+//! scheme at a threshold that does, whichever has the lower [`modelled_products`] (a compressed
+//! bake's uniform orders are relit from its clustered-PCA blocks, at their own cost); measured
+//! on the images themselves, not estimated from a probe.
 
 use crate::bound::Bound;
 use crate::error::SceneRelightError;
@@ -695,6 +702,273 @@ impl TargetRun<'_> {
             }
         }
         Ok((worst, times))
+    }
+}
+
+/// How `prt relight --target-psnr P --out X` may shade: the representations it chooses among.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub enum Representation {
+    /// Every point at this order (from the clustered-PCA blocks when the bake is compressed).
+    Uniform {
+        /// The order.
+        order: usize,
+    },
+    /// Locally adaptive at the bake's order with this threshold (value in the unit of the
+    /// caller's adaptive parameters).
+    Adaptive {
+        /// The threshold.
+        threshold: f32,
+    },
+}
+
+/// One representation tried by [`choose_representation`].
+#[derive(Clone, Debug, Serialize)]
+pub struct Candidate {
+    /// What was tried.
+    pub representation: Representation,
+    /// Its lowest PSNR against full order over the rotations (the first miss ends a try).
+    pub min_psnr: f64,
+    /// Its modelled cost: coefficient products (and their equivalents) per frame.
+    pub cost: f64,
+}
+
+/// What [`choose_representation`] chose, and why.
+#[derive(Clone, Debug, Serialize)]
+pub struct Choice {
+    /// The cheapest candidate meeting the target on every rotation.
+    pub chosen: Candidate,
+    /// The lowest uniform order meeting it (full order when none lower does).
+    pub best_uniform: Candidate,
+    /// Every candidate tried, in order.
+    pub tried: Vec<Candidate>,
+    /// Whether the bake's blocks are compressed (uniform orders then relight from them).
+    pub compressed: bool,
+    /// Median shading ms per frame of the chosen representation and of the best uniform one.
+    pub shade_ms: (f64, f64),
+}
+
+/// An adaptive coefficient product costs about this many uniform ones (its filter passes,
+/// scattered row reads and ROI bookkeeping; `crates/relight/README.md` measures adaptive runs
+/// at 0.4–0.6 of the speed their product counts promise), so adaptive wins only if it saves
+/// more than that.
+pub const ADAPTIVE_PRODUCT_COST: f64 = 2.0;
+
+/// Modelled products per frame of relighting `bake` at `order` (capped per object) without
+/// the adaptive scheme: per point `3n²` diffuse and `Σ_l 3(2l+1)((l+1)² + l²)` specular
+/// (Algorithm 3's count) for raw blocks; for clustered-PCA blocks `3M` diffuse and
+/// `3(M+1)n² + n²` specular per point plus, per frame, `3K(M+1)n²` (diffuse) or `3K(M+1)n⁴`
+/// (specular) for the clusters.
+#[must_use]
+pub fn modelled_products(bake: &Bake, order: Option<usize>) -> f64 {
+    products_model(bake, order, true)
+}
+
+/// [`modelled_products`], with `use_cpca` false as if every block were raw (the adaptive
+/// path reads the reconstructed blocks).
+fn products_model(bake: &Bake, order: Option<usize>, use_cpca: bool) -> f64 {
+    let mut total = 0.0;
+    for o in &bake.objects {
+        let n = order.map_or(o.order, |k| (k as u32).min(o.order)) as f64;
+        let p = o.points_in_file as f64;
+        if let Some(d) = o.diffuse_block() {
+            total += match d.cpca.as_ref().filter(|_| use_cpca) {
+                Some(c) => {
+                    let (k, m) = (f64::from(c.clusters), f64::from(c.components));
+                    p * 3.0 * m + 3.0 * k * (m + 1.0) * n * n
+                }
+                None => p * 3.0 * n * n,
+            };
+        }
+        if let Some(v) = o
+            .blocks
+            .iter()
+            .find(|b| b.kind == prt_bakefile::TransferKind::Visibility)
+        {
+            total += match v.cpca.as_ref().filter(|_| use_cpca) {
+                Some(c) => {
+                    let (k, m) = (f64::from(c.clusters), f64::from(c.components));
+                    p * (3.0 * (m + 1.0) + 1.0) * n * n + 3.0 * k * (m + 1.0) * n.powi(4)
+                }
+                None => {
+                    let per: f64 = (0..n as usize)
+                        .map(|l| {
+                            let l = l as f64;
+                            3.0 * (2.0 * l + 1.0) * ((l + 1.0).powi(2) + l * l)
+                        })
+                        .sum();
+                    p * per
+                }
+            };
+        }
+    }
+    total
+}
+
+/// Settings of [`choose_representation`].
+#[derive(Clone, Debug)]
+pub struct ChooseOptions {
+    /// The PSNR (dB, 8-bit view, whole image) against full order every rotation must reach.
+    pub target_psnr: f64,
+    /// Environment rotations the target must hold at, degrees.
+    pub rotations: Vec<f64>,
+    /// Relighting settings besides order, threshold and rotation (the glossy path).
+    pub base: RelightOptions,
+    /// The adaptive parameters; their threshold is the first one tried, then halved.
+    pub adaptive: AdaptiveParams,
+    /// Adaptive thresholds tried at most.
+    pub adaptive_tries: usize,
+}
+
+/// `prt relight --target-psnr P --out X`: relights `bound`'s bake at full order at every
+/// rotation (the reference), then tries the uniform orders from 1 up until one meets the
+/// target at every rotation, and the adaptive scheme at full order from the given threshold,
+/// halved after a miss; chooses the candidate of least [`modelled_products`] (adaptive ones
+/// at their counted products × [`ADAPTIVE_PRODUCT_COST`]) — full order if nothing cheaper
+/// meets the target. Every decision depends on the images only, never on timings; the shading
+/// times of the chosen and the best uniform representation are measured afterwards.
+///
+/// # Errors
+/// A target that is not a positive, finite number of dB, no rotation; the relighter's errors.
+pub fn choose_representation(
+    bound: &Bound<'_>,
+    opt: &ChooseOptions,
+) -> Result<Choice, SceneRelightError> {
+    if !(opt.target_psnr.is_finite() && opt.target_psnr > 0.0) || opt.rotations.is_empty() {
+        return Err(SceneRelightError::Invalid(format!(
+            "--target-psnr {} must be a positive, finite number of dB, over at least one rotation",
+            opt.target_psnr
+        )));
+    }
+    let bake = bound.bake();
+    let at = |deg: f64, order: Option<usize>, adaptive: Option<AdaptiveParams>| RelightOptions {
+        order,
+        adaptive,
+        rotate_y_deg: deg,
+        timing_frames: 1,
+        warmup_frames: 0,
+        rotate_y_step_deg: 0.0,
+        points: None,
+        ..opt.base.clone()
+    };
+    let references = opt
+        .rotations
+        .iter()
+        .map(|&deg| bound.form_image(&bound.relight(&at(deg, opt.base.order, None))?, deg))
+        .collect::<Result<Vec<_>, _>>()?;
+    // The lowest PSNR over the rotations, stopping at the first miss; and the products the
+    // adaptive runs counted (the median over the rotations tried).
+    let worst = |order: Option<usize>, adaptive: Option<AdaptiveParams>| {
+        let mut w = f64::INFINITY;
+        let mut ratio = Vec::new();
+        for (&deg, reference) in opt.rotations.iter().zip(&references) {
+            let r = bound.relight(&at(deg, order, adaptive))?;
+            if let (Some(p), Some(f)) = (r.stats.products, r.stats.full_order_products) {
+                ratio.push(p as f64 / (f as f64).max(1.0));
+            }
+            let img = bound.form_image(&r, deg)?;
+            w = w.min(prt_compare::compare(&img, reference, None)?.whole.psnr_ldr);
+            if w < opt.target_psnr {
+                break;
+            }
+        }
+        Ok::<_, SceneRelightError>((w, (!ratio.is_empty()).then(|| median(ratio))))
+    };
+    let top = bake
+        .objects
+        .iter()
+        .map(|o| o.order as usize)
+        .max()
+        .unwrap_or(1);
+    let top = opt.base.order.map_or(top, |k| k.min(top));
+    let mut tried = Vec::new();
+    let mut best_uniform = None;
+    for order in 1..top {
+        let (min_psnr, _) = worst(Some(order), None)?;
+        let c = Candidate {
+            representation: Representation::Uniform { order },
+            min_psnr,
+            cost: modelled_products(bake, Some(order)),
+        };
+        tried.push(c.clone());
+        if min_psnr >= opt.target_psnr {
+            best_uniform = Some(c);
+            break;
+        }
+    }
+    let full_cost = modelled_products(bake, Some(top));
+    let best_uniform = best_uniform.unwrap_or(Candidate {
+        representation: Representation::Uniform { order: top },
+        min_psnr: f64::INFINITY,
+        cost: full_cost,
+    });
+    let raw_full_cost = products_model(bake, Some(top), false);
+    let mut chosen = best_uniform.clone();
+    let mut t = threshold_value(&opt.adaptive);
+    for _ in 0..opt.adaptive_tries {
+        let params = with_threshold(&opt.adaptive, t);
+        let (min_psnr, ratio) = worst(Some(top), Some(params))?;
+        let c = Candidate {
+            representation: Representation::Adaptive { threshold: t },
+            min_psnr,
+            cost: ratio.unwrap_or(1.0) * raw_full_cost * ADAPTIVE_PRODUCT_COST,
+        };
+        tried.push(c.clone());
+        if min_psnr >= opt.target_psnr {
+            if c.cost < chosen.cost {
+                chosen = c;
+            }
+            break;
+        }
+        t *= 0.5;
+    }
+    let timed = |c: &Candidate| -> Result<f64, SceneRelightError> {
+        let o = chosen_options(&opt.base, &c.representation, &opt.adaptive, 0.0);
+        Ok(bound
+            .relight(&RelightOptions {
+                timing_frames: 5,
+                warmup_frames: 2,
+                rotate_y_step_deg: 10.0,
+                ..o
+            })?
+            .stats
+            .shade_ms)
+    };
+    let shade_ms = (timed(&chosen)?, timed(&best_uniform)?);
+    Ok(Choice {
+        chosen,
+        best_uniform,
+        tried,
+        compressed: bake
+            .objects
+            .iter()
+            .any(|o| o.blocks.iter().any(|b| b.cpca.is_some())),
+        shade_ms,
+    })
+}
+
+/// The relighting options of representation `r` rotated by `deg` (one timed frame).
+#[must_use]
+pub fn chosen_options(
+    base: &RelightOptions,
+    r: &Representation,
+    adaptive: &AdaptiveParams,
+    deg: f64,
+) -> RelightOptions {
+    let (order, adaptive) = match r {
+        Representation::Uniform { order } => (Some(*order), None),
+        Representation::Adaptive { threshold } => {
+            (base.order, Some(with_threshold(adaptive, *threshold)))
+        }
+    };
+    RelightOptions {
+        order,
+        adaptive,
+        rotate_y_deg: deg,
+        timing_frames: 1,
+        warmup_frames: 0,
+        rotate_y_step_deg: 0.0,
+        points: None,
+        ..base.clone()
     }
 }
 
