@@ -443,3 +443,35 @@ fn damaged_helmet_renders_with_normal_map_and_emission() {
     // pixels (about a third of the 768) change by more than 10 % (61 when written).
     assert!(changed(&mapped, &plain) >= 30);
 }
+
+/// `KHR_texture_transform` on a `normalTexture` (which the `gltf` crate does not parse there)
+/// moves where the normal map is read: a 2×1 map tilted +X on the left and −X on the right
+/// (clamped), read at `u = 0.25`, gives +X; shifted by half the width it gives −X.
+#[test]
+fn normal_texture_transform_moves_the_lookup() {
+    let dir = tempfile::tempdir().unwrap();
+    let img = image::ImageBuffer::<image::Rgba<u16>, Vec<u16>>::from_fn(2, 1, |x, _| {
+        let r = if x == 0 { 49151 } else { 16384 };
+        image::Rgba([r, 32768, 65535, 65535])
+    });
+    img.save(dir.path().join("n.png")).unwrap();
+    let tilt = |transform: &str| {
+        let material = format!(r#","normalTexture":{{"index":0{transform}}}"#);
+        let root = texture_root(&["n.png"], r#""extensionsUsed":["KHR_texture_transform"],"#);
+        let path = write_quad(dir.path(), &material, &root, Some([1.0, 0.0, 0.0, 1.0]));
+        let scene = scene_of(&path, Environment::uniform([1.0; 3]));
+        // Triangle 1 is (v0, v2, v3) with UVs (0, 1), (1, 0), (0, 0): weights (0.25, 0.5)
+        // of v2 and v3 put the point at UV (0.25, 0.25), the left texel's centre.
+        let at = prt_scene::SurfacePoint::Triangle {
+            tri: 1,
+            u: 0.25,
+            v: 0.5,
+        };
+        assert_eq!(scene.meshes[0].texcoord(0, at), Some([0.25, 0.25]));
+        scene.shading_normal(0, 1, 0.25, 0.5)
+    };
+    let plain = tilt("");
+    let shifted = tilt(r#","extensions":{"KHR_texture_transform":{"offset":[0.5,0.0]}}"#);
+    assert!(plain.x > 0.4, "{plain}");
+    assert!(shifted.x < -0.4, "{shifted}");
+}
