@@ -27,12 +27,38 @@ pub struct FitLightingArgs {
     /// ε in the image can become an error of limit · ε in the coefficients.
     #[arg(long, default_value_t = 1000.0)]
     pub condition_limit: f64,
+    /// The smallest gain of a well-determined band: the smallest singular value of its
+    /// columns with the lower bands projected out, over band 0's (for a Lambertian object
+    /// seeing every normal, A_l / A_0: 1, 2/3, 1/4, 0, 1/24, …). A relative error ε in the
+    /// image becomes about ε / gain in the band.
+    #[arg(long, default_value_t = 0.05)]
+    pub min_gain: f64,
+    /// Bands of the forward model (default: the bake's order): the bands past the
+    /// well-determined ones stay in the model, regularised, so that their content in the image
+    /// is not pushed onto the lower bands.
+    #[arg(long)]
+    pub model_order: Option<usize>,
+    /// Check the fit against known coefficients (a `prt sh project --json` file): prints the
+    /// relative L2 error of the well-determined bands and of each band, and the model residual
+    /// under the known lighting.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
     /// Relight the scene under the fitted lighting, turned by --rotate-y, to this EXR.
     #[arg(long)]
     pub relight_out: Option<PathBuf>,
     /// Rotation about +Y of --relight-out's lighting, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub rotate_y: f64,
+    /// Also fit this material's albedo (per channel) and, for `phong`, its exponent (the
+    /// lighting and material alternately; see prt_scene_relight::fit_material). The image fixes
+    /// only albedo × lighting: the scale comes from objects of other materials in the image
+    /// (a probe), else from the Phong material's `specular`, held; a Lambertian material
+    /// alone is refused. --relight-out then relights with the fitted material.
+    #[arg(long)]
+    pub fit_material: Option<String>,
+    /// Write the fitted pixels as a mask PNG (255 fitted, 0 not): `prt compare --mask` takes it.
+    #[arg(long)]
+    pub mask_out: Option<PathBuf>,
     /// Print one JSON object: `{"order": N, "coefficients": [[r, g, b], ...], ...}` (the form
     /// of `prt sh project --json`, with the conditioning and residual beside it).
     #[arg(long)]
@@ -43,6 +69,9 @@ pub struct FitLightingArgs {
 pub fn run(args: &FitLightingArgs) -> Result<()> {
     if args.condition_limit.is_nan() || args.condition_limit < 1.0 {
         bail!("--condition-limit must be at least 1");
+    }
+    if !(0.0..=1.0).contains(&args.min_gain) {
+        bail!("--min-gain must be in [0, 1]");
     }
     let scene = crate::common::load_scene(&args.scene)?;
     let bake = prt_bakefile::read_bake(&args.bake)?;
@@ -71,35 +100,23 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
             .collect()
     });
     let weighted = weights.is_some();
-    let fit = fit_lighting(
-        &bound,
-        &image,
-        &FitOptions {
-            order: args.order,
-            condition_limit: args.condition_limit,
-            weights,
-        },
-    )
-    .with_context(|| format!("{}: cannot fit the lighting", args.image.display()))?;
+    let truth = args.truth.as_deref().map(read_coefficients).transpose()?;
+    let opt = FitOptions {
+        order: args.order,
+        model_order: args.model_order,
+        condition_limit: args.condition_limit,
+        min_gain: args.min_gain,
+        weights,
+        truth,
+    };
+    write_mask(args, &bound)?;
+    if let Some(name) = &args.fit_material {
+        return run_material(args, &bound, &image, name, &opt, weighted);
+    }
+    let fit = fit_lighting(&bound, &image, &opt)
+        .with_context(|| format!("{}: cannot fit the lighting", args.image.display()))?;
     if let Some(out) = &args.relight_out {
-        let relit = bound.relight_under(
-            &fit.coefficients,
-            &prt_scene_relight::RelightOptions {
-                rotate_y_deg: args.rotate_y,
-                timing_frames: 1,
-                warmup_frames: 0,
-                ..Default::default()
-            },
-        )?;
-        let img = bound.form_image(&relit, args.rotate_y)?;
-        prt_scene_relight::io::write_exr(
-            out,
-            &img,
-            &[
-                ("kind", "relit-fitted-lighting".into()),
-                ("rotate_y", args.rotate_y.to_string()),
-            ],
-        )?;
+        relight_out(&bound, &fit.coefficients, args.rotate_y, out)?;
     }
     if args.json {
         let mut v = serde_json::to_value(&fit)?;
@@ -111,20 +128,141 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
         outln!("pixels weighted by the inverse of the image's variance channels");
     }
     outln!(
-        "fitted {} bands over {} pixels (relative residual {:.4}); {} well determined, {} singular directions dropped",
+        "fitted {} bands (model {}) over {} pixels (relative residual {:.4}); {} well determined, {} singular directions dropped",
         fit.order,
+        fit.model_order,
         fit.pixels,
         fit.relative_residual,
         fit.well_determined,
         fit.dropped_directions
     );
-    for (l, k) in fit.condition_by_band.iter().enumerate() {
-        let state = if l < fit.well_determined {
-            "well determined"
-        } else {
-            "regularised"
+    for (l, (k, g)) in fit
+        .condition_by_band
+        .iter()
+        .zip(&fit.gain_by_band)
+        .enumerate()
+    {
+        let state = match (l < fit.well_determined, l < fit.order) {
+            (true, _) => "well determined",
+            (false, true) => "regularised",
+            (false, false) => "regularised, model only",
         };
-        outln!("band {l}: condition number {k:.3e} ({state})");
+        outln!("band {l}: condition number {k:.3e}, gain {g:.3e} ({state})");
+    }
+    if let Some(t) = &fit.truth {
+        outln!(
+            "against the known lighting: relative L2 {:.4} over the well-determined bands; model residual {:.4}",
+            t.rel_l2_well_determined,
+            t.model_residual
+        );
     }
     Ok(())
+}
+
+/// `--mask-out`: the fitted pixels as a PNG.
+fn write_mask(args: &FitLightingArgs, bound: &prt_scene_relight::Bound) -> Result<()> {
+    let Some(out) = &args.mask_out else {
+        return Ok(());
+    };
+    let cam = &bound.scene().camera;
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let mut mask = prt_scene_relight::RgbImage {
+        width: w,
+        height: h,
+        pixels: vec![[0.0; 3]; w * h],
+    };
+    for p in prt_scene_relight::inverse::fit_pixels(bound)? {
+        mask.pixels[p] = [1.0; 3];
+    }
+    prt_scene_relight::io::write_png(out, &mask, 0.0)?;
+    Ok(())
+}
+
+/// `--relight-out`: the bound scene relit under `lighting` turned by `rotate_y` degrees.
+fn relight_out(
+    bound: &prt_scene_relight::Bound,
+    lighting: &[[f64; 3]],
+    rotate_y: f64,
+    out: &std::path::Path,
+) -> Result<()> {
+    let relit = bound.relight_under(
+        lighting,
+        &prt_scene_relight::RelightOptions {
+            rotate_y_deg: rotate_y,
+            timing_frames: 1,
+            warmup_frames: 0,
+            ..Default::default()
+        },
+    )?;
+    let img = bound.form_image(&relit, rotate_y)?;
+    prt_scene_relight::io::write_exr(
+        out,
+        &img,
+        &[
+            ("kind", "relit-fitted-lighting".into()),
+            ("rotate_y", rotate_y.to_string()),
+        ],
+    )?;
+    Ok(())
+}
+
+/// `--fit-material NAME`: the lighting and the material's parameters.
+fn run_material(
+    args: &FitLightingArgs,
+    bound: &prt_scene_relight::Bound,
+    image: &prt_scene_relight::RgbImage,
+    name: &str,
+    opt: &FitOptions,
+    weighted: bool,
+) -> Result<()> {
+    use prt_scene_relight::fit_material::{fit_material, fitted_scene};
+    let fit = fit_material(bound, image, name, opt).with_context(|| {
+        format!(
+            "{}: cannot fit the lighting and material {name:?}",
+            args.image.display()
+        )
+    })?;
+    if let Some(out) = &args.relight_out {
+        let scene = fitted_scene(bound.scene(), &fit);
+        let refit = prt_scene_relight::Bound::new(&scene, bound.accel(), bound.bake())?;
+        relight_out(&refit, &fit.coefficients, args.rotate_y, out)?;
+    }
+    if args.json {
+        let mut v = serde_json::to_value(&fit)?;
+        v["order"] = opt.order.into();
+        v["weighted_by_variance"] = weighted.into();
+        outln!("{}", serde_json::to_string(&v)?);
+        return Ok(());
+    }
+    outln!(
+        "material {name:?}: albedo [{:.4}, {:.4}, {:.4}]{} (scale fixed by {}); {} bands of lighting, {} well determined; relative residual {:.4}",
+        fit.albedo[0],
+        fit.albedo[1],
+        fit.albedo[2],
+        fit.exponent
+            .map(|e| format!(", exponent {e:.3}"))
+            .unwrap_or_default(),
+        fit.scale_fixed_by,
+        opt.order,
+        fit.well_determined,
+        fit.relative_residual
+    );
+    Ok(())
+}
+
+/// The coefficients of a `prt sh project --json` file.
+fn read_coefficients(path: &std::path::Path) -> Result<Vec<[f64; 3]>> {
+    #[derive(serde::Deserialize)]
+    struct Projected {
+        coefficients: Vec<[f64; 3]>,
+    }
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    let p: Projected = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: not a `prt sh project --json` file ({{\"coefficients\": [[r, g, b], ...]}})",
+            path.display()
+        )
+    })?;
+    Ok(p.coefficients)
 }

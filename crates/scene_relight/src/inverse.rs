@@ -10,16 +10,26 @@
 //! over the object pixels whose 3 × 3 neighbourhood lies on one object (at silhouettes the
 //! image mixes in the background, which is not part of the model).
 //!
-//! How well the image determines the lighting is the conditioning of `T_c` (SVD): adding band
-//! `l`'s `2l + 1` columns can only raise the condition number `σ_max / σ_min`, and a noise of
-//! relative size ε in the image becomes an error of up to `cond · ε` in the coefficients.
-//! Bands whose condition number is within the limit are **well determined**; the fit still
-//! solves for every band asked (leaving a band out would push the image's content in it onto
-//! the lower bands: 20–30 % errors on the bunny) but **regularises** by truncated SVD — the
-//! directions with `σ < σ_max / limit` are dropped (the minimum-norm solution among those the
-//! image cannot tell apart) — and reports which bands that touched. For a Lambertian object
-//! the thesis predicts bands `l ≤ 2` (its transfer is close to the clamped cosine, whose bands
-//! 3, 5, … vanish and 4, 6, … are small); glossy objects determine more.
+//! **Which bands an image determines.** Per band `l`, the *gain* is the smallest singular
+//! value of band `l`'s columns once the lower bands' columns are projected out, over the norm
+//! of band 0's column. For a Lambertian object whose normals cover the sphere it is the
+//! thesis' `A_l / A_0` (1, 2/3, 1/4, 0, −1/24, 0, 1/64: bands 3, 5, … vanish, 4, 6, … are
+//! small), so a Lambertian image determines bands `l ≤ 2` (§2.4.2); a glossy lobe keeps the
+//! gain up to higher bands. A relative error ε in the image becomes about ε / gain in that
+//! band. Bands whose gain is at least `min_gain` and whose cumulative condition number
+//! (`σ_max / σ_min` of the columns up to the band) is within `condition_limit` are **well
+//! determined** (the first band failing either ends them).
+//!
+//! **The bands past them are part of the model, not left out.** The image holds the lighting
+//! at every frequency the transfer passes; leaving bands out of the model pushes their content
+//! onto the lower bands through the columns they share (one view of an object sees only the
+//! normals facing the camera, where `1`, `z` and `z²` look alike). So the forward model runs to
+//! `model_order` (by default the bake's) and every band past the well-determined ones is
+//! **regularised** by a Gaussian prior (Tikhonov): coefficient variance `s² / (l + 1)²` (the
+//! `1/l²` power spectrum of natural illumination), its scale `s` from the well-determined
+//! bands, the noise from the fit's own residual (two rounds: fit, estimate, refit), then a
+//! truncated SVD at `condition_limit` on the whole. The coefficients returned are bands
+//! `< order`; the regularised ones among them are listed.
 
 use crate::bound::Bound;
 use crate::error::SceneRelightError;
@@ -31,39 +41,83 @@ use serde::Serialize;
 /// What to fit.
 #[derive(Clone, Debug)]
 pub struct FitOptions {
-    /// Bands of lighting to fit (`n²` coefficients per channel).
+    /// Bands of lighting to return (`n²` coefficients per channel).
     pub order: usize,
-    /// The largest condition number a kept band may bring.
+    /// Bands of the forward model (at least `order`; `None`: the bake's largest order).
+    pub model_order: Option<usize>,
+    /// The largest cumulative condition number of a well-determined band, and the
+    /// truncated-SVD cutoff `σ_max / limit` of the solve.
     pub condition_limit: f64,
+    /// The smallest gain (relative to band 0) of a well-determined band.
+    pub min_gain: f64,
     /// Per pixel, the weight of its equation (`1 / variance` where the image's noise is known);
     /// `None`: all 1.
     pub weights: Option<Vec<f64>>,
+    /// Known coefficients to check the fit against (e.g. `prt sh project` of the map that lit
+    /// the image), rows of `[r, g, b]`.
+    pub truth: Option<Vec<[f64; 3]>>,
+}
+
+impl FitOptions {
+    /// Options with the defaults of `prt fit-lighting` (condition limit 1000, minimum gain
+    /// 0.05, the bake's order as the model's, no weights, no truth).
+    #[must_use]
+    pub fn new(order: usize) -> Self {
+        Self {
+            order,
+            model_order: None,
+            condition_limit: 1000.0,
+            min_gain: 0.05,
+            weights: None,
+            truth: None,
+        }
+    }
 }
 
 /// The fitted lighting and how well the image determined it.
 #[derive(Clone, Debug, Serialize)]
 pub struct LightingFit {
-    /// Bands fitted: `coefficients` has `order²` rows.
+    /// Bands returned: `coefficients` has `order²` rows.
     pub order: usize,
-    /// Bands whose condition number is within the limit (`0..well_determined`).
+    /// Bands of the forward model.
+    pub model_order: usize,
+    /// Bands the image determines (`0..well_determined`; see the module docs).
     pub well_determined: usize,
     /// SH coefficients, `[r, g, b]` per basis function in index order `l(l+1)+m`.
     pub coefficients: Vec<[f64; 3]>,
-    /// Per band `l` (asked), the condition number of the fit up to that band (the largest over
-    /// the channels; infinite when a band's columns are zero, e.g. above the bake's order).
+    /// Per band `l` of the model, the condition number of the columns up to that band (the
+    /// largest over the channels; infinite when a band's columns are zero).
     pub condition_by_band: Vec<f64>,
-    /// Bands past the limit: their coefficients are the truncated-SVD (regularised) estimate.
+    /// Per band `l` of the model, its gain relative to band 0 (the smallest over the channels).
+    pub gain_by_band: Vec<f64>,
+    /// Bands `< order` past the well-determined ones: their coefficients are regularised.
     pub regularised_bands: Vec<usize>,
-    /// Singular directions dropped by the regularisation (the most over the channels).
+    /// Singular directions the final truncated SVD dropped (the most over the channels).
     pub dropped_directions: usize,
     /// The condition-number limit used.
     pub condition_limit: f64,
+    /// The minimum gain used.
+    pub min_gain: f64,
     /// Pixels in the fit.
     pub pixels: usize,
     /// Per channel, the root-mean-square residual over those pixels (linear radiance).
     pub residual_rms: [f64; 3],
-    /// `‖residual‖ / ‖image‖` over those pixels and channels.
+    /// `‖residual‖ / ‖image‖` over those pixels and channels (weighted).
     pub relative_residual: f64,
+    /// Against the known coefficients, when given.
+    pub truth: Option<TruthCheck>,
+}
+
+/// The fit against known coefficients.
+#[derive(Clone, Debug, Serialize)]
+pub struct TruthCheck {
+    /// Relative L2 error over the well-determined bands (all channels).
+    pub rel_l2_well_determined: f64,
+    /// Per band `< order`, the relative L2 error of that band's coefficients.
+    pub rel_l2_by_band: Vec<f64>,
+    /// `‖T·L_true − image‖ / ‖image‖` (weighted, bands of the model the truth has): what the
+    /// forward model misses (model error and noise); compare with `relative_residual`.
+    pub model_residual: f64,
 }
 
 /// The pixels a fit uses: on an object, with the eight neighbours on the same object.
@@ -90,10 +144,15 @@ pub fn fit_pixels(bound: &Bound) -> Result<Vec<usize>, SceneRelightError> {
 }
 
 /// The image under each basis function alone (column `i`: the lighting `e_i` in every
-/// channel), at the pixels `pixels`: `[channel](pixels × n²)`.
-fn design(
+/// channel), at the pixels `pixels`, each row scaled by `sqrt_weights`: `[channel](pixels ×
+/// n²)`.
+///
+/// # Errors
+/// Relighting errors.
+pub fn basis_images(
     bound: &Bound,
     pixels: &[usize],
+    sqrt_weights: &[f64],
     n: usize,
 ) -> Result<[DMatrix<f64>; 3], SceneRelightError> {
     let n2 = n * n;
@@ -112,9 +171,9 @@ fn design(
         lighting[i] = [1.0; 3];
         let relit = bound.relight_under(&lighting, &once)?;
         let image = bound.form_image(&relit, 0.0)?;
-        for (row, &p) in pixels.iter().enumerate() {
+        for (row, (&p, w)) in pixels.iter().zip(sqrt_weights).enumerate() {
             for (c, m) in a.iter_mut().enumerate() {
-                m[(row, i)] = f64::from(image.pixels[p][c]);
+                m[(row, i)] = w * f64::from(image.pixels[p][c]);
             }
         }
     }
@@ -132,16 +191,159 @@ fn condition(m: &DMatrix<f64>) -> f64 {
     }
 }
 
-/// Fits the lighting of `image` (of the bound scene's camera) at `opt.order` bands.
+/// Per band, the cumulative condition number and the gain (module docs), worst channel.
+#[must_use]
+pub fn conditioning(a: &[DMatrix<f64>; 3], order: usize) -> (Vec<f64>, Vec<f64>) {
+    let cond = (0..order)
+        .map(|l| {
+            let cols = (l + 1) * (l + 1);
+            a.iter()
+                .map(|m| condition(&m.columns(0, cols).into_owned()))
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    let gain = (0..order)
+        .map(|l| {
+            a.iter()
+                .map(|m| band_gain(m, l))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    (cond, gain)
+}
+
+/// Band `l`'s gain in `m`: the smallest singular value of its columns with the lower bands'
+/// span projected out, over the norm of column 0.
+fn band_gain(m: &DMatrix<f64>, l: usize) -> f64 {
+    let base = m.column(0).norm();
+    if base == 0.0 {
+        return 0.0;
+    }
+    let mut band = m.columns(l * l, 2 * l + 1).into_owned();
+    if l > 0 {
+        let lower = m.columns(0, l * l).into_owned();
+        let svd = lower.svd(true, false);
+        let cutoff = svd.singular_values.max() * 1e-12;
+        let u = svd.u.expect("asked for U");
+        for (k, s) in svd.singular_values.iter().enumerate() {
+            if *s > cutoff {
+                let uk = u.column(k);
+                let proj = uk.transpose() * &band;
+                band -= uk * proj;
+            }
+        }
+    }
+    band.singular_values().min() / base
+}
+
+/// The well-determined bands: up to the first band whose gain is below `min_gain` or whose
+/// condition number exceeds `limit`.
+#[must_use]
+pub fn well_determined(cond: &[f64], gain: &[f64], limit: f64, min_gain: f64) -> usize {
+    cond.iter()
+        .zip(gain)
+        .take_while(|(&k, &g)| k <= limit && g >= min_gain)
+        .count()
+}
+
+/// A regularised solve of one channel: `x` (model bands), the residual's squared norm, and
+/// the singular directions dropped.
+pub struct ChannelSolve {
+    /// Coefficients over the model's bands.
+    pub x: DVector<f64>,
+    /// `‖A x − b‖²`.
+    pub residual2: f64,
+    /// Directions the truncated SVD dropped.
+    pub dropped: usize,
+}
+
+/// Solves `a x ≈ b` with bands `≥ well` under the Gaussian prior of the module docs (two
+/// rounds) and a truncated SVD at `limit`.
 ///
 /// # Errors
-/// An image of another size, an order of 0, weights of the wrong length, no object pixel to
-/// fit, and relighting errors.
-pub fn fit_lighting(
+/// A failed SVD solve.
+pub fn solve_channel(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    well: usize,
+    limit: f64,
+) -> Result<ChannelSolve, SceneRelightError> {
+    let cols = a.ncols();
+    let model = (cols as f64).sqrt().round() as usize;
+    let mut damping = vec![0.0; cols];
+    let mut out = tsvd(a, b, &damping, limit)?;
+    if well >= model {
+        return Ok(out);
+    }
+    for _ in 0..2 {
+        // Noise per (weighted) equation, from the residual.
+        let dof = (a.nrows().saturating_sub(cols)).max(1) as f64;
+        let noise = (out.residual2 / dof).sqrt();
+        // The prior's scale from the well-determined bands (band 0 when there is no other):
+        // mean over them of (l + 1)² x²_{lm}.
+        let top = well.max(1);
+        let s2 = (0..top * top)
+            .map(|i| {
+                let l = (i as f64).sqrt().floor() + 1.0;
+                l * l * out.x[i] * out.x[i]
+            })
+            .sum::<f64>()
+            / (top * top) as f64;
+        if s2 <= 0.0 {
+            break;
+        }
+        for (i, d) in damping.iter_mut().enumerate().skip(well * well) {
+            let l = (i as f64).sqrt().floor();
+            *d = noise * (l + 1.0) / s2.sqrt();
+        }
+        out = tsvd(a, b, &damping, limit)?;
+    }
+    Ok(out)
+}
+
+/// Truncated-SVD solve of `[a; diag(damping)] x ≈ [b; 0]`.
+fn tsvd(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    damping: &[f64],
+    limit: f64,
+) -> Result<ChannelSolve, SceneRelightError> {
+    let (rows, cols) = a.shape();
+    let damped: Vec<usize> = (0..cols).filter(|&i| damping[i] > 0.0).collect();
+    let mut m = DMatrix::zeros(rows + damped.len(), cols);
+    m.rows_mut(0, rows).copy_from(a);
+    let mut rhs = DVector::zeros(rows + damped.len());
+    rhs.rows_mut(0, rows).copy_from(b);
+    for (k, &i) in damped.iter().enumerate() {
+        m[(rows + k, i)] = damping[i];
+    }
+    let svd = m.svd(true, true);
+    let cutoff = svd.singular_values.max() / limit;
+    let dropped = svd.singular_values.iter().filter(|&&s| s < cutoff).count();
+    let x = svd
+        .solve(&rhs, cutoff)
+        .map_err(|e| SceneRelightError::Invalid(format!("least squares: {e}")))?;
+    let residual2 = (a * &x - b).norm_squared();
+    Ok(ChannelSolve {
+        x,
+        residual2,
+        dropped,
+    })
+}
+
+/// The fit's pixels, their square-root weights and the weighted image per channel.
+pub type Prepared = (Vec<usize>, Vec<f64>, [DVector<f64>; 3]);
+
+/// The fit's pixels, their square-root weights and the weighted image: checked against the
+/// bound scene's camera.
+///
+/// # Errors
+/// An image of another size, weights of the wrong length, no object pixel.
+pub fn prepare_pixels(
     bound: &Bound,
     image: &RgbImage,
-    opt: &FitOptions,
-) -> Result<LightingFit, SceneRelightError> {
+    weights: Option<&[f64]>,
+) -> Result<Prepared, SceneRelightError> {
     let cam = &bound.scene().camera;
     if (image.width, image.height) != (cam.width as usize, cam.height as usize) {
         return Err(SceneRelightError::Invalid(format!(
@@ -149,16 +351,13 @@ pub fn fit_lighting(
             image.width, image.height, cam.width, cam.height
         )));
     }
-    if opt.order == 0 {
-        return Err(SceneRelightError::Invalid("fit at least one band".into()));
-    }
     let pixels = fit_pixels(bound)?;
     if pixels.is_empty() {
         return Err(SceneRelightError::Invalid(
             "no object pixel away from silhouettes to fit".into(),
         ));
     }
-    let weights: Vec<f64> = match &opt.weights {
+    let sqrt_w: Vec<f64> = match weights {
         Some(w) if w.len() != image.pixels.len() => {
             return Err(SceneRelightError::Invalid(format!(
                 "{} weights for {} pixels",
@@ -169,73 +368,151 @@ pub fn fit_lighting(
         Some(w) => pixels.iter().map(|&p| w[p].max(0.0).sqrt()).collect(),
         None => vec![1.0; pixels.len()],
     };
-    let mut a = design(bound, &pixels, opt.order)?;
-    for m in &mut a {
-        for (row, w) in weights.iter().enumerate() {
-            m.row_mut(row).scale_mut(*w);
-        }
-    }
-    let condition_by_band: Vec<f64> = (0..opt.order)
-        .map(|l| {
-            let cols = (l + 1) * (l + 1);
-            a.iter()
-                .map(|m| condition(&m.columns(0, cols).into_owned()))
-                .fold(0.0, f64::max)
-        })
-        .collect();
-    let well = condition_by_band
-        .iter()
-        .take_while(|&&k| k <= opt.condition_limit)
-        .count();
-    solve(&a, image, &pixels, &weights, well, opt, condition_by_band)
-}
-
-/// The truncated-SVD least-squares solution over every band asked (singular values below
-/// `σ_max / limit` dropped), and its residual.
-fn solve(
-    a: &[DMatrix<f64>; 3],
-    image: &RgbImage,
-    pixels: &[usize],
-    weights: &[f64],
-    well: usize,
-    opt: &FitOptions,
-    condition_by_band: Vec<f64>,
-) -> Result<LightingFit, SceneRelightError> {
-    let cols = opt.order * opt.order;
-    let mut coefficients = vec![[0.0; 3]; cols];
-    let (mut residual_rms, mut r2, mut b2, mut dropped) = ([0.0; 3], 0.0, 0.0, 0);
-    for c in 0..3 {
-        let b = DVector::from_iterator(
+    let b = [0, 1, 2].map(|c| {
+        DVector::from_iterator(
             pixels.len(),
             pixels
                 .iter()
-                .zip(weights)
+                .zip(&sqrt_w)
                 .map(|(&p, w)| w * f64::from(image.pixels[p][c])),
-        );
-        let svd = a[c].clone().svd(true, true);
-        let cutoff = svd.singular_values.max() / opt.condition_limit;
-        dropped = dropped.max(svd.singular_values.iter().filter(|&&s| s < cutoff).count());
-        let x = svd
-            .solve(&b, cutoff)
-            .map_err(|e| SceneRelightError::Invalid(format!("least squares: {e}")))?;
-        for (i, v) in x.iter().enumerate() {
-            coefficients[i][c] = *v;
-        }
-        let r = &a[c] * &x - &b;
-        residual_rms[c] = (r.norm_squared() / pixels.len() as f64).sqrt();
-        r2 += r.norm_squared();
-        b2 += b.norm_squared();
+        )
+    });
+    Ok((pixels, sqrt_w, b))
+}
+
+/// The model order of `opt` for `bound`'s bake, checked.
+///
+/// # Errors
+/// An order of 0, or a model order below it.
+pub fn model_order(bound: &Bound, opt: &FitOptions) -> Result<usize, SceneRelightError> {
+    if opt.order == 0 {
+        return Err(SceneRelightError::Invalid("fit at least one band".into()));
     }
+    let baked = bound
+        .bake()
+        .objects
+        .iter()
+        .map(|o| o.order as usize)
+        .max()
+        .unwrap_or(1);
+    let m = opt.model_order.unwrap_or(baked).max(opt.order);
+    if opt.model_order.is_some_and(|m| m < opt.order) {
+        return Err(SceneRelightError::Invalid(format!(
+            "a model order of {} below the fitted order {}",
+            opt.model_order.unwrap_or(0),
+            opt.order
+        )));
+    }
+    Ok(m)
+}
+
+/// Fits the lighting of `image` (of the bound scene's camera) at `opt.order` bands.
+///
+/// # Errors
+/// An image of another size, an order of 0, weights of the wrong length, no object pixel to
+/// fit, and relighting errors.
+pub fn fit_lighting(
+    bound: &Bound,
+    image: &RgbImage,
+    opt: &FitOptions,
+) -> Result<LightingFit, SceneRelightError> {
+    let model = model_order(bound, opt)?;
+    let (pixels, sqrt_w, b) = prepare_pixels(bound, image, opt.weights.as_deref())?;
+    let a = basis_images(bound, &pixels, &sqrt_w, model)?;
+    fit_from_design(&a, &b, pixels.len(), opt, model)
+}
+
+/// [`fit_lighting`] from the weighted basis images `a` and weighted image `b`.
+///
+/// # Errors
+/// A failed solve.
+pub fn fit_from_design(
+    a: &[DMatrix<f64>; 3],
+    b: &[DVector<f64>; 3],
+    pixels: usize,
+    opt: &FitOptions,
+    model: usize,
+) -> Result<LightingFit, SceneRelightError> {
+    let (condition_by_band, gain_by_band) = conditioning(a, model);
+    let well = well_determined(
+        &condition_by_band,
+        &gain_by_band,
+        opt.condition_limit,
+        opt.min_gain,
+    )
+    .min(opt.order);
+    let mut full = vec![[0.0; 3]; model * model];
+    let (mut residual_rms, mut r2, mut b2, mut dropped) = ([0.0; 3], 0.0, 0.0, 0);
+    for c in 0..3 {
+        let s = solve_channel(&a[c], &b[c], well, opt.condition_limit)?;
+        for (i, v) in s.x.iter().enumerate() {
+            full[i][c] = *v;
+        }
+        residual_rms[c] = (s.residual2 / pixels as f64).sqrt();
+        r2 += s.residual2;
+        b2 += b[c].norm_squared();
+        dropped = dropped.max(s.dropped);
+    }
+    let truth = opt
+        .truth
+        .as_ref()
+        .map(|t| truth_check(a, b, t, &full[..opt.order * opt.order], well));
     Ok(LightingFit {
         order: opt.order,
+        model_order: model,
         well_determined: well,
-        coefficients,
+        coefficients: full[..opt.order * opt.order].to_vec(),
         regularised_bands: (well..opt.order).collect(),
         dropped_directions: dropped,
         condition_by_band,
+        gain_by_band,
         condition_limit: opt.condition_limit,
-        pixels: pixels.len(),
+        min_gain: opt.min_gain,
+        pixels,
         residual_rms,
         relative_residual: if b2 > 0.0 { (r2 / b2).sqrt() } else { 0.0 },
+        truth,
     })
+}
+
+/// Relative L2 error of `got` against `want` over rows `from..to` (all channels).
+#[must_use]
+pub fn rel_l2(got: &[[f64; 3]], want: &[[f64; 3]], from: usize, to: usize) -> f64 {
+    let (mut e, mut n) = (0.0, 0.0);
+    for i in from..to.min(got.len()).min(want.len()) {
+        for c in 0..3 {
+            e += (got[i][c] - want[i][c]).powi(2);
+            n += want[i][c] * want[i][c];
+        }
+    }
+    if n > 0.0 {
+        (e / n).sqrt()
+    } else {
+        e.sqrt()
+    }
+}
+
+/// The fit against known coefficients `truth`.
+fn truth_check(
+    a: &[DMatrix<f64>; 3],
+    b: &[DVector<f64>; 3],
+    truth: &[[f64; 3]],
+    got: &[[f64; 3]],
+    well: usize,
+) -> TruthCheck {
+    let order = (got.len() as f64).sqrt().round() as usize;
+    let cols = a[0].ncols().min(truth.len());
+    let (mut r2, mut b2) = (0.0, 0.0);
+    for c in 0..3 {
+        let x = DVector::from_iterator(cols, truth[..cols].iter().map(|t| t[c]));
+        r2 += (a[c].columns(0, cols) * x - &b[c]).norm_squared();
+        b2 += b[c].norm_squared();
+    }
+    TruthCheck {
+        rel_l2_well_determined: rel_l2(got, truth, 0, well * well),
+        rel_l2_by_band: (0..order)
+            .map(|l| rel_l2(got, truth, l * l, (l + 1) * (l + 1)))
+            .collect(),
+        model_residual: if b2 > 0.0 { (r2 / b2).sqrt() } else { 0.0 },
+    }
 }

@@ -9,7 +9,8 @@
 //! target frame by frame; [`io`] writes the images. [`Bound`] binds a bake once per command
 //! (footprints, lightmaps, the camera's rays) for every relighting and image after it, and
 //! [`inverse`] fits the lighting to an image (Ramamoorthi & Hanrahan 2001, inverse
-//! rendering), relighting being linear in it.
+//! rendering), relighting being linear in it, and [`fit_material`] a material's albedo and
+//! Phong exponent with it.
 //!
 //! The relighting follows Sloan, Kautz & Snyder 2002 (diffuse PRT) and Lee & Kim 2014
 //! (specular PRT through SH products and locally adaptive SH), whose scene-free kernels are
@@ -19,6 +20,7 @@
 mod binding;
 mod bound;
 mod error;
+pub mod fit_material;
 pub mod footprint;
 mod frames;
 pub mod glossy;
