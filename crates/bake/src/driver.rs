@@ -344,8 +344,8 @@ fn subdivision_decision(
             )
         } else {
             format!(
-                "edges whose transfer differed by more than {} (relative L2) were split, level by level: {:?} edges (at most {} levels)",
-                sub.error, r.splits, sub.max_levels
+                "edges whose transfer differed by more than {} (relative L2) were split, level by level: {:?} edges (at most {} levels), decided from {} probes of {} rays",
+                sub.error, r.splits, sub.max_levels, r.probes.iter().sum::<usize>(), r.probe_rays
             )
         },
     }

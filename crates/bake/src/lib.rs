@@ -38,6 +38,7 @@ mod per_pixel;
 mod per_texel;
 mod per_vertex;
 pub mod plan;
+mod probe;
 mod relit;
 mod report;
 mod rows;

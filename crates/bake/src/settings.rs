@@ -212,6 +212,10 @@ pub struct SubdivideOptions {
     pub max_levels: u32,
     /// An object stops refining once it has this many vertices.
     pub max_vertices: usize,
+    /// Directions of each refinement probe (at most the bake's rays; `None`: a quarter of
+    /// them, at least 128): the refinement decides with these cheap probes, and only the final
+    /// vertices get the bake's full rays.
+    pub probe_rays: Option<u32>,
 }
 
 impl Default for SubdivideOptions {
@@ -220,6 +224,7 @@ impl Default for SubdivideOptions {
             error: 0.1,
             max_levels: 5,
             max_vertices: 1 << 20,
+            probe_rays: None,
         }
     }
 }

@@ -1,30 +1,38 @@
 //! Adaptive subdivision of per-vertex bakes (after D3DX's PRT engine): a coarse mesh cannot
 //! hold the shadow a figure casts on a 4-vertex floor, so the baker splits the edges across
-//! which the transfer changes by more than an error target, bakes the new vertices, and
-//! repeats, up to a number of levels. Edges across which the transfer does not change are
-//! never split, so open, evenly lit regions keep their triangles.
+//! which the transfer changes by more than an error target, and repeats, up to a number of
+//! levels; then the refined mesh is baked like any other. Edges across which the transfer does
+//! not change are never split, so open, evenly lit regions keep their triangles.
 //!
-//! What interpolation gets wrong is what matters: the transfer is baked at each edge's
+//! What interpolation gets wrong is what matters: the transfer is probed at each edge's
 //! midpoint and at each triangle's centroid, and an edge is split when its midpoint's transfer
 //! differs from the average of its ends' by more than `E` — `‖t_m − (t_a + t_b)/2‖ /
 //! max(‖t_m‖, f) > E` — and all three edges of a triangle when its centroid's differs so from
 //! the average of its corners' (a shadow inside a large triangle whose corners all see the
-//! sky). Vectors are compared on bands 0–2 (what diffuse lighting weighs; the higher bands
-//! carry most of the Monte Carlo noise), and `f` is the object's mean ‖t‖, so noise in
-//! dark regions does not split. A split edge gets its midpoint (position averaged in f64,
-//! normal the normalised sum of its ends'); a triangle with 1, 2 or 3 split edges becomes 2, 3
-//! or 4 triangles with the same winding (red–green refinement: both triangles of a shared edge
-//! split it, so the mesh stays conforming, without T-junctions). The new surface is the old one
-//! exactly: every new triangle lies in its parent's plane.
+//! sky). Vectors are compared on bands 0–2 (what diffuse lighting weighs), and `f` is the
+//! object's mean ‖t‖, so small differences in dark regions do not split.
+//!
+//! The decisions cost a fraction of the bake: every transfer compared is a cheap probe
+//! (`crate::probe`: `SubdivideOptions::probe_rays` directions, bands 0–2 only), and all probes
+//! of an object trace the same world directions (common random numbers), so
+//! `t_m − (t_a + t_b)/2` carries no sampling noise where the three points see the same sky,
+//! only what visibility and the normal do between them. A probe depends on its point alone, so
+//! an edge or triangle a level leaves intact keeps its probe: each level probes only the edges
+//! and triangles the previous one made. No probe goes into the file: the refined meshes are
+//! then baked with the full rays and each vertex's own key, as a plain bake of them would be.
+//!
+//! A split edge gets its midpoint (position averaged in f64, normal the normalised sum of its
+//! ends'); a triangle with 1, 2 or 3 split edges becomes 2, 3 or 4 triangles with the same
+//! winding (red–green refinement: both triangles of a shared edge split it, so the mesh stays
+//! conforming, without T-junctions). The new surface is the old one exactly: every new
+//! triangle lies in its parent's plane.
 
 use crate::plan::ObjectPlan;
-use crate::transfer::{direct, DirectOptions};
+use crate::probe::Probe;
 use crate::{BakeError, BakeSettings};
 use glam::Vec3;
 use prt_scene::{Mesh, Scene};
-use prt_sh::Basis;
-use prt_tracer::points::SamplePoint;
-use prt_tracer::{point_offset, Accel};
+use prt_tracer::Accel;
 use rayon::prelude::*;
 use std::collections::HashMap;
 
@@ -41,7 +49,12 @@ pub struct ObjectRefinement {
     pub triangles: [usize; 2],
     /// Edges split at each level.
     pub splits: Vec<usize>,
-    /// Rays traced to decide (the new vertices' direct transfer, level by level).
+    /// Points probed: the source mesh's vertices, then at each level the midpoints and
+    /// centroids of the edges and triangles that level made.
+    pub probes: Vec<usize>,
+    /// Directions of each probe (about half of them, those above its horizon, are traced).
+    pub probe_rays: u32,
+    /// Rays traced to decide (every probe's rays above its horizon).
     pub rays: u64,
 }
 
@@ -95,9 +108,9 @@ fn split_triangles(indices: &[[u32; 3]], mid: &HashMap<(u32, u32), u32>) -> Vec<
 }
 
 /// Refines every mesh of `scene` (per-vertex bakes) and returns the scene with the refined
-/// meshes, and what was done. `accel` is `scene`'s; the new vertices' transfer is estimated
-/// with the bake's own rays and keys (so the final bake of the refined scene finds the same
-/// values at the same vertices).
+/// meshes, and what was done. `accel` is `scene`'s. The decisions come from cheap probes
+/// (`opt.probe_rays` directions each); no transfer of the refinement goes into the bake: the caller
+/// bakes the refined scene with the full rays.
 ///
 /// # Errors
 /// Invalid options.
@@ -125,6 +138,12 @@ pub fn refine(
 
 /// Refines the mesh of one object in place, level by level, until no edge needs splitting,
 /// `opt.max_levels` levels were done or the mesh has `opt.max_vertices` vertices.
+///
+/// Every decision is made from cheap probes (`opt.probe_rays` directions, bands 0–2 only) that
+/// all trace the same world directions: where the points of an edge see the same sky, their
+/// probes differ only by the cosine, so the probes' own noise does not split. A probe depends
+/// only on its point, so an edge or triangle that survives a level keeps its probe and is not
+/// probed again: each level probes only the new edges and triangles.
 fn refine_mesh(
     mesh: &mut Mesh,
     accel: &Accel,
@@ -132,61 +151,36 @@ fn refine_mesh(
     plan: &ObjectPlan,
     opt: &SubdivideOptions,
 ) -> Result<ObjectRefinement, BakeError> {
-    let basis = Basis::new(plan.order)?;
-    let probe = Probe {
-        accel,
-        extent: accel.mesh_extent(plan.mesh),
-        opt: DirectOptions {
-            rays: settings.rays,
-            record_hits: false,
-            visibility: false,
-            seed: settings.seed,
-            object: plan.mesh as u64,
-            first_ray: 0,
-            basis: &basis,
-        },
-    };
-    let mut transfer: Vec<Vec<f64>> = (0..mesh.positions.len())
-        .into_par_iter()
-        .map(|v| probe.at(mesh.positions[v], mesh.normals[v], v as u64))
-        .collect();
-    let mut rays = mesh.positions.len() as u64 * u64::from(settings.rays);
+    let probe_rays = probe_rays(opt, settings.rays);
+    let probe = Probe::new(accel, plan.mesh, plan.order, probe_rays, settings.seed)?;
+    let vertices: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    let (mut transfer, _, mut rays) = probed(
+        &vertices,
+        &mut HashMap::new(),
+        |&v| (mesh.positions[v as usize], mesh.normals[v as usize]),
+        &probe,
+    );
+    let mut probes = vec![mesh.positions.len()];
     let (v0, t0) = (mesh.positions.len(), mesh.indices.len());
     let mut splits = Vec::new();
-    let mut probe_key = 0u64;
+    let mut edge_cache: HashMap<Edge, Vec<f64>> = HashMap::new();
+    let mut tri_cache: HashMap<[u32; 3], Vec<f64>> = HashMap::new();
     for _ in 0..opt.max_levels {
         if mesh.positions.len() >= opt.max_vertices {
             break;
         }
-        let floor = mean_norm(&transfer);
         let (edges, seen) = unique_edges(&mesh.indices);
-        // Probe transfer at edge midpoints and triangle centroids (their own keys, after
-        // every vertex index; the final bake re-derives kept vertices by their index).
-        let base = u64::MAX / 2 + probe_key;
-        let at_edges: Vec<Vec<f64>> = edges
-            .par_iter()
-            .enumerate()
-            .map(|(i, &e)| {
-                let (p, n) = midpoint(mesh, e);
-                probe.at(p, n, base + i as u64)
-            })
-            .collect();
-        let at_tris: Vec<Vec<f64>> = mesh
-            .indices
-            .par_iter()
-            .enumerate()
-            .map(|(i, t)| {
-                let (p, n) = centroid(mesh, t);
-                probe.at(p, n, base + (edges.len() + i) as u64)
-            })
-            .collect();
-        probe_key += (edges.len() + mesh.indices.len()) as u64;
-        rays += (edges.len() + mesh.indices.len()) as u64 * u64::from(settings.rays);
+        let (at_edges, new_edges, edge_rays) =
+            probed(&edges, &mut edge_cache, |&e| midpoint(mesh, e), &probe);
+        let (at_tris, new_tris, tri_rays) =
+            probed(&mesh.indices, &mut tri_cache, |t| centroid(mesh, t), &probe);
+        probes.push(new_edges + new_tris);
+        rays += edge_rays + tri_rays;
         let deviations = Deviations {
             transfer: &transfer,
             at_edges: &at_edges,
             at_tris: &at_tris,
-            floor,
+            floor: mean_norm(&transfer),
             error: opt.error,
         };
         let chosen = deviations.edges_to_split(&mesh.indices, &edges, &seen);
@@ -201,30 +195,56 @@ fn refine_mesh(
         vertices: [v0, mesh.positions.len()],
         triangles: [t0, mesh.indices.len()],
         splits,
+        probes,
+        probe_rays,
         rays,
     })
 }
 
-/// The shadowed transfer of one object at any surface point, with the bake's rays and keys.
-struct Probe<'a> {
-    accel: &'a Accel,
-    /// The object's extent (it sizes the ray offset).
-    extent: f32,
-    opt: DirectOptions<'a>,
+/// The directions of each probe: `opt.probe_rays`, by default a quarter of the bake's rays but
+/// at least 128, never more than the bake's rays and at least 1. A probe traces the half of
+/// its directions above its horizon, and the first level probes about 6 points per vertex
+/// (the vertex, ~3 edge midpoints, ~2 triangle centroids), so by default the probes trace
+/// about ¾ of the rays of the source mesh's direct bake; below 128 directions (64 traced) the
+/// probes' noise starts to split edges on curved meshes (measured in the crate README).
+fn probe_rays(opt: &SubdivideOptions, rays: u32) -> u32 {
+    opt.probe_rays
+        .unwrap_or((rays / 4).max(128))
+        .min(rays)
+        .max(1)
 }
 
-impl Probe<'_> {
-    /// The shadowed transfer at `p` with normal `n` (normalised; `+Y` if zero), key `key`.
-    fn at(&self, p: Vec3, n: Vec3, key: u64) -> Vec<f64> {
-        let n = n.normalize_or(Vec3::Y);
-        let point = SamplePoint {
-            position: p,
-            normal: n,
-            offset_normal: n,
-            offset: point_offset(p, self.extent),
-        };
-        direct(self.accel, &point, key, &self.opt).shadowed
+/// The probes at the points of `items` (edges' midpoints or triangles' centroids, placed by
+/// `point`), in item order: those already in `cache` reused, the others probed; `cache` is left
+/// holding exactly `items`' probes. Also returns how many were probed, and the rays traced.
+fn probed<K, F>(
+    items: &[K],
+    cache: &mut HashMap<K, Vec<f64>>,
+    point: F,
+    probe: &Probe<'_>,
+) -> (Vec<Vec<f64>>, usize, u64)
+where
+    K: Copy + Eq + std::hash::Hash + Sync,
+    F: Fn(&K) -> (Vec3, Vec3) + Sync,
+{
+    let mut old = std::mem::take(cache);
+    let mut values: Vec<Option<Vec<f64>>> = items.iter().map(|k| old.remove(k)).collect();
+    let missing: Vec<usize> = (0..items.len()).filter(|&i| values[i].is_none()).collect();
+    let fresh: Vec<(Vec<f64>, u64)> = missing
+        .par_iter()
+        .map(|&i| {
+            let (p, n) = point(&items[i]);
+            probe.at(p, n)
+        })
+        .collect();
+    let mut rays = 0;
+    for (&i, (t, r)) in missing.iter().zip(fresh) {
+        values[i] = Some(t);
+        rays += r;
     }
+    let values: Vec<Vec<f64>> = values.into_iter().flatten().collect();
+    *cache = items.iter().copied().zip(values.iter().cloned()).collect();
+    (values, missing.len(), rays)
 }
 
 /// The mean over points of `‖t‖` on the compared coefficients: the floor of [`deviation`].
@@ -425,6 +445,21 @@ mod tests {
             // The shared edge: split on one side means split on the other (no T-junction).
             assert!(!count.contains_key(&(1, 2)) || !mid.contains_key(&(1, 2)));
         }
+    }
+
+    #[test]
+    fn probes_take_a_quarter_of_the_rays_at_least_128_at_most_all() {
+        let auto = SubdivideOptions::default();
+        assert_eq!(probe_rays(&auto, 2048), 512);
+        assert_eq!(probe_rays(&auto, 256), 128);
+        assert_eq!(probe_rays(&auto, 16), 16);
+        let set = |r| SubdivideOptions {
+            probe_rays: Some(r),
+            ..auto
+        };
+        assert_eq!(probe_rays(&set(100), 2048), 100);
+        assert_eq!(probe_rays(&set(4096), 2048), 2048);
+        assert_eq!(probe_rays(&set(0), 2048), 1);
     }
 
     #[test]

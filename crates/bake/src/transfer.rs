@@ -78,7 +78,7 @@ pub struct DirectOptions<'a> {
 /// edge where a floor meets a wall): offsetting along the vertex's own normal leaves the
 /// origin on the other surface's plane, and rays that *leave* that surface report it at
 /// `t ≈ 0`. Rays that enter it (a front face at `t ≈ 0`) are genuinely blocked and kept.
-fn trace(accel: &Accel, point: &SamplePoint, dir: Vec3) -> Option<prt_tracer::Hit> {
+pub(crate) fn trace(accel: &Accel, point: &SamplePoint, dir: Vec3) -> Option<prt_tracer::Hit> {
     let mut origin = point.origin(dir);
     for _ in 0..4 {
         let hit = accel.closest_hit(origin, dir, f32::INFINITY)?;

@@ -73,8 +73,9 @@ pub struct BakeArgs {
     /// Per-vertex bakes: refine the meshes where the transfer changes fast (after D3DX's
     /// adaptive subdivision): split every edge whose midpoint's transfer (or whose triangle's
     /// centroid's) differs from the interpolation of the corners by more than
-    /// --subdivide-error, bake the new vertices, repeat up to --max-subdivision levels. The
-    /// file holds the refined meshes; relight and export use them.
+    /// --subdivide-error, repeat up to --max-subdivision levels, deciding from cheap probes
+    /// (--subdivide-probe-rays), then bake the refined meshes with the full rays. The file
+    /// holds the refined meshes; relight and export use them.
     #[arg(long, conflicts_with_all = ["per_pixel", "shard", "pass", "target_psnr"])]
     pub subdivide: bool,
     /// Relative difference between the transfer at a midpoint (or centroid) and its
@@ -84,6 +85,11 @@ pub struct BakeArgs {
     /// Refinement levels at most (each can double a region's vertex density).
     #[arg(long, default_value_t = 5, requires = "subdivide")]
     pub max_subdivision: u32,
+    /// Directions of each probe --subdivide decides with (default: --rays / 4, at least 128;
+    /// at most --rays; about half are traced): every point of an object probes the same world
+    /// directions, so probes agree exactly where the points see the same sky.
+    #[arg(long, requires = "subdivide", value_parser = clap::value_parser!(u32).range(1..))]
+    pub subdivide_probe_rays: Option<u32>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
@@ -197,6 +203,7 @@ pub fn run_bake(args: &BakeArgs) -> Result<()> {
             .then_some(prt_bake::subdivide::SubdivideOptions {
                 error: args.subdivide_error,
                 max_levels: args.max_subdivision,
+                probe_rays: args.subdivide_probe_rays,
                 ..prt_bake::subdivide::SubdivideOptions::default()
             }),
         progress: true,

@@ -760,6 +760,11 @@ fn run_choose(
     for c in &choice.tried {
         outln!("  tried {}", figures(c));
     }
+    if !choice.compressed {
+        outln!(
+            "  compressed: not a candidate (the bake is not compressed; `prt compress --scene` makes one, whose orders this command then tries)"
+        );
+    }
     outln!(
         "  per vertex or per pixel: not compared (one bake given; bake the other kind and run this again on it)"
     );
