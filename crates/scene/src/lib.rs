@@ -39,6 +39,8 @@
 //! spp = 64                    # ≥ 1
 //! bounces = 0                 # -1 = unlimited (Russian roulette)
 //! seed = 0
+//! normal_maps = true          # false: glTF normal maps switched off (for comparisons)
+//! emission = true             # false: glTF emission switched off
 //! ```
 //! World position = `translate + R·(S·v)`; normals transform by the inverse transpose. A
 //! mirroring scale (negative determinant) also reverses the triangles' winding.

@@ -85,6 +85,8 @@ struct FileRender {
     spp: Option<u32>,
     bounces: Option<i32>,
     seed: Option<u64>,
+    normal_maps: Option<bool>,
+    emission: Option<bool>,
 }
 
 /// Which parameters each material type needs (`true`) or ignores (`false`), in the order
@@ -268,10 +270,36 @@ pub fn parse_scene_str(text: &str, path: &Path) -> Result<LoadedScene, SceneErro
             }
         }
     }
+    switch_off_inputs(&mut scene, &file.render, path, &mut warnings);
     scene
         .validate()
         .map_err(|e| SceneError::format(path, format!("the loaded scene is invalid: {e}")))?;
     Ok(LoadedScene { scene, warnings })
+}
+
+/// `[render] normal_maps = false` / `emission = false`: the glTF materials' normal maps or
+/// emission are dropped (e.g. to compare against a render with them), said in a warning.
+fn switch_off_inputs(scene: &mut Scene, r: &FileRender, path: &Path, warnings: &mut Vec<String>) {
+    for (off, what) in [
+        (r.normal_maps == Some(false), "normal maps"),
+        (r.emission == Some(false), "emission"),
+    ] {
+        if !off {
+            continue;
+        }
+        for s in &mut scene.surface_inputs {
+            if what == "emission" {
+                s.emissive = [0.0; 3];
+                s.emissive_texture = None;
+            } else {
+                s.normal_map = None;
+            }
+        }
+        warnings.push(format!(
+            "{}: [render] switches the glTF materials' {what} off",
+            path.display()
+        ));
+    }
 }
 
 /// Adds a mesh file's own materials (and the textures they read, and their surface inputs)

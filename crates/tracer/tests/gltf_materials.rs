@@ -388,7 +388,8 @@ fn mask_cutouts_pass_camera_and_shadow_rays() {
 
 /// The DamagedHelmet scene loads (JPEG textures, MikkTSpace tangents, an occlusion-map
 /// warning and none about the normal map, emission or alpha), and a tiny render differs
-/// from the same render with its normal map and emission switched off through the API.
+/// from the same render with its normal map and emission switched off (through the API, and
+/// by the scene file's `[render] normal_maps = false`, `emission = false`).
 #[test]
 fn damaged_helmet_renders_with_normal_map_and_emission() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/helmet.toml");
@@ -421,6 +422,18 @@ fn damaged_helmet_renders_with_normal_map_and_emission() {
         s.normal_map = None;
     }
     let plain = render(&neither, 4);
+    // The scene file's switches do the same as clearing the inputs through the API.
+    let text = std::fs::read_to_string(&path).unwrap().replace(
+        "[render]\n",
+        "[render]\nnormal_maps = false\nemission = false\n",
+    );
+    let mut switched = prt_scene::parse_scene_str(&text, &path).unwrap();
+    assert!(switched
+        .warnings
+        .iter()
+        .any(|w| w.contains("normal maps off")));
+    switched.scene.camera = scene.camera.clone();
+    assert_eq!(render(&switched.scene, 4), plain);
     // Pixels that change by more than 10 % of their value.
     let changed = |a: &[Vec3], b: &[Vec3]| {
         a.iter()
