@@ -300,3 +300,77 @@ fn fit_material_recovers_a_known_albedo_and_exponent() {
         "{err}"
     );
 }
+
+/// `--fit-material` on a Lambertian object with a probe: the bunny (albedo (0.5, 0.4, 0.3),
+/// unknown to the fit) on a floor of known albedo, `prt relight`'s own image. The floor fixes
+/// the lighting's scale, so the bunny's albedo comes back itself, not only relative to the
+/// lighting. The image is exact for the model and the albedo's golden section stops at a
+/// bracket of 1e-6, so 1e-3 relative is a loose bound.
+#[test]
+fn fit_material_takes_the_scale_from_a_probe() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let scene = dir.path().join("probe.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            r#"[camera]
+eye = [0.0, 1.2, 2.2]
+target = [0.0, 0.3, 0.0]
+fov_y = 45.0
+resolution = [96, 72]
+
+[environment]
+file = "{}"
+
+[materials.m]
+type = "lambert"
+albedo = [0.5, 0.4, 0.3]
+
+[materials.probe]
+type = "lambert"
+albedo = [0.8, 0.8, 0.8]
+
+[[objects]]
+mesh = "{}"
+material = "m"
+scale = 0.1
+
+[[objects]]
+mesh = "{}"
+material = "probe"
+scale = [2.0, 1.0, 2.0]
+
+[render]
+bounces = 0
+"#,
+            scenes.join("maps/courtyard.exr").display(),
+            scenes.join("meshes/bunny_lowres.obj").display(),
+            scenes.join("meshes/floor.obj").display()
+        ),
+    )
+    .unwrap();
+    let (bake, image) = bake_and_image(&scene, dir.path(), "probe");
+    let j = json(&run(prt()
+        .arg("fit-lighting")
+        .arg(&image)
+        .arg("--scene")
+        .arg(&scene)
+        .arg("--bake")
+        .arg(&bake)
+        .args([
+            "--order",
+            "4",
+            "--min-gain",
+            "0",
+            "--fit-material",
+            "m",
+            "--json",
+        ])));
+    let albedo: [f64; 3] = serde_json::from_value(j["albedo"].clone()).unwrap();
+    for (got, want) in albedo.iter().zip([0.5, 0.4, 0.3]) {
+        assert!((got / want - 1.0).abs() < 1e-3, "albedo {albedo:?}: {j}");
+    }
+    assert!(j["exponent"].is_null());
+    assert!(j["scale_fixed_by"].as_str().unwrap().contains("other"));
+}
