@@ -108,7 +108,11 @@ pub struct RelightArgs {
     /// (full order and adaptive); `exact`, the bake's per-elevation BRDF projections rotated
     /// per point (O(order⁵) per point, full order; the reference for `fitted`); `hybrid`, the
     /// fit, and the exact path at the points whose view elevation puts the fit's relative L2
-    /// error against the lobe at --fit-error or more (sharp lobes at grazing views).
+    /// error against the lobe at --fit-error or more (sharp lobes at grazing views); `shrm`,
+    /// a spherical harmonic reflection map of the environment prefiltered with the lobe once
+    /// per environment, looked up per point, times a specular occlusion from the bake's
+    /// visibility (an approximation; crates/relight/README.md, "Spherical harmonic reflection
+    /// maps").
     #[arg(long, help_heading = "Glossy materials", value_enum, default_value_t = GlossyArg::Fitted)]
     pub glossy: GlossyArg,
     /// With --glossy hybrid: the fit error (relative L2, against the lobe) from which a point
@@ -214,6 +218,8 @@ pub enum GlossyArg {
     Exact,
     /// The fit, and the exact path where the fit's error reaches --fit-error.
     Hybrid,
+    /// Spherical harmonic reflection map lookup with specular occlusion.
+    Shrm,
 }
 
 /// `--stop` values (see [`StopRule`]).
@@ -420,6 +426,7 @@ pub(crate) fn glossy_path(args: &RelightArgs) -> Result<prt_scene_relight::Gloss
     Ok(match args.glossy {
         GlossyArg::Fitted => prt_scene_relight::GlossyPath::Fitted,
         GlossyArg::Exact => prt_scene_relight::GlossyPath::Exact,
+        GlossyArg::Shrm => prt_scene_relight::GlossyPath::Shrm,
         GlossyArg::Hybrid => {
             if !(args.fit_error >= 0.0 && args.fit_error.is_finite()) {
                 bail!(

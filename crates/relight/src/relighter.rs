@@ -411,6 +411,44 @@ impl Relighter {
         Ok(out)
     }
 
+    /// The specular of [`Self::specular`] without visibility, `scale ⊙ Σ_i w_i L_i` (`L ⊛ 1 =
+    /// L`): what a specular-occlusion factor divides the shadowed specular by. One basis
+    /// evaluation per lobe axis and one dot product per channel per point; `frame` needs no
+    /// product matrices.
+    ///
+    /// # Errors
+    /// As [`Self::specular`], and a frame of another order.
+    pub fn specular_unshadowed(
+        &self,
+        input: &SpecularInput<'_>,
+        frame: &FrameLighting,
+    ) -> Result<Vec<[f32; 3]>, RelightError> {
+        let n = self.check_specular(input)?;
+        self.check_frame(frame)?;
+        let lobe = self.lobe(&input.lobe)?;
+        let n2 = self.order * self.order;
+        let light = &frame.lighting.rgb;
+        let mut out = vec![[0.0f32; 3]; n];
+        out.par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(ci, chunk)| {
+                let mut w = vec![0.0f32; n2];
+                let mut scratch = vec![0.0f32; n2];
+                let mut rows = [[0.0; MAX_GAUNT_ORDER]; MAX_FITTED_LOBES];
+                for (k, o) in chunk.iter_mut().enumerate() {
+                    let g = specular_point(input, ci * CHUNK + k, &lobe, self.order, &mut rows);
+                    if !g.active {
+                        continue;
+                    }
+                    self.point_weights(&g, &mut w, &mut scratch);
+                    *o = std::array::from_fn(|c| {
+                        g.scale[c] * w.iter().zip(&light[c]).map(|(a, b)| a * b).sum::<f32>()
+                    });
+                }
+            });
+        Ok(out)
+    }
+
     /// Full-order products of a point: diffuse and specular (3 channels).
     pub(crate) fn full_products(&self) -> (u64, u64) {
         (

@@ -413,3 +413,62 @@ fn test06_measured_error_with_hemispherical_visibility() {
         }
     }
 }
+
+/// `specular_unshadowed` is the specular without visibility: with `V = 1` (`√(4π) e_0`),
+/// `L ⊛ V = L`, so it equals `specular` — the same weights dotted with `L` directly instead of
+/// through the product matrices; the two differ by f32 rounding of the products
+/// (3e-5 · Σ|L_lm| · scale, as test01).
+#[test]
+fn unshadowed_specular_is_the_specular_under_open_visibility() {
+    let c = open_case(10);
+    let l1: [f64; 3] = [0, 1, 2].map(|ch| c.env.iter().map(|v| v[ch].abs()).sum());
+    let r = Relighter::new(c.order).unwrap();
+    let lighting = Lighting::from_rgb_coefficients(&c.env, None).unwrap();
+    let full = r.frame_lighting(&lighting, true).unwrap();
+    let plain = r.frame_lighting(&lighting, false).unwrap();
+    let normals = [
+        [0.0, 1.0, 0.0],
+        [0.3, 0.9, -0.2],
+        [0.9, 0.1, 0.3],
+        [0.0, -1.0, 0.0],
+    ];
+    let dirs = [
+        [0.2, 0.9, 0.1],
+        [-0.4, 0.8, 0.3],
+        [0.5, 0.2, 0.8],
+        [0.0, 1.0, 0.0],
+    ];
+    let vis: Vec<f32> = c
+        .vis
+        .iter()
+        .copied()
+        .cycle()
+        .take(4 * c.vis.len())
+        .collect();
+    let input = SpecularInput {
+        visibility: TransferView::new(c.order, 1, &vis).unwrap(),
+        surface: Surface {
+            positions: &[[0.0; 3]; 4],
+            normals: &normals,
+        },
+        viewer: Viewer::Directions(&dirs),
+        lobe: SpecularLobe::Phong(PhongParams {
+            specular: KS,
+            exponent: 12.0,
+        }),
+    };
+    let a = r.specular(&input, &full).unwrap();
+    let b = r.specular_unshadowed(&input, &plain).unwrap();
+    for (p, (x, y)) in a.iter().zip(&b).enumerate() {
+        for ch in 0..3 {
+            let tol = 3e-5 * l1[ch] * 14.0 / 13.0 * f64::from(KS[ch]);
+            assert!(
+                (f64::from(x[ch]) - f64::from(y[ch])).abs() <= tol,
+                "point {p} ch {ch}: {} vs {}",
+                x[ch],
+                y[ch]
+            );
+        }
+    }
+    assert_eq!(b[3], [0.0; 3], "facing away");
+}

@@ -15,7 +15,9 @@
 //! The relighting follows Sloan, Kautz & Snyder 2002 (diffuse PRT) and Lee & Kim 2014
 //! (specular PRT through SH products and locally adaptive SH), whose scene-free kernels are
 //! `prt-relight`'s, and, for Blinn–Phong, Ward and Cook–Torrance, Kautz, Sloan & Snyder 2002
-//! (per-view-elevation BRDF projections, `prt_shading::projection`).
+//! (per-view-elevation BRDF projections, `prt_shading::projection`). Sharp glossy lobes may
+//! instead be looked up in spherical harmonic reflection maps ([`shrm`]; Ramamoorthi &
+//! Hanrahan 2002, "Frequency space environment map rendering", `--glossy shrm`).
 
 mod binding;
 mod bound;
@@ -30,6 +32,8 @@ pub mod io;
 mod lobe;
 mod points;
 pub mod relit;
+pub mod shrm;
+mod shrm_path;
 mod specular;
 pub mod target;
 

@@ -31,6 +31,13 @@ pub enum GlossyPath {
         /// The fit error from which a point is shaded exactly.
         fit_error: f32,
     },
+    /// A spherical harmonic reflection map (Ramamoorthi & Hanrahan 2002; [`crate::shrm`]):
+    /// the environment prefiltered with the lobe once per distinct environment to the order
+    /// the lobe needs, looked up per point at its reflected direction, view elevation and
+    /// twist, times a specular-occlusion factor from the bake's visibility (the fitted lobe's
+    /// shadowed over unshadowed lighting at the bake's order — an approximation). The diffuse
+    /// part is the bake's shadowed transfer, as on the fitted path.
+    Shrm,
 }
 
 /// A glossy lobe without a zonal form at one object: the material whose lobe shape is fitted

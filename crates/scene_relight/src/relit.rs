@@ -184,6 +184,7 @@ pub(crate) fn relight_prepared(
         env_rotated,
         eye: scene.camera.eye.as_vec3().to_array(),
         per_pixel: footprints.is_some(),
+        lighting,
         footprints: footprints.map(|f| &**f),
         lightmaps,
     };
@@ -233,6 +234,8 @@ struct Run<'r> {
     eye: [f32; 3],
     /// Whether the bake is per pixel.
     per_pixel: bool,
+    /// The lighting given to the run instead of the bake's environment, if any.
+    lighting: Option<&'r [[f64; 3]]>,
     /// Per-pixel bakes: the sub-pixel samples of every pixel.
     footprints: Option<&'r PixelFootprints>,
     /// Per object: its lightmap if it was baked per texel.
@@ -359,8 +362,92 @@ impl<'r> Run<'r> {
             }
             None => specular_part,
         };
+        let specular_part = if opt.glossy == GlossyPath::Shrm {
+            self.shrm_specular(&spec, &terms, &surface, specular_part, &obj.name, totals)?
+        } else {
+            specular_part
+        };
         let result = sum_terms(&diffuse_part, &specular_part, points);
         Ok(scatter(subset, all_points, result, in_roi))
+    }
+
+    /// The `--glossy shrm` specular of an object with a glossy lobe (others keep `shadowed`,
+    /// their fitted or Phong specular): the SHRM lookup times the occlusion factor of
+    /// `shadowed` over the fitted lobe's unshadowed lighting, timed into every frame (the
+    /// prefilter, once per environment, is not: a note gives its cost).
+    fn shrm_specular(
+        &self,
+        spec: &SpecularTerms<'_>,
+        terms: &ObjectTerms<'_>,
+        surface: &PointSet,
+        shadowed: Vec<[f32; 3]>,
+        object: &str,
+        totals: &mut Totals,
+    ) -> Result<Vec<[f32; 3]>, SceneRelightError> {
+        let (Some(g), Some(input)) = (&spec.glossy, &terms.specular) else {
+            return Ok(shadowed);
+        };
+        let notes = &mut totals.stats.notes;
+        let material = match g.levels.as_slice() {
+            [one] => *one,
+            levels => {
+                notes.push(format!(
+                    "{object}: SHRM at the middle of the roughness range ({}): per-point roughness is not covered by the SHRM path",
+                    g.level_roughness[levels.len() / 2]
+                ));
+                levels[levels.len() / 2]
+            }
+        };
+        let Some(lobe) = crate::shrm::ShrmLobe::of(&material) else {
+            return Ok(shadowed);
+        };
+        let pre = crate::shrm_path::prefiltered(self.scene, lobe, self.lighting)?;
+        notes.push(format!(
+            "{object}: {}; specular occlusion: the fitted lobe's lighting with and without the baked visibility at order {} (an approximation)",
+            pre.note, terms.order
+        ));
+        // Uniform colour weights: one combined table (half the lookups), made outside the timing.
+        let combined;
+        let (table, colour): (&crate::shrm::Shrm, [&[[f32; 3]]; 2]) =
+            match (g.colour_a.as_slice(), g.colour_b.as_slice()) {
+                ([a], [b]) => {
+                    combined = pre.shrm.combined([*a, *b]);
+                    (&combined, [&[[1.0; 3]], &[[0.0; 3]]])
+                }
+                _ => (&pre.shrm, [&g.colour_a, &g.colour_b]),
+            };
+        let start = Instant::now();
+        let env = prt_relight::Lighting::from_rgb_coefficients(&self.env_rotated, None)?
+            .truncated(terms.order)?;
+        let frame = terms.relighter.frame_lighting(&env, false)?;
+        let unshadowed = terms.relighter.specular_unshadowed(input, &frame)?;
+        let lum = |v: &[f32; 3]| 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+        let occlusion: Vec<f32> = shadowed
+            .iter()
+            .zip(&unshadowed)
+            .map(|(a, b)| {
+                let (a, b) = (lum(a), lum(b));
+                if b > 0.0 {
+                    (a / b).clamp(0.0, 1.0)
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let n = shadowed.len();
+        let s = crate::shrm_path::shade(
+            table,
+            &surface.positions[..n],
+            &surface.normals[..n],
+            self.eye,
+            self.opt.rotate_y_deg,
+            colour,
+            &occlusion,
+        );
+        totals
+            .timing
+            .add_to_every_frame(start.elapsed().as_secs_f64());
+        Ok(s)
     }
 
     /// The points of object `o` to shade (`None`: all of them) and how many it has.

@@ -17,7 +17,7 @@ pub(crate) struct SpecularTerms<'b> {
     /// The `phong` material's lobe.
     phong: Option<PhongParams>,
     /// A glossy lobe without a zonal form.
-    glossy: Option<GlossyLobe>,
+    pub(crate) glossy: Option<GlossyLobe>,
     /// Its fitted table (fitted and hybrid paths).
     fitted: Option<FittedF32>,
     /// Its BRDF tables from the bake (exact and hybrid paths; one per `pbr` component).
@@ -48,7 +48,7 @@ impl<'b> SpecularTerms<'b> {
         let glossy = GlossyLobe::of(material, points.materials.as_deref(), notes, &obj.name);
         // The fitted lobe's table (built once per object, outside the timed frames).
         let fitted = match (&glossy, path) {
-            (Some(g), GlossyPath::Fitted | GlossyPath::Hybrid { .. }) => {
+            (Some(g), GlossyPath::Fitted | GlossyPath::Hybrid { .. } | GlossyPath::Shrm) => {
                 let tables: Vec<_> = g.levels.iter().map(|m| fitted_cached(m, order)).collect();
                 Some(FittedF32::stacked(&tables))
             }

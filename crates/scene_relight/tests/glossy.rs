@@ -150,7 +150,9 @@ fn check(material: Material, path: prt_scene_relight::GlossyPath) {
                     (albedo_and_norm(&ward, el[i - 1]).0 - albedo_and_norm(&ward, el[i]).0).abs();
                 dv * b_norm + (2.0 * std::f64::consts::PI).sqrt() * e_n * f_norm + interp
             }
-            prt_scene_relight::GlossyPath::Hybrid { .. } => unreachable!("checked by its own test"),
+            prt_scene_relight::GlossyPath::Hybrid { .. } | prt_scene_relight::GlossyPath::Shrm => {
+                unreachable!("checked by their own tests")
+            }
             prt_scene_relight::GlossyPath::Fitted => {
                 let el = &fitted.elevations;
                 let i = el.partition_point(|&t| t <= theta_o).clamp(1, el.len() - 1);
