@@ -91,8 +91,8 @@ fn probes_refine_along_the_shadow_and_nowhere_else() {
             "a vertex at {p} was added where the floor's transfer is flat"
         );
     }
-    // Refinement is local: the floor's far ring (cells past |x| or |z| = 3) kept every
-    // triangle, so the ring's 28 + 28 cells' triangles are still there, untouched.
+    // Refinement is local: the floor's triangles with every corner at |x| or |z| ≥ 3 (the
+    // outer ring of 28 cells' 56, and 2 more whose diagonals cut inner corners) are all kept.
     let far = |t: &[u32; 3]| {
         t.iter().all(|&i| {
             let p = floor.positions[i as usize];
@@ -100,17 +100,27 @@ fn probes_refine_along_the_shadow_and_nowhere_else() {
         })
     };
     assert_eq!(
-        floor.indices.iter().filter(|t| far(t)).count(),
-        scene.meshes[0].indices.iter().filter(|t| far(t)).count()
+        scene.meshes[0].indices.iter().filter(|t| far(t)).count(),
+        58
     );
+    assert_eq!(floor.indices.iter().filter(|t| far(t)).count(), 58);
     // The plate sees the whole sky from every point: the probes agree exactly, nothing splits.
     assert_eq!(refined.meshes[1].positions.len(), 9, "{report:?}");
     assert!(report[1].splits.is_empty());
-    // Each level probes only what it made: the first level every edge midpoint and triangle
-    // centroid of the source mesh (8·9·2 + 64 edges, 128 triangles), later ones fewer than
-    // the new mesh's edges and triangles in all.
+    // The source mesh's vertices are probed, then the first level probes every edge midpoint
+    // and triangle centroid (8·9·2 + 64 edges, 128 triangles); each later level only what the
+    // previous one made, fewer than the whole mesh it probes.
     let r = &report[0];
     assert_eq!(r.probes[..2], [81, 208 + 128]);
+    let (mut edges, mut tris) = (208, 128);
+    for (level, &split) in r.splits.iter().enumerate().take(r.probes.len() - 2) {
+        // After `split` edge splits the mesh has more edges and triangles than before: each
+        // split adds a vertex, and (Euler, fixed boundary topology) 3 edges and 2 triangles
+        // per interior vertex at most; the level's probes stay below the new totals.
+        edges += 3 * split;
+        tris += 2 * split;
+        assert!(r.probes[level + 2] < edges + tris, "{r:?}");
+    }
     // A probe traces its directions above the horizon: about half of them (a flat floor: the
     // same ones everywhere).
     let directions = r.probes.iter().sum::<usize>() as u64 * u64::from(r.probe_rays);
