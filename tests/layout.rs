@@ -72,11 +72,15 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("image", &[]),
     ("compare", &["image"]),
     ("bakefile", &[]),
+    ("atlas", &[]),
     ("scene", &["bakefile"]),
     ("shading", &["scene", "sh", "bakefile"]),
     ("tracer", &["scene", "shading", "image"]),
     ("relight", &["sh", "image"]),
-    ("bake", &["sh", "scene", "shading", "tracer", "bakefile"]),
+    (
+        "bake",
+        &["sh", "scene", "shading", "tracer", "bakefile", "atlas"],
+    ),
     (
         "scene-relight",
         &[

@@ -214,6 +214,7 @@ class Obj:
         self.blocks = []
         self.mesh = None
         self.coverage = None
+        self.atlas_uvs = None
 
 
 class Bake:
@@ -1324,7 +1325,8 @@ def check_lightmaps(M: Meta, bake: Bake, settings: dict) -> None:
     `null` exactly for an object baked per vertex (no CVRG, §3.1), else
     `{"object": name, "width": W, "height": H, "uv_set": k, "uv_hash": "…"}` with the BINF
     lightmap size and the FNV-1a 64 of the UVs as a decimal string (the UVs are not in the
-    file, so the hash itself cannot be recomputed here)."""
+    file, so the hash itself cannot be recomputed here); or (1.3, §3.9.3) a generated
+    `atlas` of per-corner UVs in place of `uv_set`, whose hash is recomputed."""
     binf = bake.binf
     lightmaps = M.get(settings, "lightmaps", "array", "settings")
     if len(lightmaps) != len(bake.objects):
@@ -1344,11 +1346,41 @@ def check_lightmaps(M: Meta, bake: Bake, settings: dict) -> None:
         M.equal(M.get(entry, "object", "string", w), obj.name, w + ".object", "OBJT")
         M.equal(M.get(entry, "width", "u32", w), binf["width"], w + ".width", "BINF")
         M.equal(M.get(entry, "height", "u32", w), binf["height"], w + ".height", "BINF")
-        M.get(entry, "uv_set", "u32", w)  # TEXCOORD_k; §3.9 gives no range: u32 assumed
+        has_set, has_atlas = "uv_set" in entry, "atlas" in entry
+        if has_set and has_atlas:
+            fail("META: %s has both uv_set and atlas (§3.9.3: one or the other)" % w)
+        if not has_atlas:
+            M.get(entry, "uv_set", "u32", w)  # TEXCOORD_k; §3.9 gives no range: u32 assumed
         uv_hash = M.get(entry, "uv_hash", "string", w)
         # a u64 as a decimal string; §3.9 does not repeat seed's "no sign or leading zeros"
         if not re.fullmatch(r"[0-9]{1,20}", uv_hash) or int(uv_hash) > U64_MAX:
             fail("META: %s.uv_hash %s is not a decimal u64 string" % (w, short(uv_hash)))
+        if has_atlas:
+            uvs = atlas_corner_uvs(M.get(entry, "atlas", "array", w), obj, w)
+            h = fnv1a64(uvs.astype("<f4").tobytes())
+            if str(h) != uv_hash:
+                fail("META: %s.uv_hash %s is not the FNV-1a 64 of its atlas UVs (%d, §3.9.3)"
+                     % (w, short(uv_hash), h))
+            obj.atlas_uvs = uvs
+
+
+ATLAS_QUANTUM = 1 << 24
+
+
+def atlas_corner_uvs(atlas: list, obj, w: str) -> np.ndarray:
+    """§3.9.3: a generated atlas is 6T integers in 0 … 2^24, T the object's MESH triangle
+    count when it has a MESH; corner k of triangle t has UV (a, b) / 2^24 with a, b at
+    6t + 2k and 6t + 2k + 1. Returns the UVs as float32 [T][3][2]."""
+    if len(atlas) % 6 != 0:
+        fail("META: %s.atlas has %d integers, not a multiple of 6" % (w, len(atlas)))
+    if obj.mesh is not None and len(atlas) != 6 * obj.mesh["T"]:
+        fail("META: %s.atlas has %d integers for %d MESH triangles (6 per triangle)"
+             % (w, len(atlas), obj.mesh["T"]))
+    for k, a in enumerate(atlas):
+        if not is_int(a) or not 0 <= a <= ATLAS_QUANTUM:
+            fail("META: %s.atlas[%d] is %s, not an integer in 0 … 2^24" % (w, k, short(a)))
+    values = np.array(atlas, dtype=np.float64) / ATLAS_QUANTUM
+    return values.astype(np.float32).reshape(-1, 3, 2)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1733,6 +1765,9 @@ def texel_cases(data: bytes, bake: Bake, rng: random.Random):
         path = ("settings", "lightmaps", k)
         meta_case("lightmaps[%d] null" % k, setter(path, None))
         meta_case("lightmaps[%d] a string" % k, setter(path, "uv0"))
+        if "atlas" in lightmaps[k]:
+            atlas_cases(meta_case, setter, path, lightmaps[k], obj, W, H)
+            continue
         for key in ("object", "width", "height", "uv_set", "uv_hash"):
             meta_case("lightmaps[%d].%s missing" % (k, key), setter(path + (key,), DELETE))
         for key, bad in (("object", obj.name + "x"), ("object", None), ("width", W + 1),
@@ -1756,6 +1791,24 @@ def texel_cases(data: bytes, bake: Bake, rng: random.Random):
         meta_case("lightmaps[%d] not null for an object without CVRG" % k,
                   setter(("settings", "lightmaps", k), entry))
     return cases
+
+
+def atlas_cases(meta_case, setter, path, entry, obj, W, H):
+    """Mutations of a generated-atlas lightmaps entry (§3.9.3): every one must be refused."""
+    k = obj.index
+    atlas = entry["atlas"]
+    for key in ("object", "width", "height", "atlas", "uv_hash"):
+        meta_case("lightmaps[%d].%s missing" % (k, key), setter(path + (key,), DELETE))
+    changed = list(atlas)
+    changed[0] = (changed[0] + 1) % ATLAS_QUANTUM
+    for key, bad in (("object", obj.name + "x"), ("width", W + 1), ("height", H - 1),
+                     ("uv_set", 0), ("atlas", atlas[:-6]), ("atlas", atlas + [0] * 6),
+                     ("atlas", [ATLAS_QUANTUM + 1] + atlas[1:]), ("atlas", [-1] + atlas[1:]),
+                     ("atlas", [0.5] + atlas[1:]), ("atlas", "0"), ("atlas", changed),
+                     ("uv_hash", "0"), ("uv_hash", "abc")):
+        meta_case("lightmaps[%d].%s = %s" % (k, key, short(bad)), setter(path + (key,), bad))
+    meta_case("lightmaps[%d].comment (control)" % k,
+              setter(path + ("comment",), "an unknown field"), False)
 
 
 def field_cases(data: bytes, bake: Bake, rng: random.Random):

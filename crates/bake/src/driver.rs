@@ -48,6 +48,7 @@ pub fn bake_pass(
         return bake_subdivided(scene, accel, settings, pass, &sub, start);
     }
     let (setup, mut decisions) = Setup::new(scene, accel, settings)?;
+    surface_input_decisions(&setup, &mut decisions);
     if let Some(p) = &pass {
         setup.check_pass(p)?;
     }
@@ -272,6 +273,62 @@ impl Intermediate<'_> {
 /// A per-vertex bake on meshes refined where the transfer changes fast ([`subdivide`]): the
 /// refinement, then the ordinary bake of the refined scene; the file's meshes are the refined
 /// ones, and `settings.subdivided_from` names each object's source mesh (SPEC §3.9).
+/// What the bake does with the glTF material inputs besides the BRDF (issue 34), one decision
+/// per material: a normal map shades the transfer of each pixel or texel
+/// (`Scene::shading_normal`) but cannot be held by per-vertex points (it varies inside
+/// triangles); emission is not transfer at all — relighting adds it from the scene's material.
+fn surface_input_decisions(setup: &Setup<'_>, decisions: &mut Vec<Decision>) {
+    let scene = setup.scene;
+    let mut seen = Vec::new();
+    for plan in &setup.plans {
+        let material = scene.meshes[plan.mesh].material;
+        if seen.contains(&material) {
+            continue;
+        }
+        seen.push(material);
+        let name = scene
+            .material_names
+            .get(material)
+            .map_or("?", String::as_str);
+        let mapped: Vec<usize> = setup
+            .plans
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| {
+                scene.meshes[p.mesh].material == material && scene.has_normal_map(p.mesh)
+            })
+            .map(|(k, _)| k)
+            .collect();
+        if !mapped.is_empty() {
+            let per_vertex = mapped.iter().any(|&k| {
+                setup.settings.points == PointKind::Vertex
+                    || (matches!(setup.settings.points, PointKind::Texel { .. })
+                        && setup.lightmaps.get(k).is_none_or(Option::is_none))
+            });
+            decisions.push(if per_vertex {
+                Decision {
+                    object: None,
+                    decision: format!("normal map of material {name} not representable per vertex"),
+                    reason: "it varies inside triangles: per-vertex transfer shades with the interpolated normals; bake --per-pixel or --per-texel to include it".into(),
+                }
+            } else {
+                Decision {
+                    object: None,
+                    decision: format!("normal map of material {name}: the shading normal of each point"),
+                    reason: "the transfer's cosine and hemisphere use the normal-mapped normal (per pixel as the path tracer orients it towards the camera); the geometric normal decides the side, directions below it are blocked".into(),
+                }
+            });
+        }
+        if scene.surface_inputs(material).emits() {
+            decisions.push(Decision {
+                object: None,
+                decision: format!("emission of material {name} added at relight time"),
+                reason: "emitted radiance is read from the scene's material at each shaded hit (not stored in the bake); light from emitters onto other surfaces is not in the transfer (environment light only)".into(),
+            });
+        }
+    }
+}
+
 fn bake_subdivided(
     scene: &Scene,
     accel: &Accel,

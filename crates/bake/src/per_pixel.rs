@@ -1,5 +1,8 @@
 //! The per-pixel path: at the primary hits of every pixel's footprint samples, direct rays
 //! plus the last bounce gathered from the vertex chain, averaged over the footprint per object.
+//! At a normal-mapped hit the map's shading normal (as the path tracer orients it towards the
+//! camera) is the transfer's cosine and hemisphere, and directions below the geometric surface
+//! are blocked.
 
 use crate::assembly::{BakedObject, Objects};
 use crate::error::BakeError;
@@ -7,9 +10,10 @@ use crate::material::material_binding;
 use crate::report::ObjectReport;
 use crate::rows::{add_scaled, point_blocks, point_stats, store};
 use crate::setup::Setup;
-use crate::transfer::{self, direct, gather, DirectOptions, MeshTransfer};
+use crate::transfer::{self, direct_sided, gather, DirectOptions, MeshTransfer};
 use prt_bakefile::{Coverage, ObjectBake, RayStats};
 use prt_scene::binding::{geometry_hash, mesh_geometry};
+use prt_scene::SurfacePoint;
 use prt_tracer::points::{PixelFootprints, SamplePoint};
 use rayon::prelude::*;
 
@@ -105,13 +109,28 @@ impl Pixels<'_> {
             let Some((mesh, p)) = sample.hit else {
                 continue;
             };
-            self.add_sample(&mut objects, px, j as u32, mesh, &p);
+            // A normal-mapped hit: the map's normal as the path tracer orients it shades
+            // (cosine and hemisphere); the geometric normal still decides the side.
+            let mapped = sample.at.and_then(|at| match at {
+                SurfacePoint::Triangle { tri, u, v } => self
+                    .setup
+                    .scene
+                    .seen_normal_mapped(mesh, tri, u, v, sample.dir),
+                SurfacePoint::Vertex(_) => None,
+            });
+            let p = SamplePoint {
+                normal: mapped.unwrap_or(p.normal),
+                ..p
+            };
+            let geometric = mapped.map(|_| p.offset_normal);
+            self.add_sample(&mut objects, px, j as u32, mesh, &p, geometric);
         }
         objects
     }
 
-    /// Traces sample `j` of pixel `px` (point `p` on `mesh`) and adds its `1/K` share to the
-    /// pixel's entry for `mesh`.
+    /// Traces sample `j` of pixel `px` (point `p` on `mesh`; `geometric`: its geometric normal
+    /// when `p.normal` comes from a normal map, see [`direct_sided`]) and adds its `1/K` share
+    /// to the pixel's entry for `mesh`.
     fn add_sample(
         &self,
         objects: &mut Vec<PixelTransfer>,
@@ -119,6 +138,7 @@ impl Pixels<'_> {
         j: u32,
         mesh: usize,
         p: &SamplePoint,
+        geometric: Option<glam::Vec3>,
     ) {
         let (settings, channels) = (self.setup.settings, self.channels);
         let bounces = settings.bounces as usize;
@@ -138,7 +158,7 @@ impl Pixels<'_> {
             first_ray: j * base + j.min(extra),
             basis: &self.setup.bases[mesh],
         };
-        let d = direct(self.setup.accel, p, px as u64, &opt);
+        let d = direct_sided(self.setup.accel, p, px as u64, &opt, geometric);
         let entry = match objects.iter().position(|t| t.mesh == mesh) {
             Some(i) => &mut objects[i],
             None => {

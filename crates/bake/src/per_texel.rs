@@ -1,4 +1,5 @@
-//! The per-texel path: the lightmap of each object with UVs, and the transfer at every
+//! The per-texel path: the lightmap of each object (from its UVs, or through an atlas that
+//! `prt-atlas` generates for a mesh without UVs), and the transfer at every
 //! covered texel's surface point (direct rays, plus the bounces gathered from the vertex chain,
 //! as per-pixel bakes do).
 
@@ -8,7 +9,7 @@ use crate::plan::ObjectPlan;
 use crate::report::ObjectReport;
 use crate::rows::{add_scaled, point_blocks, point_stats, store};
 use crate::settings::{BakeSettings, PointKind};
-use crate::transfer::{self, direct, gather, DirectOptions, GatherScene, MeshTransfer};
+use crate::transfer::{self, direct_sided, gather, DirectOptions, GatherScene, MeshTransfer};
 use prt_bakefile::{Coverage, Decision, ObjectBake, RayStats};
 use prt_scene::binding::{geometry_hash, mesh_geometry};
 use prt_scene::lightmap::{Lightmap, LightmapError, TexelPoint};
@@ -17,8 +18,9 @@ use prt_sh::Basis;
 use prt_tracer::Accel;
 use rayon::prelude::*;
 
-/// The lightmap of every object of a per-texel bake (`None` for objects without UVs, baked
-/// per vertex, with a decision saying so); all `None` for other bakes.
+/// The lightmap of every object of a per-texel bake: from its UVs, or, for a mesh without UVs,
+/// through a generated atlas (`None`, baked per vertex with a decision saying why, when the
+/// atlas does not fit); all `None` for other bakes.
 pub(crate) fn lightmaps(
     scene: &Scene,
     plans: &[ObjectPlan],
@@ -57,12 +59,8 @@ pub(crate) fn lightmaps(
                 out.push(Some(l));
             }
             Err(LightmapError::NoUvs) => {
-                decisions.push(Decision {
-                    object: Some(p.name.clone()),
-                    decision: "per vertex".into(),
-                    reason: "no texture coordinates for a lightmap (glTF TEXCOORD_1 or TEXCOORD_0, OBJ vt)".into(),
-                });
-                out.push(None);
+                let l = atlas_lightmap(mesh, &p.name, width, height, decisions)?;
+                out.push(l);
             }
             Err(e) => {
                 return Err(BakeError::Lightmap {
@@ -74,10 +72,71 @@ pub(crate) fn lightmaps(
     }
     if out.iter().all(Option::is_none) {
         return Err(BakeError::InvalidSettings(
-            "--per-texel: no object has texture coordinates for a lightmap (glTF TEXCOORD_1 or TEXCOORD_0, OBJ vt); bake per vertex instead".into(),
+            "--per-texel: no object could be lightmapped (none has texture coordinates — glTF TEXCOORD_1 or TEXCOORD_0, OBJ vt — and their generated atlases do not fit the lightmap: use a larger size); bake per vertex instead".into(),
         ));
     }
     Ok(out)
+}
+
+/// The lightmap of a mesh without UVs through a generated atlas (`prt-atlas`), with a decision
+/// saying so (charts, texel density, utilisation); per vertex, with a decision saying why,
+/// when its charts do not fit the lightmap or cover fewer texels than the mesh has vertices
+/// (a lightmap coarser than the vertices).
+fn atlas_lightmap(
+    mesh: &Mesh,
+    name: &str,
+    width: u32,
+    height: u32,
+    decisions: &mut Vec<Decision>,
+) -> Result<Option<Lightmap>, BakeError> {
+    let opt = prt_atlas::AtlasOptions::new(width, height);
+    let atlas = match prt_atlas::generate(&mesh.positions, &mesh.indices, &opt) {
+        Ok(a) => a,
+        Err(e @ prt_atlas::AtlasError::DoesNotFit { .. }) => {
+            decisions.push(Decision {
+                object: Some(name.to_owned()),
+                decision: "per vertex".into(),
+                reason: format!("no texture coordinates, and a generated lightmap atlas: {e}"),
+            });
+            return Ok(None);
+        }
+        Err(e) => {
+            return Err(BakeError::Lightmap {
+                object: name.to_owned(),
+                reason: format!("no lightmap atlas: {e}"),
+            })
+        }
+    };
+    let (charts, density, used) = (atlas.charts, atlas.texels_per_unit, atlas.utilisation);
+    let l = prt_scene::lightmap::lightmap_from_corners(mesh, atlas.corner_uvs, width, height)
+        .map_err(|e| BakeError::Lightmap {
+            object: name.to_owned(),
+            reason: format!("its generated atlas: {e}"),
+        })?;
+    let covered = l.covered();
+    let vertices = mesh.positions.len();
+    if covered < vertices {
+        // Fewer texels than vertices: the lightmap would be coarser than the vertices.
+        decisions.push(Decision {
+            object: Some(name.to_owned()),
+            decision: "per vertex".into(),
+            reason: format!(
+                "no texture coordinates, and its generated atlas ({charts} charts) covers only {covered} texels of {width}×{height}, fewer than its {vertices} vertices: a larger --per-texel size lightmaps it"
+            ),
+        });
+        return Ok(None);
+    }
+    decisions.push(Decision {
+        object: Some(name.to_owned()),
+        decision: format!("per texel through a generated atlas: {covered} of {width}×{height} texels"),
+        reason: format!(
+            "no texture coordinates: {charts} charts (normals within {}° of each chart's seed, projected to its plane), {density:.4} texels per unit, {:.1} % of the lightmap inside triangles, gutter {} texels (SPEC §3.9.3)",
+            opt.max_angle_deg,
+            100.0 * used,
+            opt.gutter
+        ),
+    });
+    Ok(Some(l))
 }
 
 /// One lightmapped object of a per-texel bake: direct transfer at every covered texel's
@@ -143,9 +202,21 @@ impl TexelBake<'_> {
         let bounces = settings.bounces as usize;
         let n2 = plan.order * plan.order;
         let channels = self.channels();
+        // A normal-mapped texel: the map's normal shades (cosine and hemisphere), the
+        // geometric normal still decides the side (`direct_sided`).
+        let scene = self.gs.scene;
+        let mapped = scene.has_normal_map(plan.mesh).then(|| {
+            let n = scene.shading_normal(plan.mesh, t.triangle, t.bary[1], t.bary[2]);
+            // The lightmap's normals face the side baked; the map's follows it.
+            if n.dot(t.normal) < 0.0 {
+                -n
+            } else {
+                n
+            }
+        });
         let point = prt_tracer::points::SamplePoint {
             position: t.position,
-            normal: t.normal,
+            normal: mapped.unwrap_or(t.normal),
             offset_normal: t.geometric_normal,
             offset: prt_tracer::point_offset(t.position, extent),
         };
@@ -159,7 +230,8 @@ impl TexelBake<'_> {
             first_ray: 0,
             basis: self.basis,
         };
-        let d = direct(self.accel, &point, k as u64, &opt);
+        let geometric = mapped.map(|_| t.geometric_normal);
+        let d = direct_sided(self.accel, &point, k as u64, &opt, geometric);
         let mut diffuse = vec![0.0f64; channels * n2];
         for c in 0..channels {
             add_scaled(&mut diffuse[c * n2..(c + 1) * n2], &d.shadowed, 1.0);
@@ -183,7 +255,7 @@ impl TexelBake<'_> {
             visibility: d.visibility.as_deref().map(per_channel),
             unshadowed: settings
                 .unshadowed
-                .then(|| per_channel(&transfer::unshadowed(plan.order, t.normal))),
+                .then(|| per_channel(&transfer::unshadowed(plan.order, point.normal))),
             stats,
             hits: u64::from(d.hit_count),
         }

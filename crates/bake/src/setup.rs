@@ -191,13 +191,23 @@ fn settings_record(
             .iter()
             .zip(lightmaps)
             .map(|(p, l)| match l {
-                Some(l) => serde_json::json!({
-                    "object": p.name,
-                    "width": width,
-                    "height": height,
-                    "uv_set": l.uv_set,
-                    "uv_hash": prt_bakefile::uv_hash(&scene.meshes[p.mesh].texcoords[l.uv_set]).to_string(),
-                }),
+                Some(l) => match &l.corner_uvs {
+                    // A generated atlas: its corner UVs in the file (SPEC §3.9.3).
+                    Some(c) => serde_json::json!({
+                        "object": p.name,
+                        "width": width,
+                        "height": height,
+                        "atlas": prt_bakefile::atlas_integers(c),
+                        "uv_hash": prt_bakefile::uv_hash(&c.concat()).to_string(),
+                    }),
+                    None => serde_json::json!({
+                        "object": p.name,
+                        "width": width,
+                        "height": height,
+                        "uv_set": l.uv_set,
+                        "uv_hash": prt_bakefile::uv_hash(&scene.meshes[p.mesh].texcoords[l.uv_set]).to_string(),
+                    }),
+                },
                 None => serde_json::Value::Null,
             })
             .collect();

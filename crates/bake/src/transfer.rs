@@ -100,6 +100,21 @@ pub fn direct(
     index: u64,
     opt: &DirectOptions<'_>,
 ) -> DirectResult {
+    direct_sided(accel, point, index, opt, None)
+}
+
+/// [`direct`] at a normal-mapped point: `point.normal` is the normal map's shading normal
+/// (the cosine and the hemisphere sampled), and directions below the geometric surface
+/// `geometric` (unit, on the side baked) are blocked without a ray — they would pass through
+/// the surface, which is the path tracer's rule for every vertex. `None`: [`direct`].
+pub(crate) fn direct_sided(
+    accel: &Accel,
+    point: &SamplePoint,
+    index: u64,
+    opt: &DirectOptions<'_>,
+    geometric: Option<Vec3>,
+) -> DirectResult {
+    let below = |dir: Vec3| geometric.is_some_and(|g| g.dot(dir) <= 0.0);
     let n2 = opt.basis.len();
     let frame = Frame::from_normal(point.normal);
     let mut y = vec![0.0f32; n2];
@@ -110,23 +125,24 @@ pub fn direct(
         let dir = frame
             .to_world(sample_cosine_hemisphere(seq.get(opt.first_ray + k)))
             .normalize();
-        let blocked = match trace(accel, point, dir) {
-            Some(hit) => {
-                res.hit_count += 1;
-                if hit.shading_normal.dot(dir) > 0.0 {
-                    res.backface_hits += 1;
-                } else if opt.record_hits {
-                    res.hits.push(HitRecord {
-                        mesh: hit.mesh,
-                        tri: hit.tri,
-                        u: hit.u,
-                        v: hit.v,
-                    });
+        let blocked = below(dir)
+            || match trace(accel, point, dir) {
+                Some(hit) => {
+                    res.hit_count += 1;
+                    if hit.shading_normal.dot(dir) > 0.0 {
+                        res.backface_hits += 1;
+                    } else if opt.record_hits {
+                        res.hits.push(HitRecord {
+                            mesh: hit.mesh,
+                            tri: hit.tri,
+                            u: hit.u,
+                            v: hit.v,
+                        });
+                    }
+                    true
                 }
-                true
-            }
-            None => false,
-        };
+                None => false,
+            };
         if !blocked {
             opt.basis.eval_f32_unchecked(dir, &mut y);
             for (s, v) in sum.iter_mut().zip(&y) {
@@ -143,7 +159,7 @@ pub fn direct(
             let dir = frame
                 .to_world(sample_uniform_hemisphere(seq.get(opt.first_ray + k)))
                 .normalize();
-            if trace(accel, point, dir).is_none() {
+            if !below(dir) && trace(accel, point, dir).is_none() {
                 opt.basis.eval_f32_unchecked(dir, &mut y);
                 for (s, v) in sum.iter_mut().zip(&y) {
                     *s += f64::from(*v);

@@ -79,8 +79,8 @@ fn form_factor(px: f64, pz: f64, x0: f64, x1: f64, z0: f64, z1: f64, c: f64) -> 
 
 #[test]
 fn texel_transfer_under_a_rectangle_matches_the_form_factor() {
-    // A 2×2 floor lightmapped at 32×32, a 1×1 blocker 0.3 above its centre (no UVs: baked
-    // per vertex in the same file).
+    // A 2×2 floor lightmapped at 32×32, a 1×1 blocker 0.3 above its centre (no UVs:
+    // lightmapped through a generated atlas in the same file).
     let (size, rays, c) = (32u32, 1024u32, 0.3f64);
     let s = scene(vec![
         square(-1.0, 1.0, 0.0, true, true),
@@ -97,8 +97,15 @@ fn texel_transfer_under_a_rectangle_matches_the_form_factor() {
         }
     );
     let (floor, blocker) = (&b.objects[0], &b.objects[1]);
-    // The blocker has no UVs: per vertex, without coverage.
-    assert_eq!((blocker.point_count, blocker.coverage.is_none()), (4, true));
+    // The blocker has no UVs: one chart of a generated atlas, at a density of about
+    // `size − 2` texels per unit (a 2-texel gutter), so at least `(size − 3)²` texels.
+    assert_eq!(blocker.point_count, u64::from(size * size));
+    let bc = blocker
+        .coverage
+        .as_ref()
+        .expect("the blocker's atlas coverage");
+    let n = bc.hits.iter().filter(|&&h| h == 1).count();
+    assert!(n >= ((size - 3) * (size - 3)) as usize, "{n}");
     let cov = floor.coverage.as_ref().expect("texel coverage");
     assert_eq!(floor.point_count, u64::from(size * size));
     assert!(cov.hits.iter().all(|&h| h == 1), "every texel covered");
@@ -168,12 +175,13 @@ fn lightmap_problems_are_errors_naming_the_object() {
         msg.contains("1 of 4 lightmap UVs") && msg.contains("0.5"),
         "{msg}"
     );
-    // No object with UVs at all.
+    // No object with UVs, and an atlas that cannot fit: a 2×2 map holds no chart with its
+    // 2-texel gutter.
     let s = scene(vec![square(-1.0, 1.0, 0.0, true, false)]);
     let accel = Accel::build(&s).unwrap();
-    let e = bake(&s, &accel, &settings(16, 16)).unwrap_err();
+    let e = bake(&s, &accel, &settings(2, 16)).unwrap_err();
     assert!(
-        e.to_string().contains("no object has texture coordinates"),
+        e.to_string().contains("no object could be lightmapped"),
         "{e}"
     );
     // An impossible size.

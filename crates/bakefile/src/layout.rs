@@ -5,7 +5,7 @@ pub const MAGIC: [u8; 8] = *b"PRTBAKE\0";
 /// Major format version written and read by this crate. Readers refuse any other.
 pub const VERSION_MAJOR: u32 = 1;
 /// Minor format version written by this crate. Readers accept any minor of their major.
-pub const VERSION_MINOR: u32 = 2;
+pub const VERSION_MINOR: u32 = 3;
 /// Size of the file header in bytes.
 pub const HEADER_SIZE: usize = 64;
 /// Size of one section-table entry in bytes.

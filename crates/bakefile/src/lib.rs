@@ -47,6 +47,7 @@
 //! # Ok::<(), BakeFileError>(())
 //! ```
 
+mod atlas_uv;
 mod encode;
 mod error;
 mod field;
@@ -69,6 +70,7 @@ mod scalar;
 mod summary;
 mod view;
 
+pub use atlas_uv::{atlas_corner_uvs, atlas_integers, ATLAS_UV_QUANTUM};
 pub use encode::encode;
 pub use error::BakeFileError;
 pub use field::FieldValues;

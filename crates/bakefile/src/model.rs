@@ -1172,7 +1172,8 @@ impl Bake {
 
     /// Per-texel bakes (SPEC §3.9): `settings.lightmaps` has one entry per object, `null`
     /// exactly for objects without coverage, else the object's name, the file's lightmap size,
-    /// a `uv_set` (u32) and a `uv_hash` (u64 as a decimal string without sign or leading
+    /// a `uv_set` (u32) or a generated `atlas` (§3.9.3, its UVs hashing to `uv_hash`) and a
+    /// `uv_hash` (u64 as a decimal string without sign or leading
     /// zeros); `settings.pixel_samples`, if present, is 1.
     fn check_lightmaps(&self) -> Result<(), BakeFileError> {
         let SampleKind::Texel { width, height } = self.meta.sample_kind else {
@@ -1218,17 +1219,34 @@ impl Bake {
                 (false, true) => {}
             }
             let u64_of = |k: &str| e.get(k).and_then(serde_json::Value::as_u64);
+            // A generated atlas (SPEC §3.9.3) in place of a UV set: one or the other.
+            if let Some(a) = e.get("atlas") {
+                if e.get("uv_set").is_some() {
+                    return Err(bad(format!("{what} has both `uv_set` and `atlas`")));
+                }
+                let triangles = o.mesh.as_ref().map(|m| m.triangles.len());
+                let uvs = crate::atlas_uv::atlas_corner_uvs(a, triangles)
+                    .map_err(|m| bad(format!("{what}: {m}")))?;
+                let h = crate::hash::uv_hash(&uvs.concat()).to_string();
+                if e.get("uv_hash").and_then(serde_json::Value::as_str) != Some(h.as_str()) {
+                    return Err(bad(format!(
+                        "{what}: `uv_hash` is not the hash of its atlas UVs ({h})"
+                    )));
+                }
+            }
+            let uv_set_ok = e.get("atlas").is_some()
+                || u64_of("uv_set").is_some_and(|k| k <= u64::from(u32::MAX));
             let hash = e.get("uv_hash").and_then(serde_json::Value::as_str);
             let hash_ok =
                 hash.is_some_and(|h| h.parse::<u64>().is_ok() && (h == "0" || !h.starts_with('0')));
             if e.get("object").and_then(serde_json::Value::as_str) != Some(o.name.as_str())
                 || u64_of("width") != Some(u64::from(width))
                 || u64_of("height") != Some(u64::from(height))
-                || u64_of("uv_set").is_none_or(|k| k > u64::from(u32::MAX))
+                || !uv_set_ok
                 || !hash_ok
             {
                 return Err(bad(format!(
-                    "{what} must be {{\"object\": {:?}, \"width\": {width}, \"height\": {height}, \"uv_set\": u32, \"uv_hash\": decimal u64 string}}: {e}",
+                    "{what} must be {{\"object\": {:?}, \"width\": {width}, \"height\": {height}, \"uv_set\": u32 (or \"atlas\": [u32]), \"uv_hash\": decimal u64 string}}: {e}",
                     o.name
                 )));
             }

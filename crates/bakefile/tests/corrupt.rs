@@ -141,17 +141,17 @@ fn test03_magic_and_version() {
     let mut b = bytes.clone();
     let (off, len) = find(&b, b"META");
     let text = std::str::from_utf8(&b[off..off + len]).unwrap().to_owned();
-    let needle = "\"format_version\": [\n    1,\n    2\n  ]";
+    let needle = "\"format_version\": [\n    1,\n    3\n  ]";
     let at = off + text.find(needle).expect("pretty-printed version");
     let zero = at + needle.len() - 5;
-    assert_eq!(b[zero], b'2');
-    b[zero] = b'3';
-    put_u32(&mut b, 12, 3);
+    assert_eq!(b[zero], b'3');
+    b[zero] = b'4';
+    put_u32(&mut b, 12, 4);
     fix_crcs(&mut b);
     let view = BakeView::new(&b).unwrap();
-    assert_eq!(view.version(), (1, 3));
+    assert_eq!(view.version(), (1, 4));
     // ... but header and JSON must agree.
-    put_u32(&mut b, 12, 4);
+    put_u32(&mut b, 12, 5);
     fix_crcs(&mut b);
     assert!(matches!(err(&b), BakeFileError::Metadata(_)));
 }

@@ -149,7 +149,7 @@ fn test05_zero_copy_view_agrees_with_decode() {
         let view = BakeView::new(aligned).unwrap();
         let decoded = decode(&bytes).unwrap();
         assert_eq!(view.scalar_type(), scalar);
-        assert_eq!(view.version(), (1, 2));
+        assert_eq!(view.version(), (1, 3));
         assert_eq!(view.meta(), &decoded.meta);
         assert_eq!(view.to_bake().unwrap(), decoded);
         for (oi, o) in decoded.objects.iter().enumerate() {
@@ -222,7 +222,7 @@ fn test07_metadata_json_is_self_describing() {
     let (off, len) = find(&bytes, b"META");
     let meta: serde_json::Value = serde_json::from_slice(&bytes[off..off + len]).unwrap();
     assert_eq!(meta["format"], "prt-bake");
-    assert_eq!(meta["format_version"], serde_json::json!([1, 2]));
+    assert_eq!(meta["format_version"], serde_json::json!([1, 3]));
     assert_eq!(meta["sh"]["basis"], "real-orthonormal");
     assert_eq!(meta["sh"]["phase"], "condon-shortley");
     assert_eq!(meta["sh"]["index_order"], "l(l+1)+m");

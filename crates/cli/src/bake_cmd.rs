@@ -36,8 +36,9 @@ pub struct BakeArgs {
     pub pixel_samples: u32,
     /// Bake per texel of a SIZE×SIZE lightmap for every object with lightmap UVs (glTF
     /// TEXCOORD_1, else TEXCOORD_0; OBJ vt), one point per texel at the surface under its
-    /// centre (texels a triangle only touches at its nearest point); objects without UVs are
-    /// baked per vertex. Relit through bilinear lookup of the texels. UVs outside [0, 1] or
+    /// centre (texels a triangle only touches at its nearest point); objects without UVs get a
+    /// generated atlas (per vertex when it does not fit or has fewer texels than vertices).
+    /// Relit through bilinear lookup of the texels. UVs outside [0, 1] or
     /// overlapping charts are errors.
     #[arg(long, value_name = "SIZE", conflicts_with_all = ["per_pixel", "shard", "pass", "subdivide", "target_psnr"])]
     pub per_texel: Option<u32>,

@@ -380,6 +380,40 @@ fn independent_reader_agrees_with_prt_on_every_bake_kind() {
         [0.45, 0.4, 0.35],
         dir.path(),
     );
+    // Per texel at 128²: the bunny (no UVs) is lightmapped through a generated atlas whose
+    // per-corner UVs the file carries (SPEC 1.3, §3.9.3); the reader recomputes their hash.
+    let atlas = dir.path().join("atlas.prtb");
+    run(prt()
+        .arg("bake")
+        .arg(&hard)
+        .args([
+            "--rays",
+            "16",
+            "--order",
+            "2",
+            "--per-texel",
+            "128",
+            "--out",
+        ])
+        .arg(&atlas));
+    let b = prt_bakefile::read_bake(&atlas).unwrap();
+    assert!(
+        b.meta.settings["lightmaps"][0]["atlas"].is_array(),
+        "the bunny is lightmapped through an atlas"
+    );
+    check_dump(&py, &atlas, &dump);
+    let bytes = std::fs::read(&atlas).unwrap();
+    // A changed atlas UV is refused by both readers (its hash no longer matches).
+    let meta = with_meta(&bytes, |m| {
+        let a = &mut m["settings"]["lightmaps"][0]["atlas"][0];
+        *a = (a.as_u64().unwrap() ^ 1).into();
+    });
+    let changed = dir.path().join("atlas_changed.prtb");
+    std::fs::write(&changed, &meta).unwrap();
+    let (code, err) = py_reader(&py, &changed, &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("uv_hash"), "{err}");
+    assert!(prt_bakefile::read_bake(&changed).is_err());
 
     // A damaged file: one clean line naming the file, exit status 1.
     let mut bytes = std::fs::read(&files[0]).unwrap();

@@ -384,6 +384,10 @@ pub fn export_glb_for(
         SampleKind::Texel { .. } => {}
     }
     let lightmaps = prt_scene_relight::relit::lightmaps(scene, bake)?;
+    // Generated atlases (SPEC §3.9.3): their objects split along the chart seams, so the
+    // glTF carries the atlas as a per-vertex TEXCOORD_0.
+    let (split, lightmaps, was_split) = split_atlas_objects(scene, lightmaps);
+    let scene = split.as_ref().unwrap_or(scene);
     let env = bake
         .environment
         .as_ref()
@@ -400,6 +404,17 @@ pub fn export_glb_for(
     for (o, obj) in bake.objects.iter().enumerate() {
         let lightmap = lightmaps[o].as_ref();
         let placement = placement(scene, env, o, obj, lightmap, target)?;
+        // A split object's geometry is the split scene mesh, not the bake's MESH.
+        let split_obj;
+        let obj = if was_split[o] {
+            split_obj = prt_bakefile::ObjectBake {
+                mesh: None,
+                ..obj.clone()
+            };
+            &split_obj
+        } else {
+            obj
+        };
         let done = add_object(scene, env, o, obj, lightmap, placement, &mut bin, &mut tex)?;
         if let Some(budget) = target.attribute_budget() {
             if done.vertex_attributes > budget {
@@ -642,6 +657,52 @@ struct ObjectExport {
     vertices: usize,
     attributes: usize,
     vertex_attributes: usize,
+}
+
+/// The scene with every object whose lightmap is a generated atlas (per-corner UVs, SPEC
+/// §3.9.3) split along its chart seams ([`prt_scene::lightmap::split_corners`]: positions,
+/// normals, vertex colours and UV sets copied from each new vertex's source, the atlas UVs
+/// as UV set 0 before the mesh's own), the lightmaps with those objects reading set 0, and
+/// which objects were split; `None` and the lightmaps unchanged when no object has an atlas.
+fn split_atlas_objects(
+    scene: &Scene,
+    mut lightmaps: Vec<Option<prt_scene::lightmap::Lightmap>>,
+) -> (
+    Option<Scene>,
+    Vec<Option<prt_scene::lightmap::Lightmap>>,
+    Vec<bool>,
+) {
+    let was_split: Vec<bool> = lightmaps
+        .iter()
+        .map(|l| l.as_ref().is_some_and(|l| l.corner_uvs.is_some()))
+        .collect();
+    if !was_split.contains(&true) {
+        return (None, lightmaps, was_split);
+    }
+    let mut split = scene.clone();
+    for (mesh, lm) in split.meshes.iter_mut().zip(lightmaps.iter_mut()) {
+        let Some(corners) = lm.as_mut().and_then(|l| l.corner_uvs.take()) else {
+            continue;
+        };
+        let (source, indices, uvs) = prt_scene::lightmap::split_corners(&mesh.indices, &corners);
+        // Each per-vertex array (empty ones stay empty) at the new vertices' sources.
+        fn pick<T: Copy>(v: &[T], source: &[u32]) -> Vec<T> {
+            if v.is_empty() {
+                return Vec::new();
+            }
+            source.iter().map(|&i| v[i as usize]).collect()
+        }
+        let (positions, normals) = (pick(&mesh.positions, &source), pick(&mesh.normals, &source));
+        let colors = pick(&mesh.colors, &source);
+        let mut texcoords = vec![uvs];
+        texcoords.extend(mesh.texcoords.iter().map(|set| pick(set, &source)));
+        (mesh.positions, mesh.normals, mesh.indices) = (positions, normals, indices);
+        (mesh.colors, mesh.texcoords) = (colors, texcoords);
+        if let Some(l) = lm.as_mut() {
+            l.uv_set = 0;
+        }
+    }
+    (Some(split), lightmaps, was_split)
 }
 
 /// Adds object `o` of the bake to the binary chunk and textures: geometry, transfer (vertex

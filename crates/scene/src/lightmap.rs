@@ -6,13 +6,18 @@
 //!
 //! Each triangle is rasterised in UV space. A texel whose centre lies in a triangle is baked at
 //! the surface point under its centre (barycentric position, interpolated shading normal). A
-//! texel that a triangle only touches (conservative rasterisation: the texel's square meets
-//! the triangle, its centre does not) is baked at the point of the triangle nearest to its
-//! centre — still on the surface, so the edge texels a bilinear lookup reads are real
+//! texel that a triangle only touches (conservative rasterisation: the interior of the texel's
+//! square meets the triangle — a contact along an edge or at a corner does not count —, its
+//! centre does not) is baked at the point of the touching triangles nearest to its centre
+//! (the first triangle wins a tie; the point may lie outside the square) — still on the surface, so the edge texels a bilinear lookup reads are real
 //! transfer, not zero. Texels no triangle touches are empty (coverage 0); lookups renormalise
 //! the bilinear weights over the covered texels, which dilates the charts by a texel at their
 //! seams. Two triangles whose interiors both hold a texel centre are overlapping charts, an
 //! error (a lightmap needs a unique parameterisation), as are UVs outside `[0, 1]`.
+//!
+//! Meshes without UVs get a generated atlas (`prt-atlas`), UVs per triangle corner
+//! ([`lightmap_from_corners`]), rasterised the same way; [`split_corners`] turns them into
+//! per-vertex UVs for glTF.
 
 use crate::Mesh;
 use glam::{DVec2, DVec3, Vec3};
@@ -56,8 +61,11 @@ pub struct Lightmap {
     pub width: u32,
     /// Height in texels.
     pub height: u32,
-    /// The UV set used.
+    /// The UV set used (meaningless when `corner_uvs` is set).
     pub uv_set: usize,
+    /// Generated atlas UVs (`prt-atlas`), per triangle corner, used instead of the mesh's UV
+    /// set `uv_set` (a mesh without UVs; SPEC §3.9.3). `None`: the mesh's own UVs.
+    pub corner_uvs: Option<Vec<[[f32; 2]; 3]>>,
     /// Per texel `y·width + x`: its surface point, `None` where no triangle touches it.
     pub texels: Vec<Option<TexelPoint>>,
 }
@@ -68,6 +76,104 @@ impl Lightmap {
     pub fn covered(&self) -> usize {
         self.texels.iter().filter(|t| t.is_some()).count()
     }
+
+    /// The lightmap UVs of triangle `tri`'s corners: the generated atlas's, else the mesh's
+    /// UV set `uv_set`.
+    #[must_use]
+    pub fn triangle_uvs(&self, mesh: &Mesh, tri: usize) -> [[f32; 2]; 3] {
+        match &self.corner_uvs {
+            Some(c) => c[tri],
+            None => mesh.indices[tri].map(|i| mesh.texcoords[self.uv_set][i as usize]),
+        }
+    }
+}
+
+/// The vertices of a mesh split along the seams of per-corner UVs, for formats whose UVs are
+/// per vertex (glTF): one vertex per distinct (source vertex, UV bit pattern), numbered in
+/// order of first use by the triangles' corners. Returns each new vertex's source vertex, the
+/// triangles on the new vertices (same order) and the new vertices' UVs.
+#[must_use]
+pub fn split_corners(
+    indices: &[[u32; 3]],
+    corner_uvs: &[[[f32; 2]; 3]],
+) -> (Vec<u32>, Vec<[u32; 3]>, Vec<[f32; 2]>) {
+    let mut ids: std::collections::HashMap<(u32, [u32; 2]), u32> = std::collections::HashMap::new();
+    let (mut source, mut uvs) = (Vec::new(), Vec::new());
+    let tris = indices
+        .iter()
+        .zip(corner_uvs)
+        .map(|(t, c)| {
+            [0, 1, 2].map(|k| {
+                let key = (t[k], c[k].map(f32::to_bits));
+                *ids.entry(key).or_insert_with(|| {
+                    source.push(t[k]);
+                    uvs.push(c[k]);
+                    (source.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    (source, tris, uvs)
+}
+
+/// Rasterises generated per-corner UVs (`corner_uvs[t][k]`: corner `k` of triangle `t`) into a
+/// `width × height` lightmap, exactly as [`lightmap`] does a UV set.
+///
+/// # Errors
+/// UVs outside `[0, 1]` (counted per corner) or overlapping charts ([`LightmapError`]).
+pub fn lightmap_from_corners(
+    mesh: &Mesh,
+    corner_uvs: Vec<[[f32; 2]; 3]>,
+    width: u32,
+    height: u32,
+) -> Result<Lightmap, LightmapError> {
+    if corner_uvs.len() != mesh.indices.len() {
+        return Err(LightmapError::OutOfRange {
+            vertices: mesh.indices.len().abs_diff(corner_uvs.len()),
+            of: mesh.indices.len(),
+            worst: f64::INFINITY,
+        });
+    }
+    let all: Vec<[f32; 2]> = corner_uvs.iter().flatten().copied().collect();
+    check_range(&all)?;
+    let texels = rasterise(mesh, |t, k| corner_uvs[t][k], width, height)?;
+    Ok(Lightmap {
+        width,
+        height,
+        uv_set: 0,
+        corner_uvs: Some(corner_uvs),
+        texels,
+    })
+}
+
+/// UVs outside `[0, 1]` (or not finite): how many, and the farthest excursion.
+fn check_range<'a>(uvs: impl IntoIterator<Item = &'a [f32; 2]>) -> Result<(), LightmapError> {
+    let (mut outside, mut worst, mut of) = (0usize, 0.0f64, 0usize);
+    for uv in uvs {
+        of += 1;
+        let mut bad = false;
+        for &c in uv {
+            let c = f64::from(c);
+            let d = if c.is_finite() {
+                (-c).max(c - 1.0).max(0.0)
+            } else {
+                f64::INFINITY
+            };
+            if d > 0.0 {
+                bad = true;
+                worst = worst.max(d);
+            }
+        }
+        outside += usize::from(bad);
+    }
+    if outside > 0 {
+        return Err(LightmapError::OutOfRange {
+            vertices: outside,
+            of,
+            worst,
+        });
+    }
+    Ok(())
 }
 
 /// Why a mesh cannot be lightmapped.
@@ -129,30 +235,25 @@ pub fn lightmap(mesh: &Mesh, width: u32, height: u32) -> Result<Lightmap, Lightm
             }
         }
     }
-    let (mut outside, mut worst) = (0usize, 0.0f64);
-    for (uv, _) in uvs.iter().zip(&used).filter(|(_, u)| **u) {
-        let mut bad = false;
-        for &c in uv {
-            let c = f64::from(c);
-            let d = if c.is_finite() {
-                (-c).max(c - 1.0).max(0.0)
-            } else {
-                f64::INFINITY
-            };
-            if d > 0.0 {
-                bad = true;
-                worst = worst.max(d);
-            }
-        }
-        outside += usize::from(bad);
-    }
-    if outside > 0 {
-        return Err(LightmapError::OutOfRange {
-            vertices: outside,
-            of: used.iter().filter(|u| **u).count(),
-            worst,
-        });
-    }
+    check_range(uvs.iter().zip(&used).filter(|(_, u)| **u).map(|(uv, _)| uv))?;
+    let texels = rasterise(mesh, |t, k| uvs[mesh.indices[t][k] as usize], width, height)?;
+    Ok(Lightmap {
+        width,
+        height,
+        uv_set,
+        corner_uvs: None,
+        texels,
+    })
+}
+
+/// Rasterises the triangles of `mesh` at UVs `uv(triangle, corner)` (checked to lie in
+/// `[0, 1]`): each texel's surface point, or an overlap error.
+fn rasterise(
+    mesh: &Mesh,
+    uv: impl Fn(usize, usize) -> [f32; 2],
+    width: u32,
+    height: u32,
+) -> Result<Vec<Option<TexelPoint>>, LightmapError> {
     let (w, h) = (width as usize, height as usize);
     let scale = DVec2::new(f64::from(width), f64::from(height));
     let mut texels: Vec<Option<TexelPoint>> = vec![None; w * h];
@@ -160,20 +261,25 @@ pub fn lightmap(mesh: &Mesh, width: u32, height: u32) -> Result<Lightmap, Lightm
     // touching triangle wins; 0 for centres inside.
     let mut dist = vec![f64::INFINITY; w * h];
     let mut inside_count = vec![0u8; w * h];
-    for (ti, tri) in mesh.indices.iter().enumerate() {
-        let [a, b, c] = tri.map(|i| DVec2::from(uvs[i as usize].map(f64::from)) * scale);
+    for ti in 0..mesh.indices.len() {
+        let [a, b, c] = [0, 1, 2].map(|k| DVec2::from(uv(ti, k).map(f64::from)) * scale);
         let area = (b - a).perp_dot(c - a);
         if area.abs() <= f64::EPSILON * scale.max_element().powi(2) {
             continue; // degenerate in UV space: covers no texel
         }
         let lo = a.min(b).min(c);
         let hi = a.max(b).max(c);
-        let x0 = (lo.x.floor() as i64).clamp(0, w as i64 - 1) as usize;
-        let x1 = (hi.x.ceil() as i64 - 1).clamp(0, w as i64 - 1) as usize;
-        let y0 = (lo.y.floor() as i64).clamp(0, h as i64 - 1) as usize;
-        let y1 = (hi.y.ceil() as i64 - 1).clamp(0, h as i64 - 1) as usize;
+        // Every texel whose closed square the triangle's bounding box meets; `overlaps`
+        // keeps those whose open square the triangle meets.
+        let x0 = (lo.x.ceil() as i64 - 1).clamp(0, w as i64 - 1) as usize;
+        let x1 = (hi.x.floor() as i64).clamp(0, w as i64 - 1) as usize;
+        let y0 = (lo.y.ceil() as i64 - 1).clamp(0, h as i64 - 1) as usize;
+        let y1 = (hi.y.floor() as i64).clamp(0, h as i64 - 1) as usize;
         for y in y0..=y1 {
             for x in x0..=x1 {
+                if !overlaps([a, b, c], lo, hi, x as f64, y as f64) {
+                    continue;
+                }
                 let centre = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
                 let l = barycentric(a, b, c, area, centre);
                 let k = y * w + x;
@@ -185,13 +291,9 @@ pub fn lightmap(mesh: &Mesh, width: u32, height: u32) -> Result<Lightmap, Lightm
                 let (bary, d) = if l.iter().all(|&v| v >= 0.0) {
                     (l, 0.0)
                 } else {
-                    // Touching: the nearest point of the triangle, kept if it lies in the
-                    // texel's square.
+                    // Touching: the nearest point of the triangle to the centre.
                     let q = closest_point(a, b, c, centre);
                     let off = q - centre;
-                    if off.x.abs() > 0.5 || off.y.abs() > 0.5 {
-                        continue;
-                    }
                     let l = barycentric(a, b, c, area, q).map(|v| v.clamp(0.0, 1.0));
                     let s = l[0] + l[1] + l[2];
                     (l.map(|v| v / s), off.length())
@@ -210,12 +312,29 @@ pub fn lightmap(mesh: &Mesh, width: u32, height: u32) -> Result<Lightmap, Lightm
             of: texels.iter().filter(|t| t.is_some()).count(),
         });
     }
-    Ok(Lightmap {
-        width,
-        height,
-        uv_set,
-        texels,
-    })
+    Ok(texels)
+}
+
+/// Whether triangle `t` (texel units; bounding box `lo`–`hi`) meets the interior of texel
+/// `(x, y)`'s square `(x, x+1) × (y, y+1)`: separating axes (the square's two, the triangle's
+/// three edge normals), a contact along an edge or at a corner not counting (SPEC §3.1).
+fn overlaps(t: [DVec2; 3], lo: DVec2, hi: DVec2, x: f64, y: f64) -> bool {
+    if !(x < hi.x && x + 1.0 > lo.x && y < hi.y && y + 1.0 > lo.y) {
+        return false;
+    }
+    for (i, j, k) in [(0, 1, 2), (1, 2, 0), (2, 0, 1)] {
+        let (nx, ny) = (t[i].y - t[j].y, t[j].x - t[i].x);
+        let d_edge = nx * t[i].x + ny * t[i].y;
+        let d_opp = nx * t[k].x + ny * t[k].y;
+        let (t_lo, t_hi) = (d_edge.min(d_opp), d_edge.max(d_opp));
+        let base = nx * x + ny * y;
+        let b_lo = base + nx.min(0.0) + ny.min(0.0);
+        let b_hi = base + nx.max(0.0) + ny.max(0.0);
+        if b_hi <= t_lo || b_lo >= t_hi {
+            return false;
+        }
+    }
+    true
 }
 
 /// Barycentric coordinates of `p` on triangle `abc` (signed doubled area `area`).
@@ -398,6 +517,48 @@ mod tests {
         let mut m = square(1.0);
         m.texcoords.clear();
         assert_eq!(lightmap(&m, 4, 4).unwrap_err(), LightmapError::NoUvs);
+    }
+
+    #[test]
+    fn a_triangle_clipping_a_texel_corner_covers_it_and_edge_contacts_do_not() {
+        // Texel units (4×4 map): a sliver whose edge from (1.97, 2.05) to (2.1, 1.4) crosses the
+        // interior of texel (1, 1)'s square (1, 2)² near its corner (2, 2), while its point
+        // nearest to that texel's centre (1.5, 1.5) is (2.058, 1.612), outside the square.
+        let mut m = square(1.0);
+        let uv = |p: [f32; 2]| [p[0] / 4.0, p[1] / 4.0];
+        let corners = vec![
+            [uv([1.97, 2.05]), uv([2.1, 1.4]), uv([2.5, 1.8])],
+            [uv([0.0, 3.0]), uv([1.0, 3.0]), uv([1.0, 4.0])],
+        ];
+        let lm = lightmap_from_corners(&m, corners.clone(), 4, 4).unwrap();
+        let t = lm.texels[4 + 1].expect("texel (1, 1) is touched");
+        assert!(!t.centre_inside);
+        // Its point: the nearest point of the triangle, on the edge, outside the texel.
+        let p = DVec2::new(1.5, 1.5);
+        let want = closest_point(
+            DVec2::new(1.97, 2.05),
+            DVec2::new(2.1, 1.4),
+            DVec2::new(2.5, 1.8),
+            p,
+        );
+        assert!(want.x > 2.0, "{want}");
+        // The second triangle only meets texel (1, 3) and (0, 2) along an edge or a corner.
+        assert!(lm.texels[3 * 4].is_some());
+        assert!(lm.texels[3 * 4 + 1].is_none() && lm.texels[2 * 4].is_none());
+        // One corner UV per triangle corner: split into 6 vertices (no shared UVs).
+        let (source, tris, uvs) = split_corners(&m.indices, &corners);
+        assert_eq!(source, vec![0, 2, 1, 0, 3, 2]);
+        assert_eq!(tris, vec![[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(uvs[4], corners[1][1]);
+        // Corners sharing a vertex and a UV are one vertex.
+        let same = vec![
+            [[0.0, 0.0], [1.0, 1.0], [1.0, 0.0]],
+            [[0.0, 0.0], [0.0, 1.0], [1.0, 1.0]],
+        ];
+        let (source, tris, _) = split_corners(&m.indices, &same);
+        assert_eq!((source.len(), tris[1]), (4, [0, 3, 1]));
+        m.indices.pop();
+        assert!(lightmap_from_corners(&m, same, 4, 4).is_err());
     }
 
     #[test]

@@ -120,6 +120,41 @@ impl Scene {
         self.normal_mapped(m, at, n).unwrap_or(n)
     }
 
+    /// The normal-mapped shading normal of mesh `m` at point `(u, v)` of triangle `tri` as a
+    /// camera ray of direction `dir` sees it, oriented as the path tracer orients it
+    /// (`prt_tracer`'s `Vertex::oriented`): flipped with the triangle's geometric normal to
+    /// the side that is seen, then, where a bump faces away from the viewer, bent towards the
+    /// view in the plane of the normal and the view until their cosine is 0.01. `None` where [`Scene::normal_mapped`] is (the interpolated normal
+    /// shades). Bakes and relighting of per-pixel points read it, so that they shade with
+    /// the normal the path tracer shades with.
+    #[must_use]
+    pub fn seen_normal_mapped(
+        &self,
+        m: usize,
+        tri: u32,
+        u: f32,
+        v: f32,
+        dir: Vec3,
+    ) -> Option<Vec3> {
+        if !self.has_normal_map(m) || tri as usize >= self.meshes[m].indices.len() {
+            return None;
+        }
+        let ns = self.shading_normal(m, tri, u, v);
+        let wo = -dir.normalize_or_zero();
+        let ng = self.meshes[m].face_normal(tri as usize);
+        let ns = if ng.dot(wo) < 0.0 { -ns } else { ns };
+        let c = ns.dot(wo);
+        if c >= MAPPED_MIN_COS {
+            return Some(ns);
+        }
+        let perp = (ns - wo * c).normalize_or_zero();
+        if perp == Vec3::ZERO {
+            return Some(wo);
+        }
+        let sin = (1.0 - MAPPED_MIN_COS * MAPPED_MIN_COS).sqrt();
+        Some((perp * sin + wo * MAPPED_MIN_COS).normalize())
+    }
+
     /// Radiance emitted by mesh `m` at `at` (the same towards every direction and from both
     /// sides, like the rest of our two-sided shading): `emissiveFactor × strength × RGB of
     /// emissiveTexture` (sRGB-decoded), zero for a material without emission.
@@ -166,6 +201,10 @@ impl Scene {
         })
     }
 }
+
+/// The smallest cosine allowed between a normal-mapped shading normal and the view direction
+/// (the path tracer's, `prt_tracer`'s `MAPPED_MIN_COS`; see [`Scene::seen_normal_mapped`]).
+const MAPPED_MIN_COS: f32 = 0.01;
 
 /// A mesh's `alphaMode MASK` coverage test, with its own copy of the alpha texture.
 #[derive(Clone, Debug)]

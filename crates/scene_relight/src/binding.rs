@@ -62,7 +62,8 @@ pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), SceneRe
                 }
                 continue;
             };
-            let set = entry.uv_set;
+            // A generated atlas travels in the file (checked against its hash on reading).
+            let Some(set) = entry.uv_set else { continue };
             let h = mesh.texcoords.get(set).map(|uv| prt_bakefile::uv_hash(uv));
             if h != Some(entry.uv_hash) {
                 return Err(bad(format!(
@@ -75,9 +76,11 @@ pub fn check_bake(scene: &Scene, bake: &Bake, path: &Path) -> Result<(), SceneRe
     Ok(())
 }
 
-/// An object's `settings.lightmaps` entry of a per-texel bake.
+/// An object's `settings.lightmaps` entry of a per-texel bake: a UV set of the scene's mesh,
+/// or a generated atlas's per-corner UVs (SPEC §3.9.3).
 struct LightmapEntry {
-    uv_set: usize,
+    uv_set: Option<usize>,
+    atlas: Option<Vec<[[f32; 2]; 3]>>,
     uv_hash: u64,
 }
 
@@ -86,15 +89,26 @@ fn lightmap_entry(bake: &Bake, name: &str) -> Option<LightmapEntry> {
     let e = all
         .iter()
         .find(|e| e.get("object").and_then(serde_json::Value::as_str) == Some(name))?;
+    let atlas = match e.get("atlas") {
+        Some(a) => Some(prt_bakefile::atlas_corner_uvs(a, None).ok()?),
+        None => None,
+    };
+    let uv_set = match e.get("uv_set") {
+        Some(k) => Some(usize::try_from(k.as_u64()?).ok()?),
+        None => None,
+    };
+    (uv_set.is_some() != atlas.is_some()).then_some(())?;
     Some(LightmapEntry {
-        uv_set: usize::try_from(e.get("uv_set")?.as_u64()?).ok()?,
+        uv_set,
+        atlas,
         uv_hash: e.get("uv_hash")?.as_str()?.parse().ok()?,
     })
 }
 
 /// The lightmap of every object of a per-texel bake that was baked per texel (`None`
 /// otherwise): rasterised again from the scene's UVs (checked against the bake's hash by
-/// [`check_bake`]) with the bake's own code, so texel `k` is the bake's point `k`.
+/// [`check_bake`]), or from the generated atlas the file carries (SPEC §3.9.3), with the
+/// bake's own code, so texel `k` is the bake's point `k`.
 ///
 /// # Errors
 /// A lightmap the rasteriser refuses (it accepted it when baking).
@@ -112,9 +126,13 @@ pub fn lightmaps(
             if obj.coverage.is_none() {
                 return Ok(None);
             }
-            prt_scene::lightmap::lightmap(mesh, width, height)
-                .map(Some)
-                .map_err(|e| SceneRelightError::Invalid(format!("object {}: {e}", obj.name)))
+            let atlas = lightmap_entry(bake, &obj.name).and_then(|e| e.atlas);
+            match atlas {
+                Some(c) => prt_scene::lightmap::lightmap_from_corners(mesh, c, width, height),
+                None => prt_scene::lightmap::lightmap(mesh, width, height),
+            }
+            .map(Some)
+            .map_err(|e| SceneRelightError::Invalid(format!("object {}: {e}", obj.name)))
         })
         .collect()
 }

@@ -12,7 +12,8 @@ pub type PointAndNormal = ([f32; 3], [f32; 3]);
 
 /// Per pixel, the position and camera-facing normal of object `o` that the specular term of a
 /// per-pixel bake is shaded at: the mean position and the normalised mean normal of the
-/// pixel's footprint samples that hit `o` (the pixel centre when the bake sampled centres
+/// pixel's footprint samples that hit `o` (a normal-mapped sample's the map's normal, as the
+/// bake shaded its transfer with) (the pixel centre when the bake sampled centres
 /// only). The bake stores the visibility averaged over the footprint, so the lobe must be
 /// placed once per pixel; taking one sample's normal instead (as before) made the specular
 /// term of a curved glossy surface as noisy as a one-sample render of its footprint. Where the
@@ -29,10 +30,11 @@ pub fn pixel_surface(scene: &Scene, footprints: &PixelFootprints, o: usize) -> V
             for s in footprints.pixel(px) {
                 if let Some((m, sp)) = s.hit {
                     if m == o {
+                        let normal = seen_normal(scene, m, s.at, s.dir).unwrap_or(sp.normal);
                         p += sp.position.as_dvec3();
-                        n += sp.normal.as_dvec3();
+                        n += normal.as_dvec3();
                         count += 1;
-                        first.get_or_insert(sp.normal);
+                        first.get_or_insert(normal);
                     }
                 }
             }
@@ -50,6 +52,23 @@ pub fn pixel_surface(scene: &Scene, footprints: &PixelFootprints, o: usize) -> V
             )
         })
         .collect()
+}
+
+/// The normal-mapped shading normal a footprint sample sees (`None`: not normal mapped, the
+/// sample's interpolated normal shades), as the bake and the path tracer orient it
+/// ([`Scene::seen_normal_mapped`]).
+fn seen_normal(
+    scene: &Scene,
+    m: usize,
+    at: Option<prt_scene::SurfacePoint>,
+    dir: Vec3,
+) -> Option<Vec3> {
+    match at? {
+        prt_scene::SurfacePoint::Triangle { tri, u, v } => {
+            scene.seen_normal_mapped(m, tri, u, v, dir)
+        }
+        prt_scene::SurfacePoint::Vertex(_) => None,
+    }
 }
 
 /// Object `o`'s material resolved per pixel (textures, vertex colours): the mean of the

@@ -333,7 +333,8 @@ pub fn form_image_with(
 }
 
 /// The image of a per-pixel relit result: per pixel, the sum over objects of its relit value
-/// plus the environment its footprint samples that hit nothing see, each weighted `1/K`.
+/// plus the environment its footprint samples that hit nothing see and the emission at those
+/// that hit ([`Relit::emission`]), each weighted `1/K`.
 fn footprint_image(scene: &Scene, relit: &Relit, w: u32, h: u32, rotate_y_deg: f64) -> RgbImage {
     let fp = relit.footprints.as_ref().expect("a per-pixel relit result");
     let pixels = (0..w * h)
@@ -346,8 +347,13 @@ fn footprint_image(scene: &Scene, relit: &Relit, w: u32, h: u32, rotate_y_deg: f
             }
             let samples = fp.pixel(i as usize);
             let weight = 1.0 / samples.len() as f32;
-            for s in samples.iter().filter(|s| s.hit.is_none()) {
-                let b = background_radiance(scene, s.dir, rotate_y_deg);
+            for s in samples {
+                let b = match (s.hit, s.at) {
+                    (None, _) => background_radiance(scene, s.dir, rotate_y_deg),
+                    // Emission at the sample's hit, as the path tracer adds it.
+                    (Some((m, _)), Some(at)) if relit.emission => scene.emission_at(m, at),
+                    (Some(_), _) => continue,
+                };
                 (0..3).for_each(|ch| c[ch] += weight * b[ch]);
             }
             c
@@ -361,8 +367,31 @@ fn footprint_image(scene: &Scene, relit: &Relit, w: u32, h: u32, rotate_y_deg: f
 }
 
 /// The radiance a sub-pixel ray shows: its hit's relit radiance (per vertex, barycentric;
-/// per texel, bilinear at the hit's lightmap UV) or the background.
+/// per texel, bilinear at the hit's lightmap UV) plus the emission at the hit
+/// ([`Relit::emission`]: evaluated there, as the path tracer does, since an emissive texture
+/// varies inside triangles), or the background.
 fn shade_ray(
+    scene: &Scene,
+    relit: &Relit,
+    dir: impl FnOnce() -> Vec3,
+    hit: Sample,
+    rotate_y_deg: f64,
+) -> [f32; 3] {
+    let mut c = relit_radiance(scene, relit, dir, hit, rotate_y_deg);
+    if relit.emission && hit.mesh != u32::MAX {
+        let at = prt_scene::SurfacePoint::Triangle {
+            tri: hit.tri,
+            u: hit.u,
+            v: hit.v,
+        };
+        let e = scene.emission_at(hit.mesh as usize, at);
+        (0..3).for_each(|ch| c[ch] += e[ch]);
+    }
+    c
+}
+
+/// [`shade_ray`] without the emission.
+fn relit_radiance(
     scene: &Scene,
     relit: &Relit,
     dir: impl FnOnce() -> Vec3,
@@ -378,10 +407,9 @@ fn shade_ray(
             if let Some(Some(lm)) = relit.lightmaps.get(hit.mesh as usize) {
                 // Per texel: the hit's lightmap UV, bilinear over the
                 // covered texels.
-                let uvs = &mesh.texcoords[lm.uv_set];
+                let uvs = lm.triangle_uvs(mesh, hit.tri as usize);
                 let mut uv = [0.0f32; 2];
-                for (vi, wt) in tri.iter().zip(wts) {
-                    let t = uvs[*vi as usize];
+                for (t, wt) in uvs.into_iter().zip(wts) {
                     uv[0] += wt * t[0];
                     uv[1] += wt * t[1];
                 }
@@ -462,6 +490,7 @@ pub fn roi_image(
         stats: relit.stats.clone(),
         footprints: None,
         lightmaps: relit.lightmaps.clone(),
+        emission: false,
     };
     let mut img = form_image(scene, accel, &colours, 0.0)?;
     let mask = object_mask(scene, accel)?;
@@ -508,6 +537,7 @@ mod tests {
             stats: RelightStats::default(),
             footprints: None,
             lightmaps: Vec::new().into(),
+            emission: false,
         }
     }
 

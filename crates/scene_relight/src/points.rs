@@ -1,5 +1,6 @@
 //! The points an object is relit at: their surface points (vertices, the hits of a per-pixel
-//! bake's pixels, or the texels of a lightmap) with their normals and, where the material
+//! bake's pixels, or the texels of a lightmap) with their normals (normal-mapped where the
+//! material has a normal map, except at vertices, which cannot hold one) and, where the material
 //! varies over the surface, its value at each point; and the rows of their transfer, picked
 //! for a subset of points and truncated to the order relit at.
 
@@ -63,9 +64,26 @@ fn surface_points(
             (Vec3::from_array(eye) + Vec3::Y).to_array(),
             Vec3::Y.to_array(),
         );
+        // A normal-mapped texel: the map's normal, on the lightmap normal's side (as the bake
+        // shaded its transfer with).
+        let mapped = scene.has_normal_map(o);
         lm.texels
             .iter()
-            .map(|t| t.map_or(away, |t| (t.position.to_array(), t.normal.to_array())))
+            .map(|t| {
+                t.map_or(away, |t| {
+                    let n = if mapped {
+                        let n = scene.shading_normal(o, t.triangle, t.bary[1], t.bary[2]);
+                        if n.dot(t.normal) < 0.0 {
+                            -n
+                        } else {
+                            n
+                        }
+                    } else {
+                        t.normal
+                    };
+                    (t.position.to_array(), n.to_array())
+                })
+            })
             .unzip()
     } else if let Some(fp) = footprints {
         crate::footprint::pixel_surface(scene, fp, o)

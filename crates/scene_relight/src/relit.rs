@@ -79,6 +79,12 @@ pub struct Relit {
     /// Per-texel bakes: per object its lightmap (`None` for objects relit per vertex), which
     /// image formation looks the texels' radiance up in; empty otherwise.
     pub lightmaps: Arc<Vec<Option<prt_scene::lightmap::Lightmap>>>,
+    /// Whether images formed from this result add the scene's emitted radiance (glTF
+    /// emission, [`Scene::emission_at`]) at each hit: it is neither in the bake nor lit by
+    /// the environment, so relighting adds it from the scene's material (true for relighting
+    /// under the bake's environment; false under a given lighting, whose images stay linear
+    /// in it, as inverse lighting needs).
+    pub emission: bool,
 }
 
 /// Figures of one relighting run.
@@ -202,6 +208,7 @@ pub(crate) fn relight_prepared(
         stats: totals.finish(),
         footprints: footprints.cloned(),
         lightmaps: Arc::clone(lightmaps),
+        emission: lighting.is_none(),
     })
 }
 
