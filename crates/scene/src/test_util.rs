@@ -15,9 +15,10 @@
 //! assert_eq!(scene.triangle_count(), 20 * 16 + 2);
 //! ```
 
-use crate::{EnvImage, Environment, Mapping, Mesh, Rgb};
+use crate::{Camera, EnvImage, Environment, Mapping, Mesh, Rgb, Scene};
 use glam::Vec3;
 use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 impl Environment {
     /// A uniform environment: a 1×1 lat-long image of radiance `rgb` from every direction,
@@ -158,4 +159,113 @@ pub fn axis_box(min: Vec3, max: Vec3) -> Mesh {
             .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
     }
     mesh
+}
+
+/// A 2×2 quad in the plane z = 0 facing +Z, UV (0, 0) at its top-left corner `(−1, 1)`
+/// (glTF), written as `quad.gltf` + `quad.bin` + the given PNGs into `dir`. `root` is extra
+/// top-level JSON (textures, images, samplers, extensionsUsed), each entry ending in a comma.
+///
+/// # Panics
+/// When the files cannot be written.
+pub fn write_gltf_quad(
+    dir: &Path,
+    material: &str,
+    root: &str,
+    tangent: Option<[f32; 4]>,
+) -> PathBuf {
+    let p: [[f32; 3]; 4] = [
+        [-1.0, -1.0, 0.0],
+        [1.0, -1.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [-1.0, 1.0, 0.0],
+    ];
+    let mut bin: Vec<u8> = Vec::new();
+    let mut floats = |v: &[f32]| {
+        let at = bin.len();
+        for x in v {
+            bin.extend_from_slice(&x.to_le_bytes());
+        }
+        at
+    };
+    let pos = floats(&p.concat());
+    let nrm = floats(&[0.0, 0.0, 1.0].repeat(4));
+    let uv: Vec<f32> = p
+        .iter()
+        .flat_map(|v| [(v[0] + 1.0) / 2.0, (1.0 - v[1]) / 2.0])
+        .collect();
+    let uvs = floats(&uv);
+    let tan = tangent.map(|t| floats(&t.repeat(4)));
+    let idx = bin.len();
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    std::fs::write(dir.join("quad.bin"), &bin).unwrap();
+    let view = |offset: usize, len: usize| {
+        format!(r#"{{"buffer":0,"byteOffset":{offset},"byteLength":{len}}}"#)
+    };
+    let mut views = vec![view(pos, 48), view(nrm, 48), view(uvs, 32), view(idx, 12)];
+    let mut accessors = vec![
+        r#"{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]}"#.to_owned(),
+        r#"{"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"}"#.to_owned(),
+        r#"{"bufferView":2,"componentType":5126,"count":4,"type":"VEC2"}"#.to_owned(),
+        r#"{"bufferView":3,"componentType":5123,"count":6,"type":"SCALAR"}"#.to_owned(),
+    ];
+    let mut attributes = r#""POSITION":0,"NORMAL":1,"TEXCOORD_0":2"#.to_owned();
+    if let Some(t) = tan {
+        views.push(view(t, 64));
+        accessors.push(r#"{"bufferView":4,"componentType":5126,"count":4,"type":"VEC4"}"#.into());
+        attributes += r#","TANGENT":4"#;
+    }
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},{root}"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+"meshes":[{{"primitives":[{{"attributes":{{{attributes}}},"indices":3,"material":0}}]}}],
+"materials":[{{"name":"quad"{material}}}],
+"buffers":[{{"uri":"quad.bin","byteLength":{}}}],"bufferViews":[{}],"accessors":[{}]}}"#,
+        bin.len(),
+        views.join(","),
+        accessors.join(",")
+    );
+    let path = dir.join("quad.gltf");
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
+/// Textures, samplers (clamp to edge) and images of one PNG per name, as [`write_gltf_quad`]'s
+/// `root`.
+pub fn gltf_texture_root(names: &[&str], extensions: &str) -> String {
+    let textures: Vec<String> = (0..names.len())
+        .map(|i| format!(r#"{{"source":{i},"sampler":0}}"#))
+        .collect();
+    let images: Vec<String> = names
+        .iter()
+        .map(|n| format!(r#"{{"uri":"{n}"}}"#))
+        .collect();
+    format!(
+        r#"{extensions}"textures":[{}],"images":[{}],"samplers":[{{"wrapS":33071,"wrapT":33071}}],"#,
+        textures.join(","),
+        images.join(",")
+    )
+}
+
+/// The scene of one glTF file as the scene loader builds it (its materials with their surface
+/// inputs, meshes with their tangents), seen by `camera` under `environment`.
+///
+/// # Panics
+/// When the file does not load or the scene is invalid.
+#[must_use]
+pub fn gltf_scene(path: &Path, camera: Camera, environment: Environment) -> Scene {
+    let loaded = crate::load_gltf(path, &glam::DMat4::IDENTITY).expect("a loadable glTF");
+    let mut scene = Scene::new(camera, environment);
+    scene.textures = loaded.textures;
+    for (k, (name, m)) in loaded.materials.into_iter().enumerate() {
+        let i = scene.add_material(&name, m);
+        scene.set_surface_inputs(i, loaded.surface_inputs[k]);
+    }
+    for (mesh, t) in loaded.meshes.into_iter().zip(loaded.tangents) {
+        let material = mesh.material;
+        let o = scene.add_mesh(mesh, material);
+        scene.set_tangents(o, t);
+    }
+    scene.validate().expect("a valid scene");
+    scene
 }

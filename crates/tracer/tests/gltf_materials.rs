@@ -3,106 +3,16 @@
 //! DamagedHelmet scene, whose image changes when its normal map and emission are switched off.
 
 use glam::{DMat4, DVec3, Vec3};
+use prt_scene::test_util::{gltf_texture_root, write_gltf_quad};
 use prt_scene::{load_gltf, Environment, Material, Scene};
 use prt_tracer::{test_util, Accel, RenderSettings, Renderer};
-use std::path::{Path, PathBuf};
-
-/// A 2×2 quad in the plane z = 0 facing +Z, UV (0, 0) at its top-left corner `(−1, 1)`
-/// (glTF), written as `quad.gltf` + `quad.bin` + the given PNGs into `dir`. `root` is extra
-/// top-level JSON (textures, images, samplers, extensionsUsed), each entry ending in a comma.
-fn write_quad(dir: &Path, material: &str, root: &str, tangent: Option<[f32; 4]>) -> PathBuf {
-    let p: [[f32; 3]; 4] = [
-        [-1.0, -1.0, 0.0],
-        [1.0, -1.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [-1.0, 1.0, 0.0],
-    ];
-    let mut bin: Vec<u8> = Vec::new();
-    let mut floats = |v: &[f32]| {
-        let at = bin.len();
-        for x in v {
-            bin.extend_from_slice(&x.to_le_bytes());
-        }
-        at
-    };
-    let pos = floats(&p.concat());
-    let nrm = floats(&[0.0, 0.0, 1.0].repeat(4));
-    let uv: Vec<f32> = p
-        .iter()
-        .flat_map(|v| [(v[0] + 1.0) / 2.0, (1.0 - v[1]) / 2.0])
-        .collect();
-    let uvs = floats(&uv);
-    let tan = tangent.map(|t| floats(&t.repeat(4)));
-    let idx = bin.len();
-    for i in [0u16, 1, 2, 0, 2, 3] {
-        bin.extend_from_slice(&i.to_le_bytes());
-    }
-    std::fs::write(dir.join("quad.bin"), &bin).unwrap();
-    let view = |offset: usize, len: usize| {
-        format!(r#"{{"buffer":0,"byteOffset":{offset},"byteLength":{len}}}"#)
-    };
-    let mut views = vec![view(pos, 48), view(nrm, 48), view(uvs, 32), view(idx, 12)];
-    let mut accessors = vec![
-        r#"{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]}"#.to_owned(),
-        r#"{"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"}"#.to_owned(),
-        r#"{"bufferView":2,"componentType":5126,"count":4,"type":"VEC2"}"#.to_owned(),
-        r#"{"bufferView":3,"componentType":5123,"count":6,"type":"SCALAR"}"#.to_owned(),
-    ];
-    let mut attributes = r#""POSITION":0,"NORMAL":1,"TEXCOORD_0":2"#.to_owned();
-    if let Some(t) = tan {
-        views.push(view(t, 64));
-        accessors.push(r#"{"bufferView":4,"componentType":5126,"count":4,"type":"VEC4"}"#.into());
-        attributes += r#","TANGENT":4"#;
-    }
-    let json = format!(
-        r#"{{"asset":{{"version":"2.0"}},{root}"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
-"meshes":[{{"primitives":[{{"attributes":{{{attributes}}},"indices":3,"material":0}}]}}],
-"materials":[{{"name":"quad"{material}}}],
-"buffers":[{{"uri":"quad.bin","byteLength":{}}}],"bufferViews":[{}],"accessors":[{}]}}"#,
-        bin.len(),
-        views.join(","),
-        accessors.join(",")
-    );
-    let path = dir.join("quad.gltf");
-    std::fs::write(&path, json).unwrap();
-    path
-}
-
-/// Textures, samplers (clamp to edge) and images of one PNG per name, as `write_quad`'s
-/// `root`.
-fn texture_root(names: &[&str], extensions: &str) -> String {
-    let textures: Vec<String> = (0..names.len())
-        .map(|i| format!(r#"{{"source":{i},"sampler":0}}"#))
-        .collect();
-    let images: Vec<String> = names
-        .iter()
-        .map(|n| format!(r#"{{"uri":"{n}"}}"#))
-        .collect();
-    format!(
-        r#"{extensions}"textures":[{}],"images":[{}],"samplers":[{{"wrapS":33071,"wrapT":33071}}],"#,
-        textures.join(","),
-        images.join(",")
-    )
-}
+use std::path::Path;
 
 /// The scene of one glTF file (its materials, their inputs and the tangents), seen by a
 /// 16×16 camera on +Z.
 fn scene_of(path: &Path, env: Environment) -> Scene {
-    let loaded = load_gltf(path, &DMat4::IDENTITY).unwrap();
     let cam = test_util::camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 28.0, 16, 16);
-    let mut scene = Scene::new(cam, env);
-    scene.textures = loaded.textures;
-    for (k, (name, m)) in loaded.materials.into_iter().enumerate() {
-        let i = scene.add_material(&name, m);
-        scene.set_surface_inputs(i, loaded.surface_inputs[k]);
-    }
-    for (mesh, t) in loaded.meshes.into_iter().zip(loaded.tangents) {
-        let material = mesh.material;
-        let o = scene.add_mesh(mesh, material);
-        scene.set_tangents(o, t);
-    }
-    scene.validate().unwrap();
-    scene
+    prt_scene::test_util::gltf_scene(path, cam, env)
 }
 
 fn render(scene: &Scene, spp: u32) -> Vec<Vec3> {
@@ -148,11 +58,11 @@ fn emissive_texels_emit_their_closed_form_radiance() {
     });
     img.save(dir.path().join("e.png")).unwrap();
     let material = r#","pbrMetallicRoughness":{"baseColorFactor":[0.5,0.5,0.5,1],"metallicFactor":0,"roughnessFactor":1},"emissiveFactor":[1.0,0.8,0.5],"emissiveTexture":{"index":0},"extensions":{"KHR_materials_emissive_strength":{"emissiveStrength":3.0}}"#;
-    let root = texture_root(
+    let root = gltf_texture_root(
         &["e.png"],
         r#""extensionsUsed":["KHR_materials_emissive_strength"],"#,
     );
-    let path = write_quad(dir.path(), material, &root, None);
+    let path = write_gltf_quad(dir.path(), material, &root, None);
     let loaded = load_gltf(&path, &DMat4::IDENTITY).unwrap();
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
     let scene = scene_of(&path, Environment::uniform([0.0; 3]));
@@ -243,11 +153,11 @@ fn normal_mapped_quad(dir: &Path, tangent: Option<[f32; 4]>, with_map: bool) -> 
         ""
     };
     let root = if with_map {
-        texture_root(&["n.png"], "")
+        gltf_texture_root(&["n.png"], "")
     } else {
         String::new()
     };
-    let path = write_quad(dir, material, &root, tangent);
+    let path = write_gltf_quad(dir, material, &root, tangent);
     let mut scene = scene_of(&path, sun().0);
     scene.materials[0] = Material::Lambert { albedo: [0.5; 3] };
     scene
@@ -349,7 +259,12 @@ fn mask_cutouts_pass_camera_and_shadow_rays() {
     });
     img.save(dir.path().join("a.png")).unwrap();
     let material = r#","pbrMetallicRoughness":{"baseColorTexture":{"index":0},"metallicFactor":0,"roughnessFactor":1},"alphaMode":"MASK","alphaCutoff":0.5"#;
-    let path = write_quad(dir.path(), material, &texture_root(&["a.png"], ""), None);
+    let path = write_gltf_quad(
+        dir.path(),
+        material,
+        &gltf_texture_root(&["a.png"], ""),
+        None,
+    );
     let loaded = load_gltf(&path, &DMat4::IDENTITY).unwrap();
     assert!(
         loaded.warnings.is_empty(),
@@ -470,8 +385,8 @@ fn normal_texture_transform_moves_the_lookup() {
     img.save(dir.path().join("n.png")).unwrap();
     let tilt = |transform: &str| {
         let material = format!(r#","normalTexture":{{"index":0{transform}}}"#);
-        let root = texture_root(&["n.png"], r#""extensionsUsed":["KHR_texture_transform"],"#);
-        let path = write_quad(dir.path(), &material, &root, Some([1.0, 0.0, 0.0, 1.0]));
+        let root = gltf_texture_root(&["n.png"], r#""extensionsUsed":["KHR_texture_transform"],"#);
+        let path = write_gltf_quad(dir.path(), &material, &root, Some([1.0, 0.0, 0.0, 1.0]));
         let scene = scene_of(&path, Environment::uniform([1.0; 3]));
         // Triangle 1 is (v0, v2, v3) with UVs (0, 1), (1, 0), (0, 0): weights (0.25, 0.5)
         // of v2 and v3 put the point at UV (0.25, 0.25), the left texel's centre.
