@@ -203,6 +203,12 @@ pub struct RelightArgs {
     /// the chosen representation must reach the target at.
     #[arg(long, help_heading = "Adaptive to a PSNR target", default_value_t = 8)]
     pub target_rotations: usize,
+    /// With --target-psnr: another bake of the same scene and camera (per vertex, per pixel,
+    /// per texel, compressed or not) whose representations compete with --bake's; repeat for
+    /// more. Every image is compared with --bake's full order, so give the most faithful bake
+    /// (e.g. the per-pixel one) as --bake.
+    #[arg(long, help_heading = "Adaptive to a PSNR target", value_name = "BAKE")]
+    pub candidate_bake: Vec<PathBuf>,
     /// With --target-psnr and --adaptive: the per-frame study of adaptive relighting to the
     /// target (no image) instead of choosing a representation.
     #[arg(long, help_heading = "Adaptive to a PSNR target")]
@@ -258,19 +264,30 @@ impl RelightArgs {
 /// Runs `prt relight`.
 pub fn run(args: &RelightArgs) -> Result<()> {
     check_args(args)?;
-    let scene = crate::common::load_scene(&args.scene)?;
+    let loaded = crate::common::load_scene(&args.scene)?;
     let bake = prt_bakefile::read_bake(&args.bake)?;
     if bake.reflectance.is_some() {
-        return run_field(args, &scene, &bake);
+        return run_field(args, &loaded, &bake);
     }
-    let (scene, accel) = prepare_sh(args, &scene, &bake)?;
+    if !args.candidate_bake.is_empty() && (args.target_psnr.is_none() || args.study) {
+        bail!("--candidate-bake is for --target-psnr without --study");
+    }
+    let (scene, accel) = prepare_sh(args, &loaded, &bake)?;
     let adaptive = args.adaptive.then(|| adaptive_params(args));
     if let Some(target) = args.target_psnr {
         if !args.study {
             if args.verify {
                 bail!("--verify is for the --study of --target-psnr");
             }
-            return run_choose(args, &scene, &accel, &bake, target);
+            let candidates = candidate_bakes(args, &loaded)?;
+            let mut bakes = vec![(&scene, &accel, &bake, args.bake.as_path())];
+            bakes.extend(
+                candidates
+                    .iter()
+                    .zip(&args.candidate_bake)
+                    .map(|((s, a, b), p)| (s, a, b, p.as_path())),
+            );
+            return run_choose(args, &bakes, target);
         }
         let Some(params) = adaptive else {
             bail!("--study needs --adaptive");
@@ -686,15 +703,52 @@ fn write_point_colours(
     Ok(())
 }
 
-/// `prt relight --target-psnr P`: the cheapest representation meeting the target at the
-/// rotations, a decision line saying which, and its image.
-fn run_choose(
+/// The bakes of `--candidate-bake`, each checked against the scene, with the scene it
+/// relights (its refined meshes, if subdivided) and that scene's BVH.
+fn candidate_bakes(
     args: &RelightArgs,
-    scene: &prt_scene::Scene,
-    accel: &prt_tracer::Accel,
-    bake: &prt_bakefile::Bake,
-    target: f64,
-) -> Result<()> {
+    loaded: &prt_scene::Scene,
+) -> Result<Vec<(prt_scene::Scene, prt_tracer::Accel, prt_bakefile::Bake)>> {
+    args.candidate_bake
+        .iter()
+        .map(|path| {
+            let bake = prt_bakefile::read_bake(path)?;
+            if bake.reflectance.is_some() {
+                bail!(
+                    "{}: a reflectance field is not an SH bake: --candidate-bake takes SH bakes",
+                    path.display()
+                );
+            }
+            prt_scene_relight::check_bake(loaded, &bake, path)?;
+            let scene = prt_scene_relight::baked_scene(loaded, &bake)
+                .with_context(|| path.display().to_string())?;
+            let accel = prt_tracer::Accel::build(&scene).context("building the BVH")?;
+            Ok((scene, accel, bake))
+        })
+        .collect()
+}
+
+/// The kind of points of a bake, for the decision line.
+fn point_kind(bake: &prt_bakefile::Bake) -> &'static str {
+    match bake.meta.sample_kind {
+        prt_bakefile::SampleKind::Vertex => "per vertex",
+        prt_bakefile::SampleKind::Pixel { .. } => "per pixel",
+        prt_bakefile::SampleKind::Texel { .. } => "per texel",
+    }
+}
+
+/// A bake to choose from: its scene, BVH, bake and path.
+type ChoiceBake<'a> = (
+    &'a prt_scene::Scene,
+    &'a prt_tracer::Accel,
+    &'a prt_bakefile::Bake,
+    &'a std::path::Path,
+);
+
+/// `prt relight --target-psnr P`: the cheapest representation meeting the target at the
+/// rotations over the bakes given (`--bake` first, then `--candidate-bake`), a decision line
+/// saying which, and its image.
+fn run_choose(args: &RelightArgs, bakes: &[ChoiceBake<'_>], target: f64) -> Result<()> {
     use prt_scene_relight::target::{Candidate, Representation};
     anyhow::ensure!(
         args.target_rotations >= 1,
@@ -716,16 +770,34 @@ fn run_choose(
         adaptive,
         adaptive_tries: 4,
     };
-    let bound = prt_scene_relight::Bound::new(scene, accel, bake)?;
-    let choice = prt_scene_relight::target::choose_representation(&bound, &opt)
+    let bounds = bakes
+        .iter()
+        .map(|(s, a, b, _)| prt_scene_relight::Bound::new(s, a, b))
+        .collect::<Result<Vec<_>, _>>()?;
+    let choice = prt_scene_relight::target::choose_representation(&bounds, &opt)
         .with_context(|| format!("{}", args.bake.display()))?;
-    let name = |c: &Candidate| match c.representation {
-        Representation::Uniform { order } if choice.compressed => {
-            format!("clustered-PCA blocks at order {order}")
+    let several = bakes.len() > 1;
+    let name = |c: &Candidate| {
+        let compressed = bakes[c.bake]
+            .2
+            .objects
+            .iter()
+            .any(|o| o.blocks.iter().any(|b| b.cpca.is_some()));
+        let what = match c.representation {
+            Representation::Uniform { order } if compressed => {
+                format!("clustered-PCA blocks at order {order}")
+            }
+            Representation::Uniform { order } => format!("uniform order {order}"),
+            Representation::Adaptive { threshold } => format!("adaptive, threshold {threshold}"),
+        };
+        if several {
+            let (_, _, b, p) = bakes[c.bake];
+            format!("{what}, {} ({})", point_kind(b), p.display())
+        } else {
+            what
         }
-        Representation::Uniform { order } => format!("uniform order {order}"),
-        Representation::Adaptive { threshold } => format!("adaptive, threshold {threshold}"),
     };
+    let bound = &bounds[choice.chosen.bake];
     let relit = bound.relight(&prt_scene_relight::target::chosen_options(
         &base,
         &choice.chosen.representation,
@@ -759,22 +831,29 @@ fn run_choose(
         )
     };
     outln!(
-        "decision: {} — the cheapest representation whose image reaches {target} dB against full order at {n} rotations ({:.2} dB lowest, {:.3e} modelled products/frame)",
+        "decision: {} — the cheapest representation whose image reaches {target} dB against {} at {n} rotations ({:.2} dB lowest, {:.3e} modelled products/frame)",
         name(&choice.chosen),
+        if several { format!("the full order of {} ({})", args.bake.display(), point_kind(bakes[0].2)) } else { "full order".into() },
         choice.chosen.min_psnr,
         choice.chosen.cost
     );
     for c in &choice.tried {
         outln!("  tried {}", figures(c));
     }
-    if !choice.compressed {
+    if !bakes.iter().any(|(_, _, b, _)| {
+        b.objects
+            .iter()
+            .any(|o| o.blocks.iter().any(|x| x.cpca.is_some()))
+    }) {
         outln!(
-            "  compressed: not a candidate (the bake is not compressed; `prt compress --scene` makes one, whose orders this command then tries)"
+            "  compressed: not a candidate (no bake given is compressed; `prt compress --scene` makes one, which --candidate-bake adds)"
         );
     }
-    outln!(
-        "  per vertex or per pixel: not compared (one bake given; bake the other kind and run this again on it)"
-    );
+    if !several {
+        outln!(
+            "  per vertex or per pixel: not compared (one bake given; bake the other kind and add it with --candidate-bake)"
+        );
+    }
     outln!(
         "shading: {:.3} ms/frame chosen, {:.3} ms/frame the best uniform order ({}; median of 5 frames)",
         choice.shade_ms.0,

@@ -354,6 +354,68 @@ fn target_psnr_chooses_a_representation_and_writes_its_image() {
     assert!(text.starts_with("decision: "), "{text}");
 }
 
+/// `--target-psnr P --candidate-bake B` (issue 34): a per-pixel bake (the reference, as
+/// `--bake`) and a per-vertex bake of the same scene compete; every candidate of both is
+/// measured against the per-pixel full order, the chosen one meets the target, costs no more
+/// than any other candidate that met it, and its image (from its own bake) is the one written.
+/// Adaptive candidates are tried on the per-vertex bake only (they walk its vertex adjacency).
+#[test]
+fn target_psnr_chooses_between_per_vertex_and_per_pixel_bakes() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path(), 3);
+    let (px, vx) = (
+        dir.path().join("pixel.prtb"),
+        dir.path().join("vertex.prtb"),
+    );
+    bake(&scene, &px, &["--per-pixel"]);
+    bake(&scene, &vx, &[]);
+    let full = dir.path().join("full.exr");
+    run(relight(&scene, &px).arg("--out").arg(&full));
+    // At 15 dB the per-vertex bake's order 1 (its few vertices) is the cheapest; at 45 dB no
+    // per-vertex representation gets close enough to the per-pixel image (interpolation
+    // across the floor's large triangles: ~36 dB at its full order), so per pixel is chosen.
+    for (target, winner) in [(15.0f64, 1), (45.0, 0)] {
+        let out = dir.path().join(format!("chosen{target}.exr"));
+        let j = json(&run(relight(&scene, &px)
+            .args([
+                "--target-psnr",
+                &target.to_string(),
+                "--target-rotations",
+                "2",
+            ])
+            .arg("--candidate-bake")
+            .arg(&vx)
+            .arg("--json")
+            .arg("--out")
+            .arg(&out)));
+        eprintln!("target {target}: {j}");
+        let tried = j["tried"].as_array().unwrap();
+        let psnr = |c: &serde_json::Value| c["min_psnr"].as_f64().unwrap_or(f64::INFINITY);
+        assert!(tried.iter().any(|c| c["bake"] == 1), "{j}");
+        let chosen = &j["chosen"];
+        assert!(psnr(chosen) >= target, "{j}");
+        assert_eq!(chosen["bake"], winner, "{j}");
+        for c in tried.iter().filter(|c| psnr(c) >= target) {
+            assert!(
+                chosen["cost"].as_f64() <= c["cost"].as_f64(),
+                "{c} beats {chosen}"
+            );
+        }
+        let cmp = json(&run(prt()
+            .arg("compare")
+            .arg(&out)
+            .arg(&full)
+            .arg("--json")));
+        let got = cmp["psnr_ldr"].as_f64().unwrap_or(f64::INFINITY);
+        assert!(got >= target, "the written image: {got} dB");
+    }
+    let err = fail(relight(&scene, &px).arg("--candidate-bake").arg(&vx));
+    assert!(
+        err.contains("--candidate-bake is for --target-psnr"),
+        "{err}"
+    );
+}
+
 /// `prt bake --target-psnr P`: per object the lowest order whose PSNR against a path-traced
 /// reference reaches `P` (checked here against the order-13 bake truncated by hand: the chosen
 /// order reaches it and the one below does not, on the same reference); an unreachable target

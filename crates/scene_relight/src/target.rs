@@ -724,9 +724,12 @@ pub enum Representation {
 /// One representation tried by [`choose_representation`].
 #[derive(Clone, Debug, Serialize)]
 pub struct Candidate {
+    /// Which of the bakes given it relights from (0: the first, whose full order is the
+    /// reference).
+    pub bake: usize,
     /// What was tried.
     pub representation: Representation,
-    /// Its lowest PSNR against full order over the rotations (the first miss ends a try).
+    /// Its lowest PSNR against the reference over the rotations (the first miss ends a try).
     pub min_psnr: f64,
     /// Its modelled cost: coefficient products (and their equivalents) per frame.
     pub cost: f64,
@@ -737,11 +740,13 @@ pub struct Candidate {
 pub struct Choice {
     /// The cheapest candidate meeting the target on every rotation.
     pub chosen: Candidate,
-    /// The lowest uniform order meeting it (full order when none lower does).
+    /// The cheapest uniform order meeting it over the bakes (the first bake's full order when
+    /// none cheaper does).
     pub best_uniform: Candidate,
     /// Every candidate tried, in order.
     pub tried: Vec<Candidate>,
-    /// Whether the bake's blocks are compressed (uniform orders then relight from them).
+    /// Whether the chosen candidate's bake has compressed blocks (uniform orders then relight
+    /// from them).
     pub compressed: bool,
     /// Median shading ms per frame of the chosen representation and of the best uniform one.
     pub shade_ms: (f64, f64),
@@ -819,18 +824,24 @@ pub struct ChooseOptions {
     pub adaptive_tries: usize,
 }
 
-/// `prt relight --target-psnr P --out X`: relights `bound`'s bake at full order at every
-/// rotation (the reference), then tries the uniform orders from 1 up until one meets the
-/// target at every rotation, and the adaptive scheme at full order from the given threshold,
-/// halved after a miss; chooses the candidate of least [`modelled_products`] (adaptive ones
-/// at their counted products × [`ADAPTIVE_PRODUCT_COST`]) — full order if nothing cheaper
-/// meets the target. Every decision depends on the images only, never on timings; the shading
-/// times of the chosen and the best uniform representation are measured afterwards.
+/// `prt relight --target-psnr P --out X`: relights the first bake of `bounds` at full order
+/// at every rotation (the reference); then, for each bake, tries its uniform orders from 1 up
+/// until one meets the target at every rotation (the first bake's full order is the reference
+/// itself; another bake's full order is tried too), and the adaptive scheme at its full order
+/// from the given threshold, halved after a miss; chooses the candidate of least
+/// [`modelled_products`] over all bakes (adaptive ones at their counted products ×
+/// [`ADAPTIVE_PRODUCT_COST`]) — the first bake's full order if nothing cheaper meets the
+/// target. Bakes of the same scene and camera but another kind of points (per vertex, per
+/// pixel, per texel) or compression compete this way; their images are compared with the
+/// first bake's, so it should be the most faithful one. Every decision depends on the images
+/// only, never on timings; the shading times of the chosen and the best uniform representation
+/// are measured afterwards.
 ///
 /// # Errors
-/// A target that is not a positive, finite number of dB, no rotation; the relighter's errors.
+/// A target that is not a positive, finite number of dB, no rotation or no bake; images of
+/// another size than the first bake's; the relighter's errors.
 pub fn choose_representation(
-    bound: &Bound<'_>,
+    bounds: &[Bound<'_>],
     opt: &ChooseOptions,
 ) -> Result<Choice, SceneRelightError> {
     if !(opt.target_psnr.is_finite() && opt.target_psnr > 0.0) || opt.rotations.is_empty() {
@@ -839,91 +850,49 @@ pub fn choose_representation(
             opt.target_psnr
         )));
     }
-    let bake = bound.bake();
-    let at = |deg: f64, order: Option<usize>, adaptive: Option<AdaptiveParams>| RelightOptions {
-        order,
-        adaptive,
-        rotate_y_deg: deg,
-        timing_frames: 1,
-        warmup_frames: 0,
-        rotate_y_step_deg: 0.0,
-        points: None,
-        ..opt.base.clone()
-    };
+    let first = bounds
+        .first()
+        .ok_or_else(|| SceneRelightError::Invalid("no bake to choose from".into()))?;
     let references = opt
         .rotations
         .iter()
-        .map(|&deg| bound.form_image(&bound.relight(&at(deg, opt.base.order, None))?, deg))
+        .map(|&deg| {
+            first.form_image(
+                &first.relight(&rotated(opt, deg, opt.base.order, None))?,
+                deg,
+            )
+        })
         .collect::<Result<Vec<_>, _>>()?;
-    // The lowest PSNR over the rotations, stopping at the first miss; and the products the
-    // adaptive runs counted (the median over the rotations tried).
-    let worst = |order: Option<usize>, adaptive: Option<AdaptiveParams>| {
-        let mut w = f64::INFINITY;
-        let mut ratio = Vec::new();
-        for (&deg, reference) in opt.rotations.iter().zip(&references) {
-            let r = bound.relight(&at(deg, order, adaptive))?;
-            if let (Some(p), Some(f)) = (r.stats.products, r.stats.full_order_products) {
-                ratio.push(p as f64 / (f as f64).max(1.0));
-            }
-            let img = bound.form_image(&r, deg)?;
-            w = w.min(prt_compare::compare(&img, reference, None)?.whole.psnr_ldr);
-            if w < opt.target_psnr {
-                break;
+    let mut tried = Vec::new();
+    let mut best_uniform: Option<Candidate> = None;
+    let mut chosen: Option<Candidate> = None;
+    let cheaper =
+        |c: &Candidate, than: &Option<Candidate>| than.as_ref().is_none_or(|t| c.cost < t.cost);
+    for (k, bound) in bounds.iter().enumerate() {
+        let (uniform, adaptive) = bake_candidates(k, bound, &references, opt, &mut tried)?;
+        for c in uniform.iter().chain(&adaptive) {
+            if cheaper(c, &chosen) {
+                chosen = Some(c.clone());
             }
         }
-        Ok::<_, SceneRelightError>((w, (!ratio.is_empty()).then(|| median(ratio))))
-    };
-    let top = bake
-        .objects
-        .iter()
-        .map(|o| o.order as usize)
-        .max()
-        .unwrap_or(1);
-    let top = opt.base.order.map_or(top, |k| k.min(top));
-    let mut tried = Vec::new();
-    let mut best_uniform = None;
-    for order in 1..top {
-        let (min_psnr, _) = worst(Some(order), None)?;
-        let c = Candidate {
-            representation: Representation::Uniform { order },
-            min_psnr,
-            cost: modelled_products(bake, Some(order)),
-        };
-        tried.push(c.clone());
-        if min_psnr >= opt.target_psnr {
-            best_uniform = Some(c);
-            break;
+        if let Some(u) = uniform.filter(|u| cheaper(u, &best_uniform)) {
+            best_uniform = Some(u);
         }
     }
-    let full_cost = modelled_products(bake, Some(top));
-    let best_uniform = best_uniform.unwrap_or(Candidate {
+    let top = top_order(first.bake(), opt.base.order);
+    let full = Candidate {
+        bake: 0,
         representation: Representation::Uniform { order: top },
         min_psnr: f64::INFINITY,
-        cost: full_cost,
-    });
-    let raw_full_cost = products_model(bake, Some(top), false);
-    let mut chosen = best_uniform.clone();
-    let mut t = threshold_value(&opt.adaptive);
-    for _ in 0..opt.adaptive_tries {
-        let params = with_threshold(&opt.adaptive, t);
-        let (min_psnr, ratio) = worst(Some(top), Some(params))?;
-        let c = Candidate {
-            representation: Representation::Adaptive { threshold: t },
-            min_psnr,
-            cost: ratio.unwrap_or(1.0) * raw_full_cost * ADAPTIVE_PRODUCT_COST,
-        };
-        tried.push(c.clone());
-        if min_psnr >= opt.target_psnr {
-            if c.cost < chosen.cost {
-                chosen = c;
-            }
-            break;
-        }
-        t *= 0.5;
-    }
+        cost: modelled_products(first.bake(), Some(top)),
+    };
+    let best_uniform = best_uniform.filter(|u| u.cost < full.cost).unwrap_or(full);
+    let chosen = chosen
+        .filter(|c| c.cost < best_uniform.cost)
+        .unwrap_or_else(|| best_uniform.clone());
     let timed = |c: &Candidate| -> Result<f64, SceneRelightError> {
         let o = chosen_options(&opt.base, &c.representation, &opt.adaptive, 0.0);
-        Ok(bound
+        Ok(bounds[c.bake]
             .relight(&RelightOptions {
                 timing_frames: 5,
                 warmup_frames: 2,
@@ -935,15 +904,116 @@ pub fn choose_representation(
     };
     let shade_ms = (timed(&chosen)?, timed(&best_uniform)?);
     Ok(Choice {
-        chosen,
-        best_uniform,
-        tried,
-        compressed: bake
+        compressed: bounds[chosen.bake]
+            .bake()
             .objects
             .iter()
             .any(|o| o.blocks.iter().any(|b| b.cpca.is_some())),
+        chosen,
+        best_uniform,
+        tried,
         shade_ms,
     })
+}
+
+/// The relighting options of one try: `opt.base` at `deg`, `order`, `adaptive`.
+fn rotated(
+    opt: &ChooseOptions,
+    deg: f64,
+    order: Option<usize>,
+    adaptive: Option<AdaptiveParams>,
+) -> RelightOptions {
+    RelightOptions {
+        order,
+        adaptive,
+        rotate_y_deg: deg,
+        timing_frames: 1,
+        warmup_frames: 0,
+        rotate_y_step_deg: 0.0,
+        points: None,
+        ..opt.base.clone()
+    }
+}
+
+/// The highest order relit: the bake's, capped by `order`.
+fn top_order(bake: &Bake, order: Option<usize>) -> usize {
+    let top = bake
+        .objects
+        .iter()
+        .map(|o| o.order as usize)
+        .max()
+        .unwrap_or(1);
+    order.map_or(top, |k| k.min(top))
+}
+
+/// The candidates of bake `k` (appended to `tried` as they are tried): the lowest uniform
+/// order meeting the target, if any (the first bake's full order is the reference and is not
+/// tried), and, for a per-vertex bake, the first adaptive threshold meeting it, if any.
+fn bake_candidates(
+    k: usize,
+    bound: &Bound<'_>,
+    references: &[crate::imaging::RgbImage],
+    opt: &ChooseOptions,
+    tried: &mut Vec<Candidate>,
+) -> Result<(Option<Candidate>, Option<Candidate>), SceneRelightError> {
+    let bake = bound.bake();
+    // The lowest PSNR over the rotations, stopping at the first miss; and the products the
+    // adaptive runs counted (the median over the rotations tried).
+    let worst = |order: Option<usize>, adaptive: Option<AdaptiveParams>| {
+        let mut w = f64::INFINITY;
+        let mut ratio = Vec::new();
+        for (&deg, reference) in opt.rotations.iter().zip(references) {
+            let r = bound.relight(&rotated(opt, deg, order, adaptive))?;
+            if let (Some(p), Some(f)) = (r.stats.products, r.stats.full_order_products) {
+                ratio.push(p as f64 / (f as f64).max(1.0));
+            }
+            let img = bound.form_image(&r, deg)?;
+            w = w.min(prt_compare::compare(&img, reference, None)?.whole.psnr_ldr);
+            if w < opt.target_psnr {
+                break;
+            }
+        }
+        Ok::<_, SceneRelightError>((w, (!ratio.is_empty()).then(|| median(ratio))))
+    };
+    let top = top_order(bake, opt.base.order);
+    let last = if k == 0 { top - 1 } else { top };
+    let mut uniform = None;
+    for order in 1..=last {
+        let (min_psnr, _) = worst(Some(order), None)?;
+        let c = Candidate {
+            bake: k,
+            representation: Representation::Uniform { order },
+            min_psnr,
+            cost: modelled_products(bake, Some(order)),
+        };
+        tried.push(c.clone());
+        if min_psnr >= opt.target_psnr {
+            uniform = Some(c);
+            break;
+        }
+    }
+    // The adaptive scheme walks the mesh's vertex adjacency: per-vertex bakes only.
+    if bake.meta.sample_kind != prt_bakefile::SampleKind::Vertex {
+        return Ok((uniform, None));
+    }
+    let raw_full_cost = products_model(bake, Some(top), false);
+    let mut t = threshold_value(&opt.adaptive);
+    for _ in 0..opt.adaptive_tries {
+        let params = with_threshold(&opt.adaptive, t);
+        let (min_psnr, ratio) = worst(Some(top), Some(params))?;
+        let c = Candidate {
+            bake: k,
+            representation: Representation::Adaptive { threshold: t },
+            min_psnr,
+            cost: ratio.unwrap_or(1.0) * raw_full_cost * ADAPTIVE_PRODUCT_COST,
+        };
+        tried.push(c.clone());
+        if min_psnr >= opt.target_psnr {
+            return Ok((uniform, Some(c)));
+        }
+        t *= 0.5;
+    }
+    Ok((uniform, None))
 }
 
 /// The relighting options of representation `r` rotated by `deg` (one timed frame).
