@@ -10,6 +10,11 @@
 # truth), fit, relight the fit at a new rotation (60°) and compare it, and the truth's
 # relighting at the same order, with a path-traced render at that rotation (object pixels).
 #
+# With MAX_OCCLUSION=F in the environment the fit keeps only the pixels with at most that
+# fraction of their hemisphere blocked (`prt fit-lighting --max-occlusion F`), and with
+# ONLY=lambert (or phong) only that material's rows run; the relit comparisons stay on every
+# object pixel away from silhouettes (the mask of a fit without the occlusion limit).
+#
 # Usage: tools/inverse_table.sh WORKDIR [PRT]   (about 20 minutes on 2 cores)
 set -euo pipefail
 work=${1:?usage: tools/inverse_table.sh WORKDIR [PRT]}
@@ -80,7 +85,7 @@ EOF
 db() { "$prt" compare "$1" "$2" --mask "$3" --json | python3 -c 'import json,sys; print("%.2f" % json.load(sys.stdin)["masked_psnr_hdr"])'; }
 echo "| object | map | fitted order | well-determined bands | rel. L2 (well-determined) | by band | condition by band | gain by band | residual | model residual | relit 60°: fit dB | truth dB |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
-for m in lambert phong; do
+for m in ${ONLY:-lambert phong}; do
   order=$([ "$m" = lambert ] && echo 3 || echo 6)
   for env in courtyard studio sunrise; do
     s0=${m}_${env}_0.toml
@@ -93,9 +98,11 @@ import json, sys
 j = json.load(open(sys.argv[1])); n = int(sys.argv[2])
 print(json.dumps({"order": n, "coefficients": j["coefficients"][:n * n]}))
 EOF
+    [ -f "mask_${m}.png" ] || "$prt" fit-lighting "${m}_${env}_0.exr" --scene "$s0" \
+      --bake "${m}_${env}.prtb" --order 1 --model-order 1 --mask-out "mask_${m}.png" >/dev/null
     "$prt" fit-lighting "${m}_${env}_0.exr" --scene "$s0" --bake "${m}_${env}.prtb" --order "$order" \
       --truth "true_${env}.json" --relight-out "fit_${m}_${env}_60.exr" --rotate-y 60 \
-      --mask-out "mask_${m}.png" --json 2>/dev/null > "fit_${m}_${env}.json"
+      ${MAX_OCCLUSION:+--max-occlusion "$MAX_OCCLUSION"} --json 2>/dev/null > "fit_${m}_${env}.json"
     # The truth's relighting at the fitted order: the bake relit under the projection's
     # first order² coefficients (fit-lighting's exactness: its own relit image fits back).
     "$prt" relight "$s0" --bake "${m}_${env}.prtb" --order "$order" --rotate-y 60 \

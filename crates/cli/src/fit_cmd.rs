@@ -56,6 +56,13 @@ pub struct FitLightingArgs {
     /// alone is refused. --relight-out then relights with the fitted material.
     #[arg(long)]
     pub fit_material: Option<String>,
+    /// Fit only the pixels whose surface has at most this fraction of its cosine-weighted
+    /// hemisphere blocked, as a per-pixel bake without bounces says (e.g. 0.01): a cast shadow
+    /// under a compact light is a product of lighting and visibility that a model of practical
+    /// order cannot represent, while an unoccluded point depends on the lighting's low bands
+    /// only (crates/scene_relight/README.md measures it).
+    #[arg(long, value_name = "FRACTION")]
+    pub max_occlusion: Option<f64>,
     /// Write the fitted pixels as a mask PNG (255 fitted, 0 not): `prt compare --mask` takes it.
     #[arg(long)]
     pub mask_out: Option<PathBuf>,
@@ -108,6 +115,7 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
         min_gain: args.min_gain,
         weights,
         truth,
+        max_occlusion: args.max_occlusion,
     };
     write_mask(args, &bound)?;
     if let Some(name) = &args.fit_material {
@@ -171,7 +179,11 @@ fn write_mask(args: &FitLightingArgs, bound: &prt_scene_relight::Bound) -> Resul
         height: h,
         pixels: vec![[0.0; 3]; w * h],
     };
-    for p in prt_scene_relight::inverse::fit_pixels(bound)? {
+    let mut pixels = prt_scene_relight::inverse::fit_pixels(bound)?;
+    if let Some(f) = args.max_occlusion {
+        pixels = prt_scene_relight::inverse::unoccluded_pixels(bound, &pixels, f)?;
+    }
+    for p in pixels {
         mask.pixels[p] = [1.0; 3];
     }
     prt_scene_relight::io::write_png(out, &mask, 0.0)?;

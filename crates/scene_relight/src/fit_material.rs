@@ -234,7 +234,8 @@ pub fn fit_material(
         }
     };
     let model = model_order(bound, opt)?;
-    let (pixels, sqrt_w, b) = prepare_pixels(bound, image, opt.weights.as_deref())?;
+    let (pixels, sqrt_w, b) =
+        prepare_pixels(bound, image, opt.weights.as_deref(), opt.max_occlusion)?;
     let ids = object_ids(scene, bound.accel())?;
     let on_material: Vec<bool> = pixels
         .iter()

@@ -56,6 +56,10 @@ pub struct FitOptions {
     /// Known coefficients to check the fit against (e.g. `prt sh project` of the map that lit
     /// the image), rows of `[r, g, b]`.
     pub truth: Option<Vec<[f64; 3]>>,
+    /// Fit only the pixels whose surface has at most this fraction of its cosine-weighted
+    /// hemisphere blocked ([`unoccluded_pixels`]; per-pixel bakes without bounces); `None`:
+    /// every object pixel.
+    pub max_occlusion: Option<f64>,
 }
 
 impl FitOptions {
@@ -70,6 +74,7 @@ impl FitOptions {
             min_gain: 0.05,
             weights: None,
             truth: None,
+            max_occlusion: None,
         }
     }
 }
@@ -140,6 +145,59 @@ pub fn fit_pixels(bound: &Bound) -> Result<Vec<usize>, SceneRelightError> {
                 && y + 1 < h
                 && (0..9).all(|k| ids[(y + k / 3 - 1) * w + x + k % 3 - 1] == ids[p])
         })
+        .collect())
+}
+
+/// The pixels of `pixels` whose surface has at most `max_occlusion` of its cosine-weighted
+/// hemisphere blocked, read from a per-pixel bake without bounces: there a pixel's diffuse
+/// transfer has `T₀₀ = ∫ Y₀₀ V cos dω = π Y₀₀ · (visible cosine-weighted fraction)` per
+/// footprint sample on the object (`Y₀₀ = 1/(2√π)`; radiance is `albedo/π · T·L`), so the
+/// fraction is `T₀₀ K / (π Y₀₀ hits)`.
+/// Why: a cast shadow under a compact light is a high-frequency product of lighting and
+/// visibility that a model of any practical order misses (the model residual of the
+/// README's table), while at an unoccluded Lambertian point the image depends on the lighting
+/// through its lowest bands only (the thesis' analysis, which assumes no cast shadows).
+///
+/// # Errors
+/// A bake that is not per pixel or has bounces (its transfer then holds interreflection too),
+/// a fraction outside `[0, 1]`.
+pub fn unoccluded_pixels(
+    bound: &Bound,
+    pixels: &[usize],
+    max_occlusion: f64,
+) -> Result<Vec<usize>, SceneRelightError> {
+    let bake = bound.bake();
+    if !(0.0..=1.0).contains(&max_occlusion) {
+        return Err(SceneRelightError::Invalid(format!(
+            "an occlusion limit of {max_occlusion}: a fraction in [0, 1]"
+        )));
+    }
+    if !matches!(
+        bake.meta.sample_kind,
+        prt_bakefile::SampleKind::Pixel { .. }
+    ) || bake.meta.bounces > 0
+    {
+        return Err(SceneRelightError::Invalid(
+            "leaving occluded pixels out needs a per-pixel bake without bounces (its transfer says how much of each pixel's hemisphere is blocked)".into(),
+        ));
+    }
+    let ids = object_ids(bound.scene(), bound.accel())?;
+    // π Y₀₀: the transfer's DC coefficient where nothing is blocked.
+    let open = 0.5 * std::f64::consts::PI.sqrt();
+    let visible = |p: usize| -> Option<f64> {
+        let o = &bake.objects[ids[p]?];
+        let block = o.diffuse_block()?;
+        let cov = o.coverage.as_ref()?;
+        let local = p.checked_sub(o.point_first as usize)?;
+        let hits = f64::from(*cov.hits.get(local)?);
+        let n2 = (o.order * o.order) as usize;
+        let t00 = f64::from(*block.data.get(local * o.channels as usize * n2)?);
+        (hits > 0.0).then(|| t00 * f64::from(cov.pixel_samples) / (open * hits))
+    };
+    Ok(pixels
+        .iter()
+        .copied()
+        .filter(|&p| visible(p).is_some_and(|v| v >= 1.0 - max_occlusion))
         .collect())
 }
 
@@ -334,8 +392,8 @@ fn tsvd(
 /// The fit's pixels, their square-root weights and the weighted image per channel.
 pub type Prepared = (Vec<usize>, Vec<f64>, [DVector<f64>; 3]);
 
-/// The fit's pixels, their square-root weights and the weighted image: checked against the
-/// bound scene's camera.
+/// The fit's pixels (with `max_occlusion`, only the unoccluded ones: [`unoccluded_pixels`]),
+/// their square-root weights and the weighted image: checked against the bound scene's camera.
 ///
 /// # Errors
 /// An image of another size, weights of the wrong length, no object pixel.
@@ -343,6 +401,7 @@ pub fn prepare_pixels(
     bound: &Bound,
     image: &RgbImage,
     weights: Option<&[f64]>,
+    max_occlusion: Option<f64>,
 ) -> Result<Prepared, SceneRelightError> {
     let cam = &bound.scene().camera;
     if (image.width, image.height) != (cam.width as usize, cam.height as usize) {
@@ -351,7 +410,10 @@ pub fn prepare_pixels(
             image.width, image.height, cam.width, cam.height
         )));
     }
-    let pixels = fit_pixels(bound)?;
+    let mut pixels = fit_pixels(bound)?;
+    if let Some(f) = max_occlusion {
+        pixels = unoccluded_pixels(bound, &pixels, f)?;
+    }
     if pixels.is_empty() {
         return Err(SceneRelightError::Invalid(
             "no object pixel away from silhouettes to fit".into(),
@@ -417,7 +479,8 @@ pub fn fit_lighting(
     opt: &FitOptions,
 ) -> Result<LightingFit, SceneRelightError> {
     let model = model_order(bound, opt)?;
-    let (pixels, sqrt_w, b) = prepare_pixels(bound, image, opt.weights.as_deref())?;
+    let (pixels, sqrt_w, b) =
+        prepare_pixels(bound, image, opt.weights.as_deref(), opt.max_occlusion)?;
     let a = basis_images(bound, &pixels, &sqrt_w, model)?;
     fit_from_design(&a, &b, pixels.len(), opt, model)
 }
