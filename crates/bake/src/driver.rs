@@ -270,13 +270,11 @@ impl Intermediate<'_> {
     }
 }
 
-/// A per-vertex bake on meshes refined where the transfer changes fast ([`subdivide`]): the
-/// refinement, then the ordinary bake of the refined scene; the file's meshes are the refined
-/// ones, and `settings.subdivided_from` names each object's source mesh (SPEC §3.9).
 /// What the bake does with the glTF material inputs besides the BRDF (issue 34), one decision
 /// per material: a normal map shades the transfer of each pixel or texel
 /// (`Scene::shading_normal`) but cannot be held by per-vertex points (it varies inside
-/// triangles); emission is not transfer at all — relighting adds it from the scene's material.
+/// triangles); emission is not transfer at all — relighting adds it from the scene's material;
+/// an occlusion map, `BLEND` and `MASK` say how they are read.
 fn surface_input_decisions(setup: &Setup<'_>, decisions: &mut Vec<Decision>) {
     let scene = setup.scene;
     let mut seen = Vec::new();
@@ -319,7 +317,33 @@ fn surface_input_decisions(setup: &Setup<'_>, decisions: &mut Vec<Decision>) {
                 }
             });
         }
-        if scene.surface_inputs(material).emits() {
+        let inputs = scene.surface_inputs(material);
+        for (present, decision, reason) in [
+            (
+                inputs.occlusion_map,
+                "occlusion map ignored",
+                "the bake computes occlusion itself (it is in the shadowed transfer); multiplying by the asset's map would count it twice",
+            ),
+            (
+                inputs.blend,
+                "alphaMode BLEND treated as OPAQUE",
+                "transparency is not modelled: the surface blocks and reflects light everywhere",
+            ),
+            (
+                matches!(inputs.alpha, prt_scene::AlphaMode::Mask { .. }),
+                "alphaMode MASK: cut out where alpha is below the cutoff",
+                "cut-out texels neither block the bake's rays nor are hit by them, as in the path tracer",
+            ),
+        ] {
+            if present {
+                decisions.push(Decision {
+                    object: None,
+                    decision: format!("{decision} (material {name})"),
+                    reason: reason.into(),
+                });
+            }
+        }
+        if inputs.emits() {
             decisions.push(Decision {
                 object: None,
                 decision: format!("emission of material {name} added at relight time"),
@@ -329,6 +353,9 @@ fn surface_input_decisions(setup: &Setup<'_>, decisions: &mut Vec<Decision>) {
     }
 }
 
+/// A per-vertex bake on meshes refined where the transfer changes fast ([`subdivide`]): the
+/// refinement, then the ordinary bake of the refined scene; the file's meshes are the refined
+/// ones, and `settings.subdivided_from` names each object's source mesh (SPEC §3.9).
 fn bake_subdivided(
     scene: &Scene,
     accel: &Accel,

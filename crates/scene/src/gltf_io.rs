@@ -638,6 +638,8 @@ impl Loader<'_> {
             emissive,
             emissive_texture,
             alpha,
+            occlusion_map: m.occlusion_texture().is_some(),
+            blend: m.alpha_mode() == ::gltf::material::AlphaMode::Blend,
         })
     }
 

@@ -218,6 +218,11 @@ pub struct SurfaceInputs {
     pub emissive_texture: Option<TextureRef>,
     /// `alphaMode` (`BLEND` is stored as `Opaque`, with a warning).
     pub alpha: AlphaMode,
+    /// The material has an `occlusionTexture`, which nothing reads: the path tracer and the
+    /// bakes compute occlusion themselves (kept so that bakes can say so).
+    pub occlusion_map: bool,
+    /// The material's `alphaMode` is `BLEND`, read as opaque (kept so that bakes can say so).
+    pub blend: bool,
 }
 
 impl SurfaceInputs {

@@ -189,25 +189,43 @@ fn per_pixel_bakes_shade_with_the_normal_map_like_the_path_tracer() {
 
 /// A per-vertex bake of the normal-mapped quad cannot hold the map (it varies inside the
 /// triangles) and says so in a decision naming the material; a per-pixel bake says the map
-/// shades each point.
+/// shades each point. An occlusion map (ignored: the bake computes occlusion) and `alphaMode
+/// BLEND` (read as opaque) each get a decision line too.
 #[test]
-fn bakes_say_what_they_do_with_a_normal_map() {
+fn bakes_say_what_they_do_with_each_material_input() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = striped_quad(dir.path(), true, sky());
+    let mut scene = striped_quad(dir.path(), true, sky());
     let accel = Accel::build(&scene).unwrap();
-    let said = |points| {
-        let out = bake(&scene, &accel, points, 0);
+    let said = |scene: &Scene, points| {
+        let out = bake(scene, &accel, points, 0);
         serde_json::to_string(&out.bake.meta.decisions).unwrap()
     };
-    let vertex = said(PointKind::Vertex);
+    let vertex = said(&scene, PointKind::Vertex);
     assert!(
         vertex.contains("normal map of material quad.gltf#quad not representable per vertex"),
         "{vertex}"
     );
-    let pixel = said(PointKind::Pixel);
+    let pixel = said(&scene, PointKind::Pixel);
     assert!(
         pixel.contains("normal map of material quad.gltf#quad: the shading normal of each point"),
         "{pixel}"
+    );
+    assert!(
+        !pixel.contains("occlusion map") && !pixel.contains("BLEND"),
+        "{pixel}"
+    );
+    let path = write_gltf_quad(
+        dir.path(),
+        r#","occlusionTexture":{"index":0},"alphaMode":"BLEND""#,
+        &gltf_texture_root(&["n.png"], ""),
+        None,
+    );
+    scene = gltf_scene(&path, camera(), sky());
+    let both = said(&scene, PointKind::Vertex);
+    assert!(
+        both.contains("occlusion map ignored (material quad.gltf#quad)")
+            && both.contains("alphaMode BLEND treated as OPAQUE (material quad.gltf#quad)"),
+        "{both}"
     );
 }
 
