@@ -33,6 +33,7 @@ mod lobe;
 mod points;
 pub mod relit;
 pub mod shrm;
+mod shrm_occlusion;
 mod shrm_path;
 mod specular;
 pub mod target;
