@@ -126,30 +126,43 @@ fn per_sample_lookup_follows_the_view_elevation_inside_triangles() {
     assert!(checked >= 6, "only {checked} points checked");
 }
 
-/// Images formed with per-sample lookups are bit-identical on 1 and 2 threads, and differ from
-/// the Gouraud image of the same relit result (the lookups are used).
+/// Relighting (the traced occlusion included) and images formed with per-sample lookups are
+/// bit-identical on 1 and 2 threads, and the images differ from the Gouraud image of the same
+/// relit result (the lookups are used).
 #[test]
 fn per_sample_image_is_deterministic_and_used() {
-    let (scene, accel, relit) = floor_scene();
-    let form = |threads: usize, r: &Relit| {
+    let pool = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| prt_scene_relight::form_image(&scene, &accel, r, 0.0).unwrap())
     };
-    let (one, two) = (form(1, &relit), form(2, &relit));
+    let run = |threads: usize| {
+        pool(threads).install(|| {
+            let (scene, accel, relit) = floor_scene();
+            let image = prt_scene_relight::form_image(&scene, &accel, &relit, 0.0).unwrap();
+            (scene, accel, relit, image)
+        })
+    };
+    let (_, _, relit_one, one) = run(1);
+    let (scene, accel, relit, two) = run(2);
+    assert_eq!(relit_one.radiance, relit.radiance);
+    let k = |r: &Relit| r.shrm[0].as_ref().unwrap().occlusion().to_vec();
+    assert_eq!(k(&relit_one), k(&relit));
     assert_eq!(one.pixels, two.pixels);
     let gouraud = Relit {
         shrm: Vec::new(),
         ..relit.clone()
     };
-    assert_ne!(form(2, &gouraud).pixels, two.pixels);
+    let form = |r: &Relit| prt_scene_relight::form_image(&scene, &accel, r, 0.0).unwrap();
+    assert_ne!(form(&gouraud).pixels, two.pixels);
     let unoccluded = Relit {
         shrm: vec![Some(Arc::new(relit.shrm[0].as_ref().unwrap().unoccluded()))],
         ..relit
     };
-    assert_eq!(form(1, &unoccluded).pixels, form(2, &unoccluded).pixels);
+    let u2 = form(&unoccluded);
+    let u1 = pool(1).install(|| form(&unoccluded));
+    assert_eq!(u1.pixels, u2.pixels);
 }
 
 /// Inside a closed box every direction the floor's lobe is traced along is blocked: the
