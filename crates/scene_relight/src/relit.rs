@@ -410,9 +410,9 @@ impl<'r> Run<'r> {
             None => specular_part,
         };
         let (specular_part, per_sample) = if opt.glossy == GlossyPath::Shrm {
-            let vertices_of = traced_occlusion.then_some(o);
+            let object = (o, traced_occlusion);
             let fitted = (specular_part, fitted_input);
-            self.shrm_specular(&spec, &terms, &surface, fitted, vertices_of, totals)?
+            self.shrm_specular(&spec, &terms, &surface, fitted, object, totals)?
         } else {
             (specular_part, None)
         };
@@ -429,20 +429,21 @@ impl<'r> Run<'r> {
     /// their fitted or Phong specular): the SHRM lookup times an occlusion factor, timed into
     /// every frame (the prefilter, once per environment, and the lobes' visibility, once per
     /// relighting, are not: notes give their cost). The factor is the lobe's own traced
-    /// visibility ([`crate::shrm_occlusion`]) when the points are the vertices of mesh
-    /// `vertices_of` (the scene's environment lighting them); otherwise the share of the
-    /// fitted lobe's lighting (`fitted`: the fitted specular, empty when not shaded, and its
-    /// input) the baked visibility keeps.
+    /// visibility ([`crate::shrm_occlusion`]) when `object = (o, true)` (the caller's word
+    /// that the points are all the vertices of mesh `o`, lit by the scene's environment);
+    /// otherwise the share of the fitted lobe's lighting (`fitted`: the fitted specular,
+    /// empty when not shaded, and its input) the baked visibility keeps.
     fn shrm_specular(
         &self,
         spec: &SpecularTerms<'_>,
         terms: &ObjectTerms<'_>,
         surface: &PointSet,
         fitted: (Vec<[f32; 3]>, Option<prt_relight::SpecularInput<'_>>),
-        vertices_of: Option<usize>,
+        object: (usize, bool),
         totals: &mut Totals,
     ) -> Result<(Vec<[f32; 3]>, Option<ShrmLookup>), SceneRelightError> {
-        let object = vertices_of.map_or("object", |o| self.scene.meshes[o].name.as_str());
+        let (o, traced) = object;
+        let object = self.bake.objects[o].name.as_str();
         let (shadowed, input) = fitted;
         let (Some(g), Some(input)) = (&spec.glossy, input) else {
             return Ok((shadowed, None));
@@ -462,7 +463,7 @@ impl<'r> Run<'r> {
             return Ok((shadowed, None));
         };
         let pre = crate::shrm_path::prefiltered(self.scene, lobe, self.lighting)?;
-        let traced = vertices_of.filter(|_| self.lighting.is_none()).map(|o| {
+        let traced = traced.then(|| {
             let start = Instant::now();
             let eye = glam::Vec3::from_array(self.eye);
             let seed = self.bake.meta.seed;
