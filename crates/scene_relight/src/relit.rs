@@ -498,7 +498,16 @@ impl<'r> Run<'r> {
             };
         let start = Instant::now();
         let occlusion = match &traced {
-            Some((v, _)) => v.occlusion(self.scene, self.opt.rotate_y_deg),
+            Some((v, _)) => {
+                let n = terms.diffuse.point_count();
+                let unoccluded = crate::shrm_path::lobe_integral(
+                    &pre.shrm,
+                    &surface.positions[..n],
+                    &surface.normals[..n],
+                    crate::shrm_path::view(self.eye, self.opt.rotate_y_deg),
+                );
+                v.occlusion_against(self.scene, self.opt.rotate_y_deg, &unoccluded)
+            }
             None => self.fitted_occlusion(terms, &input, &shadowed)?,
         };
         let n = terms.diffuse.point_count();

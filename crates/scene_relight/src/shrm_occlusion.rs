@@ -7,9 +7,15 @@
 //! lobe's sampling routine (`prt_shading::sample` of the lobe alone, stratified, for the
 //! camera's view of the vertex) with their weights `lum(f cos / pdf)`, each traced once for
 //! visibility. This depends on the geometry and the view, not the lighting: it is traced once
-//! per relighting (a per-process set-up like the SHRM's prefilter, untimed, its cost noted),
-//! and each frame costs `N` environment lookups per vertex:
-//! `k = Σ_j w_j V_j lum L(ω_j) / Σ_j w_j lum L(ω_j)` (1 where the denominator is 0).
+//! per relighting (a per-process set-up like the SHRM's prefilter, untimed, its cost noted).
+//! Each frame reads the environment along the *blocked* directions only, the light they would
+//! have brought, `B_c = (1/N) Σ_{blocked j} w_j L_c(ω_j)` (an unbiased estimate of
+//! `∫ f L (1 − V) cos` for the unit-colour lobe), and sets `k_c = 1 − B_c / U_c` with `U_c` the
+//! SHRM's own value of the same lobe, clamped to `[0, 1]`. A ratio of two sums over all `N`
+//! directions (`Σ w V L / Σ w L`) measured the same at equal `N` but reads every direction:
+//! on the gold bunny at roughness 0.4, 256 directions gave 42.75 dB (per-sample images) at
+//! 1.69× the Phong path's shading time, 1024 gave 45.27 dB at 5.1×; reading only the blocked
+//! ones, 1024 give 45.05 dB at 1.13× (crates/relight/README.md).
 
 use crate::shrm::ShrmLobe;
 use glam::Vec3;
@@ -17,12 +23,13 @@ use prt_scene::{Material, Scene};
 use prt_tracer::rng::Purpose;
 use rayon::prelude::*;
 
-/// Lobe directions traced per vertex (a 16 × 16 stratified grid).
-pub const OCCLUSION_SAMPLES: usize = 256;
+/// Lobe directions traced per vertex (a 32 × 32 stratified grid).
+pub const OCCLUSION_SAMPLES: usize = 1024;
 
 /// Largest width of the lat-long map the occlusion reads (a box-filtered copy of the
-/// environment): the factor is a ratio of lobe-weighted sums over directions a lobe's width
-/// apart, so texels of 1.4° lose nothing it can see, and the smaller map stays in cache.
+/// environment): the blocked light is a lobe-weighted sum over directions spread over a lobe's
+/// width, so texels of 1.4° lose little it can see (the reduced map measured 0.2 dB better
+/// than the full one with a ratio of 256 directions), and the smaller map stays in cache.
 const OCCLUSION_MAP_WIDTH: usize = 256;
 
 /// One traced lobe direction: where it reads the (reduced) lat-long map and its weight.
@@ -32,18 +39,18 @@ struct LobeSample {
     u: f32,
     /// Its texel row in the reduced map.
     row: u16,
-    /// Whether the direction is open (its light arrives).
-    open: bool,
     /// Weight `lum(f cos / pdf)`.
     weight: f32,
 }
 
-/// Per vertex, the lobe's sampled directions, their weights and whether each is open.
+/// Per vertex, the lobe's sampled directions and their weights, the blocked ones first.
 pub(crate) struct LobeVisibility {
     /// Per vertex, its samples: `samples[first[v]..first[v + 1]]` (samples the lobe refused
     /// are left out).
     samples: Vec<LobeSample>,
     first: Vec<u32>,
+    /// Per vertex, where its blocked samples (listed first) end.
+    blocked_end: Vec<u32>,
     /// The directions, for angular maps (read through the environment's own lookup); empty
     /// for lat-long maps.
     dirs: Vec<Vec3>,
@@ -120,14 +127,18 @@ impl LobeVisibility {
         let map = reduced_map(&env.image);
         let latlong = matches!(env.mapping, prt_scene::Mapping::LatLong);
         let (mut samples, mut first, mut dirs) = (Vec::new(), vec![0u32], Vec::new());
+        let mut blocked_end = Vec::with_capacity(per_vertex.len());
         for v in &per_vertex {
-            for &(dir, open, weight) in v {
+            // Blocked directions first: the blocked light reads only those.
+            let blocked = v.iter().filter(|x| !x.1);
+            let open = v.iter().filter(|x| x.1);
+            blocked_end.push(samples.len() as u32 + v.iter().filter(|x| !x.1).count() as u32);
+            for &(dir, _, weight) in blocked.chain(open) {
                 let (u, t) = prt_scene::envmap::latlong_uv(env.to_map_frame(dir.as_dvec3()));
                 let row = ((t * map.1 as f64) as usize).min(map.1 - 1);
                 samples.push(LobeSample {
                     u: u as f32,
                     row: row as u16,
-                    open,
                     weight,
                 });
                 if !latlong {
@@ -139,19 +150,55 @@ impl LobeVisibility {
         Self {
             samples,
             first,
+            blocked_end,
             dirs,
             map,
         }
     }
 
     /// Each vertex's occlusion factor per channel under the environment turned by
-    /// `rotate_y_deg`.
-    pub(crate) fn occlusion(&self, scene: &Scene, rotate_y_deg: f64) -> Vec<[f32; 3]> {
-        // A lat-long map turned about +Y by γ is read at u + γ/360 (φ' = φ + γ): one add per
-        // lookup instead of the direction's trigonometry.
+    /// `rotate_y_deg`, given its unoccluded lobe integral `unoccluded[v]` (the SHRM of the
+    /// lobe with unit colour): `k_c = 1 − B_c / U_c` clamped to `[0, 1]` with
+    /// `B_c = (1/N) Σ_{blocked j} w_j L_c(ω_j)` the light the blocked directions would have
+    /// brought (an unbiased estimate over all `N` draws), so only blocked directions are read.
+    pub(crate) fn occlusion_against(
+        &self,
+        scene: &Scene,
+        rotate_y_deg: f64,
+        unoccluded: &[[f64; 3]],
+    ) -> Vec<[f32; 3]> {
+        let read = self.reader(scene, rotate_y_deg);
+        let draws = OCCLUSION_SAMPLES as f64;
+        (0..self.blocked_end.len())
+            .into_par_iter()
+            .map(|v| {
+                let mut blocked = [0.0f64; 3];
+                for i in self.first[v] as usize..self.blocked_end[v] as usize {
+                    let l = read(i);
+                    let w = f64::from(self.samples[i].weight);
+                    (0..3).for_each(|c| blocked[c] += w * f64::from(l[c]));
+                }
+                std::array::from_fn(|c| {
+                    let u = unoccluded[v][c];
+                    if u > 0.0 {
+                        (1.0 - blocked[c] / draws / u).clamp(0.0, 1.0) as f32
+                    } else {
+                        1.0
+                    }
+                })
+            })
+            .collect()
+    }
+
+    /// Radiance of sample `i`'s direction in the map turned by `rotate_y_deg`.
+    fn reader<'s>(
+        &'s self,
+        scene: &'s Scene,
+        rotate_y_deg: f64,
+    ) -> impl Fn(usize) -> [f32; 3] + Sync + 's {
         let shift = (rotate_y_deg / 360.0).rem_euclid(1.0) as f32;
         let (w, _, texels) = &self.map;
-        let radiance = |i: usize| -> [f32; 3] {
+        move |i: usize| -> [f32; 3] {
             if self.dirs.is_empty() {
                 let x = &self.samples[i];
                 let u = x.u + shift;
@@ -160,30 +207,7 @@ impl LobeVisibility {
             } else {
                 crate::imaging::background_radiance(scene, self.dirs[i], rotate_y_deg)
             }
-        };
-        self.first
-            .par_windows(2)
-            .map(|r| {
-                let (mut open, mut all) = ([0.0f64; 3], [0.0f64; 3]);
-                for i in r[0] as usize..r[1] as usize {
-                    let (l, x) = (radiance(i), &self.samples[i]);
-                    for c in 0..3 {
-                        let wl = f64::from(x.weight) * f64::from(l[c]);
-                        all[c] += wl;
-                        if x.open {
-                            open[c] += wl;
-                        }
-                    }
-                }
-                std::array::from_fn(|c| {
-                    if all[c] > 0.0 {
-                        (open[c] / all[c]).clamp(0.0, 1.0) as f32
-                    } else {
-                        1.0
-                    }
-                })
-            })
-            .collect()
+        }
     }
 }
 
@@ -264,32 +288,35 @@ mod tests {
             samples.push(LobeSample {
                 u: u as f32,
                 row,
-                open: true,
                 weight: 1.0,
             });
             dirs.push(d);
         }
         let first = (0..=samples.len() as u32).collect();
+        let blocked_end = (0..samples.len() as u32).collect();
         let vis = LobeVisibility {
             samples,
             first,
+            blocked_end,
             dirs: Vec::new(),
             map,
         };
         for gamma in [0.0, 37.5, -100.0, 400.0] {
-            // With one open sample per "vertex", k = 1; read the texel itself instead.
-            for (x, d) in vis.samples.iter().zip(&dirs) {
+            let read = vis.reader(&scene, gamma);
+            for (i, (x, d)) in vis.samples.iter().zip(&dirs).enumerate() {
                 let u = (f64::from(x.u) + gamma / 360.0).rem_euclid(1.0) * w as f64;
                 if (u - u.round()).abs() < 1e-5 * w as f64 {
                     continue;
                 }
-                let col = (u as usize).min(w - 1);
-                let fast = vis.map.2[x.row as usize * w + col];
+                let fast = read(i);
                 let slow = crate::imaging::background_radiance(&scene, *d, gamma);
                 assert_eq!(fast, slow, "γ {gamma}: direction {d}");
                 checked += 1;
             }
-            assert!(vis.occlusion(&scene, gamma).iter().all(|k| *k == [1.0; 3]));
+            // No blocked direction: nothing is taken off, k = 1 exactly.
+            let unoccluded = vec![[1.0; 3]; dirs.len()];
+            let k = vis.occlusion_against(&scene, gamma, &unoccluded);
+            assert!(k.iter().all(|k| *k == [1.0; 3]));
         }
         assert!(checked > 7000, "only {checked} directions checked");
     }

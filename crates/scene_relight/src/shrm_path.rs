@@ -164,6 +164,25 @@ pub(crate) fn shade(
         .collect()
 }
 
+/// The SHRM's first component at each point (`positions`, `normals`): the lobe with unit
+/// colour (`D·V` of the glTF metal, the unit-specular lobe of the others) integrated against
+/// the unoccluded environment, per channel.
+pub(crate) fn lobe_integral(
+    shrm: &Shrm,
+    positions: &[[f32; 3]],
+    normals: &[[f32; 3]],
+    (eye, q): (DVec3, Option<DMat3>),
+) -> Vec<[f64; 3]> {
+    (0..normals.len())
+        .into_par_iter()
+        .map(|p| {
+            let n = DVec3::from_array(normals[p].map(f64::from)).normalize_or_zero();
+            let x = DVec3::from_array(positions[p].map(f64::from));
+            shrm.lookup(n, (eye - x).normalize_or_zero(), q.as_ref())[0]
+        })
+        .collect()
+}
+
 /// The eye and the environment's rotation (`None` for none) of a lookup under the environment
 /// turned by `rotate_y_deg` about +Y.
 pub(crate) fn view(eye: [f32; 3], rotate_y_deg: f64) -> (DVec3, Option<DMat3>) {

@@ -165,8 +165,14 @@ fn per_sample_image_is_deterministic_and_used() {
     assert_eq!(u1.pixels, u2.pixels);
 }
 
-/// Inside a closed box every direction the floor's lobe is traced along is blocked: the
-/// occlusion factor is 0 exactly and so is the SHRM specular (the metal has no diffuse term).
+/// Inside a closed box every direction the floor's lobe is traced along is blocked, so the
+/// occlusion factor `k = 1 − B/U` compares two estimates of the same directional albedo `ρ`
+/// of the unit-colour lobe under the uniform map: `B` a mean of `N = 1024` weights
+/// `f cos / pdf = G₂/G₁ ∈ [0, 1]` (standard error ≤ 0.5/√N = 0.016; 4σ = 0.0625) and `U` the
+/// table's, within its interpolation between elevations (≤ 0.01 at this roughness, as the
+/// floor test measures). With `ρ ≥ 0.6` here (GGX at α = 0.36 seen at under 80°),
+/// `k ≤ 0.0725 / 0.6 < 0.125`, and the specular (the metal has no diffuse term) is `k` times
+/// `U ≤ 1`.
 #[test]
 fn enclosed_floor_has_no_specular() {
     let cam = Camera::look_at(DVec3::new(0.0, 0.5, 0.8), DVec3::ZERO, 60.0, 8, 8);
@@ -191,6 +197,6 @@ fn enclosed_floor_has_no_specular() {
     };
     let relit = prt_scene_relight::relight(&scene, &accel, &out.bake, &opt).unwrap();
     let s = relit.shrm[0].as_ref().unwrap();
-    assert!(s.occlusion().iter().all(|k| *k == [0.0; 3]));
-    assert!(relit.radiance[0].iter().all(|v| *v == [0.0; 3]));
+    assert!(s.occlusion().iter().flatten().all(|k| *k <= 0.125));
+    assert!(relit.radiance[0].iter().flatten().all(|v| *v <= 0.125));
 }
