@@ -103,6 +103,7 @@ impl<'a> Bound<'a> {
     pub fn relight(&self, opt: &RelightOptions) -> Result<Relit, SceneRelightError> {
         relight_prepared(
             self.scene,
+            self.accel,
             self.bake,
             self.footprints.as_ref(),
             &self.lightmaps,
@@ -131,6 +132,7 @@ impl<'a> Bound<'a> {
         }
         relight_prepared(
             self.scene,
+            self.accel,
             self.bake,
             self.footprints.as_ref(),
             &self.lightmaps,

@@ -17,7 +17,9 @@
 //! `prt-relight`'s, and, for Blinn–Phong, Ward and Cook–Torrance, Kautz, Sloan & Snyder 2002
 //! (per-view-elevation BRDF projections, `prt_shading::projection`). Sharp glossy lobes may
 //! instead be looked up in spherical harmonic reflection maps ([`shrm`]; Ramamoorthi &
-//! Hanrahan 2002, "Frequency space environment map rendering", `--glossy shrm`).
+//! Hanrahan 2002, "Frequency space environment map rendering", `--glossy shrm`), with the
+//! sharp lobe's own traced visibility as its occlusion and the lookup made per sub-pixel
+//! sample at image formation ([`ShrmSpecular`]).
 
 mod binding;
 mod bound;
@@ -33,6 +35,7 @@ mod lobe;
 mod points;
 pub mod relit;
 pub mod shrm;
+mod shrm_occlusion;
 mod shrm_path;
 mod specular;
 pub mod target;
@@ -41,5 +44,5 @@ pub use bound::Bound;
 pub use error::SceneRelightError;
 pub use imaging::{form_image, form_image_with, object_mask, roi_image, ImageRays, RgbImage};
 pub use relit::{
-    baked_scene, check_bake, relight, GlossyPath, RelightOptions, RelightStats, Relit,
+    baked_scene, check_bake, relight, GlossyPath, RelightOptions, RelightStats, Relit, ShrmSpecular,
 };

@@ -18,6 +18,7 @@ use std::time::Instant;
 
 pub use crate::binding::{baked_scene, check_bake, lightmaps};
 pub use crate::lobe::{view_dependent, ExportLobe, GlossyPath, ViewDependent};
+pub use crate::shrm_path::ShrmSpecular;
 
 /// How to relight.
 #[derive(Clone, Debug)]
@@ -85,6 +86,11 @@ pub struct Relit {
     /// under the bake's environment; false under a given lighting, whose images stay linear
     /// in it, as inverse lighting needs).
     pub emission: bool,
+    /// Per object (empty when none): the `--glossy shrm` specular of a per-vertex bake relit
+    /// at every point, which image formation looks up at each sub-pixel ray's interpolated
+    /// normal and position instead of interpolating `radiance` (which holds the per-vertex
+    /// lookups, for everything else that reads it).
+    pub shrm: Vec<Option<Arc<ShrmSpecular>>>,
 }
 
 /// Figures of one relighting run.
@@ -159,6 +165,7 @@ pub(crate) fn prepare(
 /// the footprints of a per-pixel bake and the lightmaps of a per-texel one.
 pub(crate) fn relight_prepared(
     scene: &Scene,
+    accel: &prt_tracer::Accel,
     bake: &Bake,
     footprints: Option<&Arc<PixelFootprints>>,
     lightmaps: &Lightmaps,
@@ -184,6 +191,7 @@ pub(crate) fn relight_prepared(
     };
     let run = Run {
         scene,
+        accel,
         bake,
         opt,
         frames,
@@ -197,10 +205,12 @@ pub(crate) fn relight_prepared(
     let mut totals = Totals::new(opt);
     let mut radiance = Vec::new();
     let mut roi = Vec::new();
+    let mut shrm = Vec::new();
     for (o, obj) in bake.objects.iter().enumerate() {
-        let (r, in_roi) = run.object(o, obj, &mut totals)?;
+        let (r, in_roi, s) = run.object(o, obj, &mut totals)?;
         radiance.push(r);
         roi.push(in_roi);
+        shrm.push(s.map(Arc::new));
     }
     Ok(Relit {
         radiance,
@@ -209,6 +219,7 @@ pub(crate) fn relight_prepared(
         footprints: footprints.cloned(),
         lightmaps: Arc::clone(lightmaps),
         emission: lighting.is_none(),
+        shrm,
     })
 }
 
@@ -226,12 +237,30 @@ pub fn relight(
     opt: &RelightOptions,
 ) -> Result<Relit, SceneRelightError> {
     let (footprints, lightmaps) = prepare(scene, accel, bake)?;
-    relight_prepared(scene, bake, footprints.as_ref(), &lightmaps, opt, None)
+    relight_prepared(
+        scene,
+        accel,
+        bake,
+        footprints.as_ref(),
+        &lightmaps,
+        opt,
+        None,
+    )
 }
+
+/// An object's relit radiance per point, its points' ROI flags and its SHRM specular for
+/// per-sample lookups.
+type ObjectResult = (Vec<[f32; 3]>, Vec<bool>, Option<ShrmSpecular>);
+
+/// What a per-sample SHRM lookup needs of an object's relighting: the table, the colour
+/// weights (one or per point) and the occlusion factor per point and channel.
+type ShrmLookup = (Arc<crate::shrm::Shrm>, [Vec<[f32; 3]>; 2], Vec<[f32; 3]>);
 
 /// What every object of a run shares.
 struct Run<'r> {
     scene: &'r Scene,
+    /// The scene's BVH (the SHRM path traces its lobes' visibility).
+    accel: &'r prt_tracer::Accel,
     bake: &'r Bake,
     opt: &'r RelightOptions,
     frames: Frames,
@@ -250,14 +279,15 @@ struct Run<'r> {
 }
 
 impl<'r> Run<'r> {
-    /// Relights object `o` (`obj` of the bake): its radiance per point (0 outside a subset)
-    /// and whether each point ended in the adaptive path's ROI.
+    /// Relights object `o` (`obj` of the bake): its radiance per point (0 outside a subset),
+    /// whether each point ended in the adaptive path's ROI, and its SHRM specular for
+    /// per-sample lookups (`--glossy shrm`, per-vertex bakes relit at every point).
     fn object(
         &self,
         o: usize,
         obj: &'r ObjectBake,
         totals: &mut Totals,
-    ) -> Result<(Vec<[f32; 3]>, Vec<bool>), SceneRelightError> {
+    ) -> Result<ObjectResult, SceneRelightError> {
         let (scene, opt, eye) = (self.scene, self.opt, self.eye);
         let material = &scene.materials[scene.meshes[o].material];
         let baked = obj.order as usize;
@@ -312,6 +342,16 @@ impl<'r> Run<'r> {
         let notes = &mut totals.stats.notes;
         let spec = SpecularTerms::new(scene, self.bake, o, &surface, &rows, opt.glossy, notes);
         let specular = spec.input(order, &surface, eye)?;
+        // The SHRM path's traced occlusion and per-sample lookups need the object's vertices,
+        // all of them, as its points; with the traced occlusion the fitted specular (products
+        // at the bake's order) is not needed.
+        let per_vertex = !self.per_pixel && self.lightmaps[o].is_none() && subset.is_none();
+        let traced_occlusion = opt.glossy == GlossyPath::Shrm
+            && per_vertex
+            && self.lighting.is_none()
+            && spec.glossy.is_some();
+        let fitted_input = specular;
+        let specular = specular.filter(|_| !traced_occlusion);
         // A compressed visibility block: the glossy term is relit from its clusters.
         let vis_block = obj
             .blocks
@@ -369,30 +409,44 @@ impl<'r> Run<'r> {
             }
             None => specular_part,
         };
-        let specular_part = if opt.glossy == GlossyPath::Shrm {
-            self.shrm_specular(&spec, &terms, &surface, specular_part, &obj.name, totals)?
+        let (specular_part, per_sample) = if opt.glossy == GlossyPath::Shrm {
+            let object = (o, traced_occlusion);
+            let fitted = (specular_part, fitted_input);
+            self.shrm_specular(&spec, &terms, &surface, fitted, object, totals)?
         } else {
-            specular_part
+            (specular_part, None)
         };
         let result = sum_terms(&diffuse_part, &specular_part, points);
-        Ok(scatter(subset, all_points, result, in_roi))
+        let per_sample = per_sample.filter(|_| per_vertex).map(|(table, colour, k)| {
+            let view = crate::shrm_path::view(eye, opt.rotate_y_deg);
+            ShrmSpecular::new(table, colour, k, diffuse_part, view)
+        });
+        let (r, in_roi) = scatter(subset, all_points, result, in_roi);
+        Ok((r, in_roi, per_sample))
     }
 
     /// The `--glossy shrm` specular of an object with a glossy lobe (others keep `shadowed`,
-    /// their fitted or Phong specular): the SHRM lookup times the occlusion factor of
-    /// `shadowed` over the fitted lobe's unshadowed lighting, timed into every frame (the
-    /// prefilter, once per environment, is not: a note gives its cost).
+    /// their fitted or Phong specular): the SHRM lookup times an occlusion factor, timed into
+    /// every frame (the prefilter, once per environment, and the lobes' visibility, once per
+    /// relighting, are not: notes give their cost). The factor is the lobe's own traced
+    /// visibility ([`crate::shrm_occlusion`]) when `object = (o, true)` (the caller's word
+    /// that the points are all the vertices of mesh `o`, lit by the scene's environment);
+    /// otherwise the share of the fitted lobe's lighting (`fitted`: the fitted specular,
+    /// empty when not shaded, and its input) the baked visibility keeps.
     fn shrm_specular(
         &self,
         spec: &SpecularTerms<'_>,
         terms: &ObjectTerms<'_>,
         surface: &PointSet,
-        shadowed: Vec<[f32; 3]>,
-        object: &str,
+        fitted: (Vec<[f32; 3]>, Option<prt_relight::SpecularInput<'_>>),
+        object: (usize, bool),
         totals: &mut Totals,
-    ) -> Result<Vec<[f32; 3]>, SceneRelightError> {
-        let (Some(g), Some(input)) = (&spec.glossy, &terms.specular) else {
-            return Ok(shadowed);
+    ) -> Result<(Vec<[f32; 3]>, Option<ShrmLookup>), SceneRelightError> {
+        let (o, traced) = object;
+        let object = self.bake.objects[o].name.as_str();
+        let (shadowed, input) = fitted;
+        let (Some(g), Some(input)) = (&spec.glossy, input) else {
+            return Ok((shadowed, None));
         };
         let notes = &mut totals.stats.notes;
         let material = match g.levels.as_slice() {
@@ -406,55 +460,97 @@ impl<'r> Run<'r> {
             }
         };
         let Some(lobe) = crate::shrm::ShrmLobe::of(&material) else {
-            return Ok(shadowed);
+            return Ok((shadowed, None));
         };
         let pre = crate::shrm_path::prefiltered(self.scene, lobe, self.lighting)?;
+        let traced = traced.then(|| {
+            let start = Instant::now();
+            let eye = glam::Vec3::from_array(self.eye);
+            let seed = self.bake.meta.seed;
+            let v = crate::shrm_occlusion::LobeVisibility::trace(
+                self.scene, self.accel, o, lobe, eye, seed,
+            );
+            (v, start.elapsed().as_secs_f64())
+        });
+        let occlusion_note = match &traced {
+            Some((_, t)) => format!(
+                "the lobe's own visibility, {} directions per vertex traced in {:.0} ms (once per relighting)",
+                crate::shrm_occlusion::OCCLUSION_SAMPLES,
+                1e3 * t
+            ),
+            None => format!(
+                "the fitted lobe's lighting with and without the baked visibility at order {} (an approximation)",
+                terms.order
+            ),
+        };
         notes.push(format!(
-            "{object}: {}; specular occlusion: the fitted lobe's lighting with and without the baked visibility at order {} (an approximation)",
-            pre.note, terms.order
+            "{object}: {}; specular occlusion: {occlusion_note}",
+            pre.note
         ));
         // Uniform colour weights: one combined table (half the lookups), made outside the timing.
-        let combined;
-        let (table, colour): (&crate::shrm::Shrm, [&[[f32; 3]]; 2]) =
+        let (table, colour): (Arc<crate::shrm::Shrm>, [Vec<[f32; 3]>; 2]) =
             match (g.colour_a.as_slice(), g.colour_b.as_slice()) {
-                ([a], [b]) => {
-                    combined = pre.shrm.combined([*a, *b]);
-                    (&combined, [&[[1.0; 3]], &[[0.0; 3]]])
-                }
-                _ => (&pre.shrm, [&g.colour_a, &g.colour_b]),
+                ([a], [b]) => (
+                    Arc::new(pre.shrm.combined([*a, *b])),
+                    [vec![[1.0; 3]], vec![[0.0; 3]]],
+                ),
+                _ => (pre.shrm.clone(), [g.colour_a.clone(), g.colour_b.clone()]),
             };
         let start = Instant::now();
-        let env = prt_relight::Lighting::from_rgb_coefficients(&self.env_rotated, None)?
-            .truncated(terms.order)?;
-        let frame = terms.relighter.frame_lighting(&env, false)?;
-        let unshadowed = terms.relighter.specular_unshadowed(input, &frame)?;
-        let lum = |v: &[f32; 3]| 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
-        let occlusion: Vec<f32> = shadowed
-            .iter()
-            .zip(&unshadowed)
-            .map(|(a, b)| {
-                let (a, b) = (lum(a), lum(b));
-                if b > 0.0 {
-                    (a / b).clamp(0.0, 1.0)
-                } else {
-                    1.0
-                }
-            })
-            .collect();
-        let n = shadowed.len();
+        let occlusion = match &traced {
+            Some((v, _)) => {
+                let n = terms.diffuse.point_count();
+                let unoccluded = crate::shrm_path::lobe_integral(
+                    &pre.shrm,
+                    &surface.positions[..n],
+                    &surface.normals[..n],
+                    crate::shrm_path::view(self.eye, self.opt.rotate_y_deg),
+                );
+                v.occlusion_against(self.scene, self.opt.rotate_y_deg, &unoccluded)
+            }
+            None => self.fitted_occlusion(terms, &input, &shadowed)?,
+        };
+        let n = terms.diffuse.point_count();
         let s = crate::shrm_path::shade(
-            table,
+            &table,
             &surface.positions[..n],
             &surface.normals[..n],
-            self.eye,
-            self.opt.rotate_y_deg,
-            colour,
+            crate::shrm_path::view(self.eye, self.opt.rotate_y_deg),
+            [&colour[0], &colour[1]],
             &occlusion,
         );
         totals
             .timing
             .add_to_every_frame(start.elapsed().as_secs_f64());
-        Ok(s)
+        Ok((s, Some((table, colour, occlusion))))
+    }
+
+    /// The fitted lobe's specular-occlusion factor per point: `lum(shadowed)` over the same
+    /// lobe's unshadowed lighting at the bake's order, clamped to `[0, 1]` (1 where the
+    /// unshadowed value is not positive).
+    fn fitted_occlusion(
+        &self,
+        terms: &ObjectTerms<'_>,
+        input: &prt_relight::SpecularInput<'_>,
+        shadowed: &[[f32; 3]],
+    ) -> Result<Vec<[f32; 3]>, SceneRelightError> {
+        let env = prt_relight::Lighting::from_rgb_coefficients(&self.env_rotated, None)?
+            .truncated(terms.order)?;
+        let frame = terms.relighter.frame_lighting(&env, false)?;
+        let unshadowed = terms.relighter.specular_unshadowed(input, &frame)?;
+        let lum = |v: &[f32; 3]| 0.2126 * v[0] + 0.7152 * v[1] + 0.0722 * v[2];
+        Ok(shadowed
+            .iter()
+            .zip(&unshadowed)
+            .map(|(a, b)| {
+                let (a, b) = (lum(a), lum(b));
+                [if b > 0.0 {
+                    (a / b).clamp(0.0, 1.0)
+                } else {
+                    1.0
+                }; 3]
+            })
+            .collect())
     }
 
     /// The points of object `o` to shade (`None`: all of them) and how many it has.

@@ -131,6 +131,7 @@ rotate = [0.0, 11.0, 0.0]
         footprints: None,
         lightmaps: Vec::new().into(),
         emission: false,
+        shrm: Vec::new(),
     };
     let image = prt_scene_relight::form_image(&scene, &accel, &relit, 0.0).unwrap();
     let (w, h) = (image.width as usize, image.height as usize);

@@ -243,8 +243,11 @@ fn prefilter_is_deterministic_across_threads() {
 /// radiance 1, where the true radiance is the lobe's directional albedo `ρ(θ_o)`.
 ///
 /// SHRM: the table gives `ρ` linearly interpolated between its view elevations (a constant
-/// environment keeps only `b_00`), times the occlusion factor `k = Σ w V̂ / Σ w L`, `w` the
-/// fitted lobe `ĝ` (and `L ⊛ V = V̂` for `L = 1`). With `V` the hemisphere of `n`,
+/// environment keeps only `b_00`), times the occlusion factor. Per vertex the factor is
+/// the lobe's own traced visibility, 1 on a convex sphere; the bound below is the one of the
+/// fitted factor (`k = Σ w V̂ / Σ w L`, what the path falls back to without the vertices),
+/// which holds a fortiori. For that factor, `w` the
+/// fitted lobe `ĝ` (and `L ⊛ V = V̂` for `L = 1`); with `V` the hemisphere of `n`,
 /// `1 − k = (∫ ĝ (1 − V) + ∫ ĝ (V − V̂)) / ∫ ĝ`, so
 /// `|1 − k| ≤ (|∫_below ĝ| + ‖w‖ ‖V̂ − V_n‖) / ∫ ĝ` (Cauchy–Schwarz; ĝ is band-limited to the
 /// order, so `V`'s higher bands do not meet it), and `|S − ρ| ≤ |1 − k| ρ + interp` with `interp`
