@@ -10,6 +10,7 @@
 # truth), fit, relight the fit at a new rotation (60°) and compare it, and the truth's
 # relighting at the same order, with a path-traced render at that rotation (object pixels).
 #
+# RADIUS (default 0.4) sets the spheres' radius and WIDTH (default 160) the image width (4:3).
 # With MAX_OCCLUSION=F in the environment the fit keeps only the pixels with at most that
 # fraction of their hemisphere blocked (`prt fit-lighting --max-occlusion F`), and with
 # ONLY=lambert (or phong) only that material's rows run; the relit comparisons stay on every
@@ -25,9 +26,9 @@ mkdir -p "$work"
 cd "$work"
 
 # A UV sphere of unit radius with its normals (64 × 32 quads), and the scenes.
-python3 - "$repo" <<'EOF'
+python3 - "$repo" "${RADIUS:-0.4}" "${WIDTH:-160}" <<'EOF'
 import math, sys
-repo = sys.argv[1]
+repo, radius, width = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
 nu, nv = 64, 32
 verts = []
 for j in range(nv + 1):
@@ -57,8 +58,8 @@ for yaw in (-48, 0, 48):
     for pitch in (-38, 0, 38):
         y, p = math.radians(yaw), math.radians(pitch)
         c = (3 * math.sin(y) * math.cos(p), 3 * math.sin(p), -3 * math.cos(y) * math.cos(p))
-        objs += ('[[objects]]\nmesh = "sphere.obj"\nmaterial = "m"\nscale = 0.4\n'
-                 'translate = [%.4f, %.4f, %.4f]\n\n' % c)
+        objs += ('[[objects]]\nmesh = "sphere.obj"\nmaterial = "m"\nscale = %g\n'
+                 'translate = [%.4f, %.4f, %.4f]\n\n' % ((radius,) + c))
 for m, mat in mats.items():
     for env in ("courtyard", "studio", "sunrise"):
         for rot in (0, 60):
@@ -66,7 +67,7 @@ for m, mat in mats.items():
 eye = [0.0, 0.0, 0.0]
 target = [0.0, 0.0, -1.0]
 fov_y = 120.0
-resolution = [160, 120]
+resolution = [{width}, {width * 3 // 4}]
 
 [environment]
 file = "{repo}/scenes/maps/{env}.exr"
