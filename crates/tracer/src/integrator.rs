@@ -19,7 +19,9 @@ use crate::settings::{MisHeuristic, Mode};
 use crate::vertex::Vertex;
 use crate::Renderer;
 use glam::Vec3;
-use prt_shading::{eval, luminance, pdf, sample, sample_cosine_hemisphere, BsdfSample, Frame};
+use prt_shading::{
+    eval, is_pure_delta, luminance, pdf, sample, sample_cosine_hemisphere, BsdfSample, Frame,
+};
 
 /// MIS weight of strategy `a` against `b` (pdfs in solid angle).
 pub(crate) fn mis_weight(h: MisHeuristic, a: f32, b: f32) -> f32 {
@@ -67,8 +69,12 @@ impl Renderer<'_> {
         let mut indirect = 0u32;
         loop {
             let (ng, ns) = v.oriented(wo);
-            // Next-event estimation: one environment sample, shadow-tested.
-            if let Some(es) = self.env.sample(s.next_2d()) {
+            // Next-event estimation: one environment sample, shadow-tested. At a pure mirror
+            // it would always get a BRDF value of zero, so it is not drawn (its two numbers
+            // are still taken, so the sample mapping and the image stay the same).
+            let u_env = s.next_2d();
+            let nee = !is_pure_delta(&v.mat);
+            if let Some(es) = nee.then(|| self.env.sample(u_env)).flatten() {
                 let cos = ns.dot(es.dir);
                 if es.pdf > 0.0 && cos > 0.0 && ng.dot(es.dir) > 0.0 {
                     let f = eval(&v.mat, ns, wo, es.dir);
