@@ -286,6 +286,14 @@ pub fn sample(mat: &Material, n: Vec3, wo: Vec3, u: [f32; 3]) -> Option<BsdfSamp
     })
 }
 
+/// True when the material is nothing but a delta lobe (a mirror with zero albedo): [`eval`]
+/// is then zero for every pair of directions, so light sampling at such a vertex can never
+/// contribute and only the sampled mirror direction carries light.
+#[must_use]
+pub fn is_pure_delta(mat: &Material) -> bool {
+    matches!(mat, Material::Mirror { albedo, .. } if albedo.iter().all(|&a| a == 0.0))
+}
+
 /// True when the material has a delta lobe that [`eval`] and [`pdf`] cannot see
 /// (a mirror with non-zero specular reflectance).
 #[must_use]

@@ -4,6 +4,13 @@
 //! `f_i / Σ f` and a point uniformly inside it, so its density on `[0, 1)` is
 //! `n f_i / Σ f`. Cells of zero weight are never drawn. A [`Distribution2D`] is a marginal
 //! distribution over rows and one conditional distribution over columns per row.
+//!
+//! Sampling is the inverse CDF (a monotone map of `u`, so stratified or quasi-random `u`
+//! stay stratified in the cells). The search for the cell starts from a *guide table*
+//! (the cutpoint method of Chen and Asau, 1974): for each of `G` equal buckets of `u`, the
+//! range of CDF entries that `u` in the bucket can fall between, so a draw reads one guide
+//! entry and searches a few neighbouring CDF entries instead of all of them. The cell drawn
+//! is exactly the one the plain binary search over the whole CDF gives.
 
 /// Piecewise-constant distribution over `n` equal cells of `[0, 1)`.
 #[derive(Clone, Debug)]
@@ -11,6 +18,30 @@ pub struct Distribution1D {
     func: Vec<f64>,
     cdf: Vec<f64>,
     sum: f64,
+    /// `guide[j]` = number of CDF entries `≤ j / G` for `j = 0 ..= G`, with `G =
+    /// guide.len() − 1` a power of two; empty when the CDF is not finite (the whole CDF is
+    /// searched then).
+    guide: Vec<u32>,
+}
+
+/// The guide table of a CDF (see [`Distribution1D`]'s `guide`): `G` is the power of two at
+/// or above the number of cells, so a bucket holds about one cell on average.
+fn guide_table(cdf: &[f64]) -> Vec<u32> {
+    if cdf.iter().any(|c| !c.is_finite()) || u32::try_from(cdf.len()).is_err() {
+        return Vec::new();
+    }
+    let g = cdf.len().saturating_sub(1).max(1).next_power_of_two();
+    let mut guide = Vec::with_capacity(g + 1);
+    let mut i = 0;
+    for j in 0..=g {
+        // `j / g` is exact (g is a power of two); the CDF is non-decreasing.
+        let x = j as f64 / g as f64;
+        while i < cdf.len() && cdf[i] <= x {
+            i += 1;
+        }
+        guide.push(i as u32);
+    }
+    guide
 }
 
 impl Distribution1D {
@@ -39,7 +70,27 @@ impl Distribution1D {
                 *c = 1.0;
             }
         }
-        Self { func, cdf, sum }
+        let guide = guide_table(&cdf);
+        Self {
+            func,
+            cdf,
+            sum,
+            guide,
+        }
+    }
+
+    /// Number of CDF entries `≤ u` (`u ∈ [0, 1]`): `cdf.partition_point(|&c| c <= u)`,
+    /// searched only between the guide entries of `u`'s bucket. With `G` a power of two,
+    /// `u · G` and `j / G` are exact, so `j / G ≤ u ≤ (j + 1) / G` and every entry below
+    /// `guide[j]` is `≤ u` and every entry from `guide[j + 1]` on is `> u`.
+    fn entries_at_most(&self, u: f64) -> usize {
+        if self.guide.len() < 2 {
+            return self.cdf.partition_point(|&c| c <= u);
+        }
+        let g = self.guide.len() - 1;
+        let j = ((u * g as f64) as usize).min(g - 1);
+        let (lo, hi) = (self.guide[j] as usize, self.guide[j + 1] as usize);
+        lo + self.cdf[lo..hi].partition_point(|&c| c <= u)
     }
 
     /// Number of cells.
@@ -75,7 +126,7 @@ impl Distribution1D {
         }
         let u = u.clamp(0.0, 1.0);
         // Last i with cdf[i] <= u; it always has a positive weight for u < 1.
-        let mut i = self.cdf.partition_point(|&c| c <= u).saturating_sub(1);
+        let mut i = self.entries_at_most(u).saturating_sub(1);
         i = i.min(self.func.len() - 1);
         while self.func[i] <= 0.0 && i > 0 {
             i -= 1; // only reachable for u == 1
@@ -251,6 +302,46 @@ mod tests {
         // Density integrates to 1.
         let total: f64 = (0..5).map(|i| d.pdf((i as f64 + 0.5) / 5.0) / 5.0).sum();
         assert!((total - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn guided_search_is_the_plain_binary_search() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let peaked: Vec<f64> = (0..1000)
+            .map(|i| if i == 500 { 1e6 } else { f64::from(i % 3) })
+            .collect();
+        let tiny: Vec<f64> = (0..37).map(|i| if i < 30 { 1e-9 } else { 1.0 }).collect();
+        let random: Vec<f64> = (0..64)
+            .map(|_| {
+                let x: f64 = rng.random();
+                if x < 0.2 {
+                    0.0
+                } else {
+                    x
+                }
+            })
+            .collect();
+        for w in [vec![1.0], vec![0.0, 2.0, 0.0], peaked, tiny, random] {
+            let d = Distribution1D::new(&w);
+            assert_eq!(d.guide.len(), d.len().next_power_of_two() + 1);
+            let g = (d.guide.len() - 1) as f64;
+            let mut us: Vec<f64> = (0..=4 * d.guide.len())
+                .map(|k| k as f64 / (4.0 * g))
+                .collect();
+            us.extend(d.cdf.iter().copied());
+            us.extend(
+                d.cdf
+                    .iter()
+                    .filter(|&&c| c > 0.0)
+                    .map(|&c| f64::from_bits(c.to_bits() - 1)),
+            );
+            us.extend((0..2000).map(|_| rng.random::<f64>()));
+            for u in us {
+                let plain = d.cdf.partition_point(|&c| c <= u);
+                assert_eq!(d.entries_at_most(u), plain, "u = {u}");
+            }
+        }
+        assert!(Distribution1D::new(&[f64::INFINITY, 1.0]).guide.is_empty());
     }
 
     #[test]

@@ -59,7 +59,7 @@ mod phong;
 pub mod projection;
 mod warp;
 
-pub use bsdf::{eval, has_delta, pdf, sample, specular_selection_probability};
+pub use bsdf::{eval, has_delta, is_pure_delta, pdf, sample, specular_selection_probability};
 pub use bsdf_sample::BsdfSample;
 pub use distribution::{Distribution1D, Distribution2D};
 pub use envmap::{EnvSample, EnvSampler};

@@ -231,3 +231,21 @@ fn test05_energy_and_white_furnace() {
         }
     }
 }
+
+#[test]
+fn test06_pure_delta_means_zero_eval_everywhere() {
+    let pure = Material::Mirror {
+        albedo: grey(0.0),
+        specular: grey(0.8),
+    };
+    assert!(is_pure_delta(&pure));
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(6);
+    for _ in 0..10_000 {
+        let (wo, wi) = (random_dir_above(&mut rng), random_dir_above(&mut rng));
+        assert_eq!(eval(&pure, Vec3::Z, wo, wi), Vec3::ZERO);
+    }
+    // Every other material has a non-delta part that light sampling must see.
+    for mat in all_materials() {
+        assert!(!is_pure_delta(&mat), "{mat:?}");
+    }
+}

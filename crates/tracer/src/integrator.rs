@@ -19,7 +19,9 @@ use crate::settings::{MisHeuristic, Mode};
 use crate::vertex::Vertex;
 use crate::Renderer;
 use glam::Vec3;
-use prt_shading::{eval, luminance, pdf, sample, sample_cosine_hemisphere, Frame};
+use prt_shading::{
+    eval, is_pure_delta, luminance, pdf, sample, sample_cosine_hemisphere, BsdfSample, Frame,
+};
 
 /// MIS weight of strategy `a` against `b` (pdfs in solid angle).
 pub(crate) fn mis_weight(h: MisHeuristic, a: f32, b: f32) -> f32 {
@@ -67,8 +69,12 @@ impl Renderer<'_> {
         let mut indirect = 0u32;
         loop {
             let (ng, ns) = v.oriented(wo);
-            // Next-event estimation: one environment sample, shadow-tested.
-            if let Some(es) = self.env.sample(s.next_2d()) {
+            // Next-event estimation: one environment sample, shadow-tested. At a pure mirror
+            // it would always get a BRDF value of zero, so it is not drawn (its two numbers
+            // are still taken, so the sample mapping and the image stay the same).
+            let u_env = s.next_2d();
+            let nee = !is_pure_delta(&v.mat);
+            if let Some(es) = nee.then(|| self.env.sample(u_env)).flatten() {
                 let cos = ns.dot(es.dir);
                 if es.pdf > 0.0 && cos > 0.0 && ng.dot(es.dir) > 0.0 {
                     let f = eval(&v.mat, ns, wo, es.dir);
@@ -93,17 +99,19 @@ impl Renderer<'_> {
             if beta == Vec3::ZERO || !beta.is_finite() {
                 break;
             }
-            let Some(hit) = self
-                .accel
-                .closest_hit(v.spawn(ng, bs.wi), bs.wi, f32::INFINITY)
-            else {
-                let (l, env_pdf) = self.env.radiance_and_pdf(bs.wi);
-                let w = if bs.is_delta {
-                    1.0
-                } else {
-                    mis_weight(h, bs.pdf, env_pdf)
-                };
-                radiance += beta * l * w;
+            let origin = v.spawn(ng, bs.wi);
+            if self.only_escape_matters(indirect) {
+                // The path ends at this ray's hit whatever it hits, and no surface emits:
+                // only whether it escapes matters, which an occlusion query answers (it
+                // agrees with `closest_hit` on hit or miss for every ray of unbounded length,
+                // so the image is bit-identical).
+                if !self.accel.occluded(origin, bs.wi, f32::INFINITY) {
+                    radiance += self.escaped(beta, &bs);
+                }
+                break;
+            }
+            let Some(hit) = self.accel.closest_hit(origin, bs.wi, f32::INFINITY) else {
+                radiance += self.escaped(beta, &bs);
                 break;
             };
             // Emission at the hit: direct light from an emitter, counted before the bounce
@@ -126,6 +134,25 @@ impl Renderer<'_> {
             wo = -bs.wi;
         }
         radiance
+    }
+
+    /// Whether a BRDF-sampled ray leaving the vertex after `indirect` reflections is the
+    /// path's last one and what it hits cannot add light (no emissive surface in the scene).
+    fn only_escape_matters(&self, indirect: u32) -> bool {
+        !self.emissive && self.settings.bounces >= 0 && indirect >= self.settings.bounces as u32
+    }
+
+    /// The environment's contribution through throughput `beta` of a BRDF-sampled ray that
+    /// escapes: its radiance, MIS-weighted against environment sampling unless the lobe is
+    /// a delta.
+    fn escaped(&self, beta: Vec3, bs: &BsdfSample) -> Vec3 {
+        let (l, env_pdf) = self.env.radiance_and_pdf(bs.wi);
+        let w = if bs.is_delta {
+            1.0
+        } else {
+            mis_weight(self.settings.mis, bs.pdf, env_pdf)
+        };
+        beta * l * w
     }
 
     fn li_unshadowed(&self, v: Vertex, wo: Vec3, s: &mut Sampler) -> Vec3 {

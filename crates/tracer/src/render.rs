@@ -21,6 +21,9 @@ pub struct Renderer<'s> {
     pub(crate) accel: Accel,
     pub(crate) env: EnvSampler,
     pub(crate) settings: RenderSettings,
+    /// Whether any mesh's material emits (glTF emission): otherwise a path's last ray only
+    /// has to find out whether it escapes.
+    pub(crate) emissive: bool,
 }
 
 /// A surface point given directly (e.g. a mesh vertex), for [`Renderer::radiance_at_points`].
@@ -202,11 +205,16 @@ impl<'s> Renderer<'s> {
             }
         }
         let env = EnvSampler::new(&scene.environment);
+        let emissive = scene
+            .meshes
+            .iter()
+            .any(|m| scene.surface_inputs(m.material).emits());
         Ok(Self {
             scene,
             accel,
             env,
             settings,
+            emissive,
         })
     }
 
