@@ -9,7 +9,7 @@
 use crate::error::SceneRelightError;
 use crate::relit::Relit;
 use crate::shrm_path::{LookupSum, ShrmSpecular};
-use glam::{DMat3, Vec3};
+use glam::Vec3;
 use prt_scene::Scene;
 use prt_tracer::{Accel, PinholeCamera};
 use rayon::prelude::*;
@@ -109,15 +109,7 @@ fn holds_edge(seen: impl Iterator<Item = Option<(u32, f32)>>) -> bool {
 /// row), the one every crate of the workspace uses.
 pub use prt_image::Image as RgbImage;
 
-/// Environment radiance seen along `dir` with an extra rotation about +Y (degrees).
-pub fn background_radiance(scene: &Scene, dir: Vec3, rotate_y_deg: f64) -> [f32; 3] {
-    let d = if rotate_y_deg == 0.0 {
-        dir
-    } else {
-        (DMat3::from_rotation_y(-rotate_y_deg.to_radians()) * dir.as_dvec3()).as_vec3()
-    };
-    scene.environment.radiance(d)
-}
+pub use crate::background::background_radiance;
 
 /// A sub-pixel ray's hit as image formation needs it: the triangle and barycentrics
 /// (`mesh = u32::MAX` for a miss, which shows the background).

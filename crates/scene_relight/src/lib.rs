@@ -21,6 +21,7 @@
 //! sharp lobe's own traced visibility as its occlusion and the lookup made per sub-pixel
 //! sample at image formation ([`ShrmSpecular`]).
 
+mod background;
 mod binding;
 mod bound;
 mod error;

@@ -205,7 +205,7 @@ impl LobeVisibility {
                 let u = if u >= 1.0 { u - 1.0 } else { u };
                 texels[x.row as usize * w + ((u * *w as f32) as usize).min(w - 1)]
             } else {
-                crate::imaging::background_radiance(scene, self.dirs[i], rotate_y_deg)
+                crate::background::background_radiance(scene, self.dirs[i], rotate_y_deg)
             }
         }
     }
@@ -309,7 +309,7 @@ mod tests {
                     continue;
                 }
                 let fast = read(i);
-                let slow = crate::imaging::background_radiance(&scene, *d, gamma);
+                let slow = crate::background::background_radiance(&scene, *d, gamma);
                 assert_eq!(fast, slow, "γ {gamma}: direction {d}");
                 checked += 1;
             }
