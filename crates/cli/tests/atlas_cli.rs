@@ -6,7 +6,9 @@
 
 mod common;
 
-use common::{json, prt, run};
+use common::{
+    gltf_relight_texels, json, prt, read_rows, relight_vertex_colours, run, texel_sum_gamma,
+};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -38,28 +40,6 @@ fn suzanne_on_floor(dir: &Path) -> PathBuf {
 }
 
 /// `object,point,r,g,b` CSV rows by object name, each with its point index.
-fn read_rows(path: &Path) -> std::collections::HashMap<String, Vec<(usize, [f64; 3])>> {
-    let mut out: std::collections::HashMap<String, Vec<(usize, [f64; 3])>> = Default::default();
-    for line in std::fs::read_to_string(path).unwrap().lines().skip(1) {
-        let f: Vec<&str> = line.rsplitn(5, ',').collect();
-        let rgb = [f[2], f[1], f[0]].map(|x| x.parse::<f64>().unwrap());
-        out.entry(f[4].to_owned())
-            .or_default()
-            .push((f[3].parse().unwrap(), rgb));
-    }
-    out
-}
-
-fn relight_csv(scene: &Path, bake: &Path, csv: &Path) {
-    run(prt()
-        .arg("relight")
-        .arg(scene)
-        .arg("--bake")
-        .arg(bake)
-        .arg("--vertex-colours")
-        .arg(csv));
-}
-
 /// Suzanne has no UVs: `--per-texel` generates her atlas (the decision says so with its
 /// charts, density and utilisation), the file carries it (SPEC §3.9.3), the bake is the same
 /// on 1 and 2 threads, and the export is an atlas-UV'd lightmap that the glTF validator
@@ -146,24 +126,10 @@ fn a_mesh_without_uvs_bakes_exports_and_relights_through_its_atlas() {
         return;
     };
     let csv = |n: &str| dir.path().join(format!("{n}.csv"));
-    relight_csv(&s, &t1, &csv("prt"));
-    run(Command::new(&py)
-        .arg(repo().join("tools/gltf_relight.py"))
-        .arg(&glb)
-        .args(["--texels", "covered", "--colours"])
-        .arg(csv("py"))
-        .arg("--magnitudes")
-        .arg(csv("mag"))
-        .arg("--quantisation")
-        .arg(csv("q")));
-    let (ours, theirs, mags, quant) = (
-        read_rows(&csv("prt")),
-        read_rows(&csv("py")),
-        read_rows(&csv("mag")),
-        read_rows(&csv("q")),
-    );
-    let gamma =
-        (order.pow(4) + order * order + 16 + 16 * order) as f64 * f64::from(f32::EPSILON) / 2.0;
+    relight_vertex_colours(&s, &t1, &csv("prt"));
+    let ours = read_rows(&csv("prt"));
+    let (theirs, mags, quant) = gltf_relight_texels(&py, &glb, csv);
+    let gamma = texel_sum_gamma(order);
     for (k, o) in b.objects.iter().enumerate() {
         let (a, m, q) = (&theirs[&o.name], &mags[&o.name], &quant[&o.name]);
         let mine: std::collections::HashMap<usize, [f64; 3]> =
@@ -253,7 +219,7 @@ fn per_texel_through_an_atlas_agrees_with_per_vertex_on_a_smooth_sphere() {
             .arg("--out")
             .arg(&path));
         let csv = dir.path().join(format!("{name}.csv"));
-        relight_csv(&s, &path, &csv);
+        relight_vertex_colours(&s, &path, &csv);
         let rows = read_rows(&csv).into_values().next().unwrap();
         (path, rows.into_iter().map(|(_, c)| c).collect::<Vec<_>>())
     };

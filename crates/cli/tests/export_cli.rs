@@ -9,7 +9,9 @@
 
 mod common;
 
-use common::{prt, run, write_scene};
+use common::{
+    gltf_relight_texels, prt, read_rows, relight_vertex_colours, run, texel_sum_gamma, write_scene,
+};
 use std::path::Path;
 use std::process::Command;
 
@@ -231,18 +233,6 @@ fn export_validates_reads_back_and_relights() {
         "{e}"
     );
     assert!(!dir.path().join("px.glb").exists() && !dir.path().join("x.glb").exists());
-}
-
-/// `prt relight SCENE --bake BAKE --vertex-colours CSV`: every point's radiance as prt relights
-/// it.
-fn relight_vertex_colours(scene: &Path, bake: &Path, csv: &Path) {
-    run(prt()
-        .arg("relight")
-        .arg(scene)
-        .arg("--bake")
-        .arg(bake)
-        .arg("--vertex-colours")
-        .arg(csv));
 }
 
 /// `object,point,r,g,b` CSV (`prt relight --vertex-colours`, `tools/gltf_relight.py`) by
@@ -863,20 +853,6 @@ fn bounced_exports_relight_like_prt() {
     gltf_relight_agrees(&glb, &prt_csv, 4, dir.path());
 }
 
-/// `object,point,r,g,b` CSV rows by object name, each with its point index (rows need not be
-/// consecutive: `tools/gltf_relight.py --texels covered` writes only the covered texels).
-fn read_rows(path: &Path) -> std::collections::HashMap<String, Vec<(usize, [f64; 3])>> {
-    let mut out: std::collections::HashMap<String, Vec<(usize, [f64; 3])>> = Default::default();
-    for line in std::fs::read_to_string(path).unwrap().lines().skip(1) {
-        let f: Vec<&str> = line.rsplitn(5, ',').collect();
-        let rgb = [f[2], f[1], f[0]].map(|x| x.parse::<f64>().unwrap());
-        out.entry(f[4].to_owned())
-            .or_default()
-            .push((f[3].parse().unwrap(), rgb));
-    }
-    out
-}
-
 /// Bounced per-texel bakes (issue 30): the bunny per vertex and the floor per texel, at 1 and
 /// 2 bounces (every object three channels), exported and relit from the `.glb` alone by
 /// `tools/gltf_relight.py` (its own PNG decoder and dequantisation, `--texels covered`: the
@@ -917,23 +893,9 @@ fn bounced_lightmap_exports_relight_like_prt() {
         let covered = coverage.hits.iter().filter(|&&h| h > 0).count();
         let csv = |s: &str| dir.path().join(format!("{name}_{s}.csv"));
         relight_vertex_colours(&scene, &bake_path, &csv("prt"));
-        run(Command::new(&py)
-            .arg(tools().join("gltf_relight.py"))
-            .arg(&glb)
-            .args(["--texels", "covered", "--colours"])
-            .arg(csv("py"))
-            .arg("--magnitudes")
-            .arg(csv("mag"))
-            .arg("--quantisation")
-            .arg(csv("q")));
-        let (ours, theirs, mags, quant) = (
-            read_rows(&csv("prt")),
-            read_rows(&csv("py")),
-            read_rows(&csv("mag")),
-            read_rows(&csv("q")),
-        );
-        let gamma =
-            (order.pow(4) + order * order + 16 + 16 * order) as f64 * f64::from(f32::EPSILON) / 2.0;
+        let ours = read_rows(&csv("prt"));
+        let (theirs, mags, quant) = gltf_relight_texels(&py, &glb, csv);
+        let gamma = texel_sum_gamma(order);
         for (k, o) in bake.objects.iter().enumerate() {
             let (a, m, q) = (&theirs[&o.name], &mags[&o.name], &quant[&o.name]);
             let b: std::collections::HashMap<usize, [f64; 3]> =

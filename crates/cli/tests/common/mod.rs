@@ -244,3 +244,64 @@ scale = 0.1
     .unwrap();
     scene
 }
+
+/// Per object name, the `object,point,r,g,b` rows of a CSV (`prt relight --vertex-colours`,
+/// `tools/gltf_relight.py`), each with its point index (rows need not be consecutive:
+/// `tools/gltf_relight.py --texels covered` writes only the covered texels).
+pub type Rows = std::collections::HashMap<String, Vec<(usize, [f64; 3])>>;
+
+/// Reads a CSV of [`Rows`].
+pub fn read_rows(path: &Path) -> Rows {
+    let mut out = Rows::new();
+    for line in std::fs::read_to_string(path).unwrap().lines().skip(1) {
+        let f: Vec<&str> = line.rsplitn(5, ',').collect();
+        let rgb = [f[2], f[1], f[0]].map(|x| x.parse::<f64>().unwrap());
+        out.entry(f[4].to_owned())
+            .or_default()
+            .push((f[3].parse().unwrap(), rgb));
+    }
+    out
+}
+
+/// `prt relight SCENE --bake BAKE --vertex-colours CSV`: every point's radiance as prt relights
+/// it.
+pub fn relight_vertex_colours(scene: &Path, bake: &Path, csv: &Path) {
+    run(prt()
+        .arg("relight")
+        .arg(scene)
+        .arg("--bake")
+        .arg(bake)
+        .arg("--vertex-colours")
+        .arg(csv));
+}
+
+/// `tools/gltf_relight.py GLB --texels covered` (the relighter written from SPEC §10 alone) with
+/// `python`: its radiance, magnitudes and quantisation bounds per covered texel, written to
+/// `csv("py")`, `csv("mag")` and `csv("q")` and read back, in that order.
+pub fn gltf_relight_texels(
+    python: &str,
+    glb: &Path,
+    csv: impl Fn(&str) -> PathBuf,
+) -> (Rows, Rows, Rows) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tools/gltf_relight.py");
+    run(Command::new(python)
+        .arg(script)
+        .arg(glb)
+        .args(["--texels", "covered", "--colours"])
+        .arg(csv("py"))
+        .arg("--magnitudes")
+        .arg(csv("mag"))
+        .arg("--quantisation")
+        .arg(csv("q")));
+    (
+        read_rows(&csv("py")),
+        read_rows(&csv("mag")),
+        read_rows(&csv("q")),
+    )
+}
+
+/// The relative f32 rounding `γ_N` of prt's sums at SH order `order` (its products and the
+/// 16-term bilinear and colour sums), the factor of `Q + γ_N (M + Q)` in the texel bounds.
+pub fn texel_sum_gamma(order: usize) -> f64 {
+    (order.pow(4) + order * order + 16 + 16 * order) as f64 * f64::from(f32::EPSILON) / 2.0
+}
