@@ -110,9 +110,10 @@ pub struct RelightArgs {
     /// fit, and the exact path at the points whose view elevation puts the fit's relative L2
     /// error against the lobe at --fit-error or more (sharp lobes at grazing views); `shrm`,
     /// a spherical harmonic reflection map of the environment prefiltered with the lobe once
-    /// per environment, looked up per point, times a specular occlusion from the bake's
-    /// visibility (an approximation; crates/relight/README.md, "Spherical harmonic reflection
-    /// maps").
+    /// per environment, looked up per sub-pixel sample (per vertex for exports and reports),
+    /// times a specular occlusion traced along the lobe's own directions once per run
+    /// (per-vertex bakes; otherwise the bake's visibility at its order) — an approximation;
+    /// crates/relight/README.md, "Spherical harmonic reflection maps".
     #[arg(long, help_heading = "Glossy materials", value_enum, default_value_t = GlossyArg::Fitted)]
     pub glossy: GlossyArg,
     /// With --glossy hybrid: the fit error (relative L2, against the lobe) from which a point
@@ -176,8 +177,10 @@ pub struct RelightArgs {
     pub json: bool,
     /// Relight with the cheapest representation whose image reaches this PSNR against full
     /// order (8-bit view, whole image) at --target-rotations turns of the environment: uniform
-    /// order truncation, the adaptive scheme (from --threshold, halved), or — for a compressed
-    /// bake — its clustered-PCA blocks; says which in a decision line and writes the image
+    /// order truncation, the adaptive scheme (from --threshold, halved; per-vertex bakes), or —
+    /// for a compressed bake — its clustered-PCA blocks, over --bake and every
+    /// --candidate-bake (per vertex against per pixel); says which in a decision line and
+    /// writes the image
     /// (--out, --png) at --rotate-y. With --study (and --adaptive): instead pick each frame's
     /// adaptive threshold from a random sample of pixels relit at full order, over the
     /// --frames frames (rotated by --rotate-y-step), and print each frame's threshold,
