@@ -3,16 +3,15 @@
 
 use crate::error::SceneRelightError;
 use crate::imaging::{form_image, form_image_with, ImageRays, RgbImage};
-use crate::relit::{prepare, relight_prepared, RelightOptions, Relit};
+use crate::relit::{prepare, relight_prepared, Prepared, RelightOptions, Relit};
 use prt_bakefile::Bake;
-use prt_scene::lightmap::Lightmap;
 use prt_scene::Scene;
-use prt_tracer::points::PixelFootprints;
-use std::sync::{Arc, OnceLock};
+use std::sync::OnceLock;
 
 /// A bake bound to its scene: what relighting needs besides the lighting of a frame,
 /// computed once — the pixel footprints of a per-pixel bake (traced) and the lightmaps of a
-/// per-texel bake (rasterised) — so that a command or a report relighting the same bake
+/// per-texel bake (rasterised), and on first use the `--glossy shrm` path's traced lobe
+/// visibility (camera and geometry, not lighting) — so that a command or a report relighting the same bake
 /// several times (full order and adaptive, every order, every frame of a study) pays for
 /// them once, and the camera's sub-pixel rays that image formation traces. [`Bound::relight`]
 /// is then [`crate::relight`] without that set-up, and [`Bound::form_image`] a gather.
@@ -20,8 +19,8 @@ pub struct Bound<'a> {
     scene: &'a Scene,
     accel: &'a prt_tracer::Accel,
     bake: &'a Bake,
-    footprints: Option<Arc<PixelFootprints>>,
-    lightmaps: Arc<Vec<Option<Lightmap>>>,
+    /// Footprints, lightmaps and the SHRM path's traced lobe visibility.
+    prepared: Prepared,
     /// The camera's sub-pixel rays, traced when the first image is formed.
     rays: OnceLock<ImageRays>,
 }
@@ -37,13 +36,12 @@ impl<'a> Bound<'a> {
         accel: &'a prt_tracer::Accel,
         bake: &'a Bake,
     ) -> Result<Self, SceneRelightError> {
-        let (footprints, lightmaps) = prepare(scene, accel, bake)?;
+        let prepared = prepare(scene, accel, bake)?;
         Ok(Self {
             scene,
             accel,
             bake,
-            footprints,
-            lightmaps,
+            prepared,
             rays: OnceLock::new(),
         })
     }
@@ -105,8 +103,7 @@ impl<'a> Bound<'a> {
             self.scene,
             self.accel,
             self.bake,
-            self.footprints.as_ref(),
-            &self.lightmaps,
+            &self.prepared,
             opt,
             None,
         )
@@ -134,8 +131,7 @@ impl<'a> Bound<'a> {
             self.scene,
             self.accel,
             self.bake,
-            self.footprints.as_ref(),
-            &self.lightmaps,
+            &self.prepared,
             opt,
             Some(lighting),
         )

@@ -5,6 +5,7 @@ use crate::binding::{baked_pixel_samples, environment};
 use crate::error::SceneRelightError;
 use crate::frames::{texel_grid, Frames, ObjectTerms, Shaded, Timing};
 use crate::points::{PointSet, Rows};
+use crate::shrm_occlusion::VisibilityCache;
 use crate::specular::SpecularTerms;
 use prt_bakefile::{Bake, ObjectBake, SampleKind, TransferBlock, TransferKind};
 use prt_relight::{AdaptiveParams, DiffuseParams, FrameStats, Relighter, TransferView};
@@ -137,8 +138,20 @@ pub struct RelightStats {
 /// Per object, its lightmap when it was baked per texel, shared by the relit results.
 pub(crate) type Lightmaps = Arc<Vec<Option<Lightmap>>>;
 
-/// What relighting `bake` needs besides a frame's lighting: the pixel footprints of a
-/// per-pixel bake (traced) and the lightmaps of a per-texel one (rasterised).
+/// What relighting `bake` needs besides a frame's lighting, computed once per binding
+/// ([`crate::Bound`]): the pixel footprints of a per-pixel bake (traced), the lightmaps of a
+/// per-texel one (rasterised) and the `--glossy shrm` path's traced lobe visibility (on first
+/// use).
+pub(crate) struct Prepared {
+    /// Per-pixel bakes: the sub-pixel samples of every pixel.
+    pub(crate) footprints: Option<Arc<PixelFootprints>>,
+    /// Per object, its lightmap when baked per texel.
+    pub(crate) lightmaps: Lightmaps,
+    /// The SHRM path's traced lobe visibility, by object, lobe and eye.
+    pub(crate) visibility: VisibilityCache,
+}
+
+/// [`Prepared`] for `bake` on `scene`.
 ///
 /// # Errors
 /// A camera the tracer refuses or a lightmap the rasteriser refuses.
@@ -146,7 +159,7 @@ pub(crate) fn prepare(
     scene: &Scene,
     accel: &prt_tracer::Accel,
     bake: &Bake,
-) -> Result<(Option<Arc<PixelFootprints>>, Lightmaps), SceneRelightError> {
+) -> Result<Prepared, SceneRelightError> {
     let footprints = if matches!(bake.meta.sample_kind, SampleKind::Pixel { .. }) {
         Some(Arc::new(prt_tracer::points::pixel_footprints(
             scene,
@@ -157,18 +170,20 @@ pub(crate) fn prepare(
     } else {
         None
     };
-    Ok((footprints, Arc::new(lightmaps(scene, bake)?)))
+    Ok(Prepared {
+        footprints,
+        lightmaps: Arc::new(lightmaps(scene, bake)?),
+        visibility: VisibilityCache::default(),
+    })
 }
 
 /// Relights every object of `bake` under `opt`, given what [`prepare`] computes (once, in a
-/// [`crate::Bound`]):
-/// the footprints of a per-pixel bake and the lightmaps of a per-texel one.
+/// [`crate::Bound`]).
 pub(crate) fn relight_prepared(
     scene: &Scene,
     accel: &prt_tracer::Accel,
     bake: &Bake,
-    footprints: Option<&Arc<PixelFootprints>>,
-    lightmaps: &Lightmaps,
+    prepared: &Prepared,
     opt: &RelightOptions,
     lighting: Option<&[[f64; 3]]>,
 ) -> Result<Relit, SceneRelightError> {
@@ -197,10 +212,11 @@ pub(crate) fn relight_prepared(
         frames,
         env_rotated,
         eye: scene.camera.eye.as_vec3().to_array(),
-        per_pixel: footprints.is_some(),
+        per_pixel: prepared.footprints.is_some(),
         lighting,
-        footprints: footprints.map(|f| &**f),
-        lightmaps,
+        footprints: prepared.footprints.as_deref(),
+        lightmaps: &prepared.lightmaps,
+        visibility: &prepared.visibility,
     };
     let mut totals = Totals::new(opt);
     let mut radiance = Vec::new();
@@ -216,8 +232,8 @@ pub(crate) fn relight_prepared(
         radiance,
         roi,
         stats: totals.finish(),
-        footprints: footprints.cloned(),
-        lightmaps: Arc::clone(lightmaps),
+        footprints: prepared.footprints.clone(),
+        lightmaps: Arc::clone(&prepared.lightmaps),
         emission: lighting.is_none(),
         shrm,
     })
@@ -236,13 +252,12 @@ pub fn relight(
     bake: &Bake,
     opt: &RelightOptions,
 ) -> Result<Relit, SceneRelightError> {
-    let (footprints, lightmaps) = prepare(scene, accel, bake)?;
+    let prepared = prepare(scene, accel, bake)?;
     relight_prepared(
         scene,
         accel,
         bake,
-        footprints.as_ref(),
-        &lightmaps,
+        &prepared,
         opt,
         None,
     )
@@ -276,6 +291,8 @@ struct Run<'r> {
     footprints: Option<&'r PixelFootprints>,
     /// Per object: its lightmap if it was baked per texel.
     lightmaps: &'r [Option<Lightmap>],
+    /// The binding's traced SHRM lobe visibility.
+    visibility: &'r VisibilityCache,
 }
 
 impl<'r> Run<'r> {
@@ -464,19 +481,19 @@ impl<'r> Run<'r> {
         };
         let pre = crate::shrm_path::prefiltered(self.scene, lobe, self.lighting)?;
         let traced = traced.then(|| {
-            let start = Instant::now();
             let eye = glam::Vec3::from_array(self.eye);
-            let seed = self.bake.meta.seed;
-            let v = crate::shrm_occlusion::LobeVisibility::trace(
-                self.scene, self.accel, o, lobe, eye, seed,
-            );
-            (v, start.elapsed().as_secs_f64())
+            self.visibility
+                .get_or_trace(self.scene, self.accel, (o, lobe), eye, self.bake.meta.seed)
         });
         let occlusion_note = match &traced {
-            Some((_, t)) => format!(
-                "the lobe's own visibility, {} directions per vertex traced in {:.0} ms (once per relighting)",
+            Some((_, Some(t))) => format!(
+                "the lobe's own visibility, {} directions per vertex traced in {:.0} ms (once per binding of the bake: camera and geometry, not lighting)",
                 crate::shrm_occlusion::OCCLUSION_SAMPLES,
                 1e3 * t
+            ),
+            Some((_, None)) => format!(
+                "the lobe's own visibility, {} directions per vertex (traced for an earlier relighting of this binding)",
+                crate::shrm_occlusion::OCCLUSION_SAMPLES
             ),
             None => format!(
                 "the fitted lobe's lighting with and without the baked visibility at order {} (an approximation)",

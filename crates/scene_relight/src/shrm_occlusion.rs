@@ -22,6 +22,7 @@ use glam::Vec3;
 use prt_scene::{Material, Scene};
 use prt_tracer::rng::Purpose;
 use rayon::prelude::*;
+use std::sync::{Arc, Mutex};
 
 /// Lobe directions traced per vertex (a 32 × 32 stratified grid).
 pub const OCCLUSION_SAMPLES: usize = 1024;
@@ -100,6 +101,47 @@ fn trace_vertex(
             })
         })
         .collect()
+}
+
+/// What a traced [`LobeVisibility`] depends on besides its binding's scene: the object, the
+/// lobe, the eye and the bake's seed.
+type VisibilityKey = (usize, String, [u32; 3], u64);
+
+/// The lobes' traced visibility of one binding ([`crate::Bound`]): it depends on the geometry
+/// and the view, not the lighting, so every relighting of the binding (full order and
+/// adaptive, the orders of a `--target-psnr` study, each frame) shares one trace.
+#[derive(Default)]
+pub(crate) struct VisibilityCache(Mutex<Vec<(VisibilityKey, Arc<LobeVisibility>)>>);
+
+impl VisibilityCache {
+    /// The visibility of `lobe` on mesh `o` seen from `eye`, and the seconds spent tracing it
+    /// now (`None` when an earlier relighting of the binding traced it).
+    pub(crate) fn get_or_trace(
+        &self,
+        scene: &Scene,
+        accel: &prt_tracer::Accel,
+        (o, lobe): (usize, ShrmLobe),
+        eye: Vec3,
+        seed: u64,
+    ) -> (Arc<LobeVisibility>, Option<f64>) {
+        let key = (o, format!("{lobe:?}"), eye.to_array().map(f32::to_bits), seed);
+        let found = self.0.lock().ok().and_then(|c| {
+            c.iter()
+                .find(|(k, _)| *k == key)
+                .map(|(_, v)| Arc::clone(v))
+        });
+        if let Some(v) = found {
+            return (v, None);
+        }
+        // Traced without the lock (the trace runs on the thread pool).
+        let start = std::time::Instant::now();
+        let v = Arc::new(LobeVisibility::trace(scene, accel, o, lobe, eye, seed));
+        let seconds = start.elapsed().as_secs_f64();
+        if let Ok(mut c) = self.0.lock() {
+            c.push((key, Arc::clone(&v)));
+        }
+        (v, Some(seconds))
+    }
 }
 
 impl LobeVisibility {

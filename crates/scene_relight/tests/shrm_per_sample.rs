@@ -23,8 +23,8 @@ fn metal() -> Material {
 
 /// A white metal floor (two triangles, open to the whole upper hemisphere) under a uniform
 /// environment of radiance 1, seen from low so that the view elevation runs from ~15° to
-/// ~80° across it, relit by the SHRM path.
-fn floor_scene() -> (Scene, prt_tracer::Accel, Relit) {
+/// ~80° across it, baked at order 6.
+fn floor_bake() -> (Scene, prt_tracer::Accel, prt_bakefile::Bake) {
     let cam = Camera::look_at(DVec3::new(0.0, 0.35, 1.6), DVec3::ZERO, 60.0, 24, 16);
     let mut scene = Scene::new(cam, Environment::uniform([1.0; 3]));
     let m = scene.add_material("metal", metal());
@@ -37,14 +37,47 @@ fn floor_scene() -> (Scene, prt_tracer::Accel, Relit) {
         ..BakeSettings::final_quality()
     };
     let out = bake(&scene, &accel, &settings).unwrap();
-    let opt = RelightOptions {
+    (scene, accel, out.bake)
+}
+
+/// Relighting options of the SHRM path, one untimed frame, the environment turned by `deg`.
+fn shrm_options(deg: f64) -> RelightOptions {
+    RelightOptions {
         glossy: GlossyPath::Shrm,
         timing_frames: 1,
         warmup_frames: 0,
+        rotate_y_deg: deg,
         ..Default::default()
-    };
-    let relit = prt_scene_relight::relight(&scene, &accel, &out.bake, &opt).unwrap();
+    }
+}
+
+/// [`floor_bake`] relit by the SHRM path.
+fn floor_scene() -> (Scene, prt_tracer::Accel, Relit) {
+    let (scene, accel, bake) = floor_bake();
+    let relit = prt_scene_relight::relight(&scene, &accel, &bake, &shrm_options(0.0)).unwrap();
     (scene, accel, relit)
+}
+
+/// The lobes' visibility depends on the camera and the geometry, not the lighting: a binding
+/// traces it on its first SHRM relighting and every later one (here with the environment
+/// turned) reads that trace — its note says so — and gives what a fresh binding gives.
+#[test]
+fn a_binding_traces_the_lobe_visibility_once() {
+    let (scene, accel, bake) = floor_bake();
+    let bound = prt_scene_relight::Bound::new(&scene, &accel, &bake).unwrap();
+    let notes = |r: &Relit| r.stats.notes.join(" ");
+    let first = bound.relight(&shrm_options(0.0)).unwrap();
+    assert!(notes(&first).contains("traced in"), "{}", notes(&first));
+    let again = bound.relight(&shrm_options(90.0)).unwrap();
+    assert!(
+        notes(&again).contains("traced for an earlier relighting of this binding"),
+        "{}",
+        notes(&again)
+    );
+    let fresh = prt_scene_relight::relight(&scene, &accel, &bake, &shrm_options(90.0)).unwrap();
+    assert_eq!(again.radiance, fresh.radiance);
+    let k = |r: &Relit| r.shrm[0].as_ref().unwrap().occlusion().to_vec();
+    assert_eq!(k(&again), k(&fresh));
 }
 
 /// At a triangle's corners the per-sample value is the vertex's own lookup, bit for bit, and
