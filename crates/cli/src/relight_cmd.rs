@@ -326,6 +326,10 @@ pub fn run(args: &RelightArgs) -> Result<()> {
     } else {
         None
     };
+    // image_ms times image formation alone: the camera's rays are traced before it.
+    if relit.footprints.is_none() {
+        bound.image_rays()?;
+    }
     let t = Instant::now();
     let image = bound.form_image(&relit, args.rotate_y)?;
     let image_ms = t.elapsed().as_secs_f64() * 1e3;

@@ -6,6 +6,11 @@
 //! brute force of a whole table is the per-entry time times `rows · cols · elevations ·
 //! (2M + 1)` entries (one per Fourier term it has to resolve): printed, not run (hours).
 //!
+//! The lookup ([`Shrm::lookup`]) is timed on the table the path builds for gold at roughness
+//! 0.4 under the courtyard map (order 45, twist 7, 136 × 270 texels, 16 elevations, one
+//! combined component, 106 MB): a sphere's normals seen in raster order (as image formation
+//! looks up: neighbours share texels) and the same points shuffled.
+//!
 //! `cargo bench -p prt-scene-relight --bench shrm`
 
 // criterion_group! generates an undocumented public function.
@@ -89,5 +94,63 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// Points of a unit sphere seen from `(0, 0, 3)` on a `side × side` raster: normals and the
+/// direction to the eye.
+fn sphere_points(side: usize) -> Vec<(DVec3, DVec3)> {
+    let eye = DVec3::new(0.0, 0.0, 3.0);
+    let mut out = Vec::new();
+    for y in 0..side {
+        for x in 0..side {
+            let (u, v) = (
+                2.0 * (x as f64 + 0.5) / side as f64 - 1.0,
+                2.0 * (y as f64 + 0.5) / side as f64 - 1.0,
+            );
+            let r2 = u * u + v * v;
+            if r2 < 1.0 {
+                let n = DVec3::new(u, v, (1.0 - r2).sqrt());
+                out.push((n, (eye - n).normalize()));
+            }
+        }
+    }
+    out
+}
+
+fn lookup(c: &mut Criterion) {
+    let (order, twist, rows) = match std::env::var("SHRM_BENCH_SMALL") {
+        Ok(_) => (10, 7, 31),
+        Err(_) => (45, 7, 136),
+    };
+    let full = lobe_spectrum(ShrmLobe::Pbr { roughness: 0.4 }, order, twist, ELEVATIONS)
+        .expect("spectrum");
+    let table = Shrm::prefilter(&full, &lighting(order), rows, 2 * (rows - 1))
+        .expect("prefilter")
+        .combined([[1.0; 3], [0.5; 3]]);
+    // About the 200 000 lookups of a 320 × 240 image of the bunny (9 per object pixel).
+    let raster = sphere_points(500);
+    let mut shuffled = raster.clone();
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    for i in (1..shuffled.len()).rev() {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        shuffled.swap(i, (state % (i as u64 + 1)) as usize);
+    }
+    let mut group = c.benchmark_group("shrm_lookup");
+    group.sample_size(10);
+    for (name, points) in [("raster", &raster), ("shuffled", &shuffled)] {
+        group.throughput(criterion::Throughput::Elements(points.len() as u64));
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                let mut sum = 0.0;
+                for (n, wo) in points {
+                    sum += table.lookup(*n, *wo, None)[0][0];
+                }
+                black_box(sum)
+            });
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench, lookup);
 criterion_main!(benches);

@@ -60,13 +60,7 @@ impl<'a> Bound<'a> {
         if relit.footprints.is_some() {
             return form_image(self.scene, self.accel, relit, rotate_y_deg);
         }
-        let rays = match self.rays.get() {
-            Some(r) => r,
-            None => {
-                let traced = ImageRays::trace(self.scene, self.accel)?;
-                self.rays.get_or_init(|| traced)
-            }
-        };
+        let rays = self.image_rays()?;
         Ok(form_image_with(
             self.scene,
             self.accel,
@@ -74,6 +68,21 @@ impl<'a> Bound<'a> {
             relit,
             rotate_y_deg,
         ))
+    }
+
+    /// The camera's sub-pixel rays of per-vertex and per-texel image formation, traced on
+    /// first use (to time [`Bound::form_image`] without them, call this first).
+    ///
+    /// # Errors
+    /// A camera the tracer refuses.
+    pub fn image_rays(&self) -> Result<&ImageRays, SceneRelightError> {
+        Ok(match self.rays.get() {
+            Some(r) => r,
+            None => {
+                let traced = ImageRays::trace(self.scene, self.accel)?;
+                self.rays.get_or_init(|| traced)
+            }
+        })
     }
 
     /// The scene.
@@ -99,14 +108,7 @@ impl<'a> Bound<'a> {
     /// # Errors
     /// As [`crate::relight`].
     pub fn relight(&self, opt: &RelightOptions) -> Result<Relit, SceneRelightError> {
-        relight_prepared(
-            self.scene,
-            self.accel,
-            self.bake,
-            &self.prepared,
-            opt,
-            None,
-        )
+        relight_prepared(self.scene, self.accel, self.bake, &self.prepared, opt, None)
     }
 
     /// [`Bound::relight`] under `lighting` (SH coefficients, rows of `[r, g, b]`, `n²` of them)

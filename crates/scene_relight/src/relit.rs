@@ -253,14 +253,7 @@ pub fn relight(
     opt: &RelightOptions,
 ) -> Result<Relit, SceneRelightError> {
     let prepared = prepare(scene, accel, bake)?;
-    relight_prepared(
-        scene,
-        accel,
-        bake,
-        &prepared,
-        opt,
-        None,
-    )
+    relight_prepared(scene, accel, bake, &prepared, opt, None)
 }
 
 /// An object's relit radiance per point, its points' ROI flags and its SHRM specular for
@@ -482,8 +475,13 @@ impl<'r> Run<'r> {
         let pre = crate::shrm_path::prefiltered(self.scene, lobe, self.lighting)?;
         let traced = traced.then(|| {
             let eye = glam::Vec3::from_array(self.eye);
-            self.visibility
-                .get_or_trace(self.scene, self.accel, (o, lobe), eye, self.bake.meta.seed)
+            self.visibility.get_or_trace(
+                self.scene,
+                self.accel,
+                (o, lobe),
+                eye,
+                self.bake.meta.seed,
+            )
         });
         let occlusion_note = match &traced {
             Some((_, Some(t))) => format!(

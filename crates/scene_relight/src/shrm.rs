@@ -412,6 +412,20 @@ pub struct Shrm {
     pub components: usize,
     /// `[texel][elevation][component][channel][2M + 1]`, texel `= row · cols + col`.
     pub table: Vec<f32>,
+    /// Per grid row `(sin θ_j, cos θ_j)` and per column `(sin φ_k, cos φ_k)`: the texel
+    /// frames the lookup measures the twist in, without trigonometry per lookup.
+    grid_trig: (Vec<SinCos>, Vec<SinCos>),
+}
+
+/// `(sin, cos)` of an angle.
+type SinCos = (f64, f64);
+
+/// `(sin, cos)` of every grid row's `θ_j = π j / (rows − 1)` and column's `φ_k = 2π k / cols`.
+fn grid_trig(rows: usize, cols: usize) -> (Vec<SinCos>, Vec<SinCos>) {
+    (
+        (0..rows).map(|j| grid_sin_cos(j, rows - 1, PI)).collect(),
+        (0..cols).map(|k| grid_sin_cos(k, cols, 2.0 * PI)).collect(),
+    )
 }
 
 /// Largest twist Fourier degree a table may have.
@@ -438,6 +452,7 @@ impl Shrm {
             components: 1,
             table,
             elevations: self.elevations.clone(),
+            grid_trig: self.grid_trig.clone(),
             ..*self
         }
     }
@@ -527,6 +542,7 @@ impl Shrm {
             elevations: spectrum.elevations.clone(),
             components: nq,
             table: row_tables.concat(),
+            grid_trig: grid_trig(rows, cols),
         })
     }
 }
@@ -564,10 +580,9 @@ impl Shrm {
     /// lookup is at `envᵀR`); zero when the point faces away.
     #[must_use]
     pub fn lookup(&self, n: DVec3, wo: DVec3, env: Option<&DMat3>) -> [[f64; 3]; 2] {
-        let mut out = [[0.0; 3]; 2];
         let cos_o = n.dot(wo);
         if cos_o.is_nan() || cos_o <= 0.0 {
-            return out;
+            return [[0.0; 3]; 2];
         }
         let (mut r, mut n) = (2.0 * cos_o * n - wo, n);
         if let Some(q) = env {
@@ -593,69 +608,81 @@ impl Shrm {
         let fk = tp - k0 as f64;
         let nt = 2 * self.twist + 1;
         let per_texel = self.elevations.len() * self.components * 3 * nt;
-        let mut trig = [0.0; 2 * MAX_TWIST + 1];
-        let trig = &mut trig[..nt];
-        for (dj, wj) in [(0, 1.0 - fj), (1, fj)] {
-            for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
-                let w = wj * wk;
-                if w == 0.0 {
+        let (row_trig, col_trig) = &self.grid_trig;
+        // The four texels about R: bilinear weights, where each starts, and the point's twist
+        // (cos γ, sin γ) measured in that texel's own frame T = R_z(φ) R_y(θ), whose axes are
+        // x = (cθ cφ, cθ sφ, −sθ), y = (−sφ, cφ, 0).
+        let mut weight = [0.0f32; 4];
+        let mut start = [0usize; 4];
+        let (mut c1, mut s1) = ([1.0f32; 4], [0.0f32; 4]);
+        for (i, (dj, dk)) in [(0, 0), (0, 1), (1, 0), (1, 1)].into_iter().enumerate() {
+            let (j, k) = (j0 + dj, (k0 + dk) % self.cols);
+            weight[i] = ((if dj == 0 { 1.0 - fj } else { fj })
+                * (if dk == 0 { 1.0 - fk } else { fk })) as f32;
+            start[i] = (j * self.cols + k) * per_texel;
+            let ((st, ct), (sp, cp)) = (row_trig[j], col_trig[k]);
+            let a = xp.x * ct * cp + xp.y * ct * sp - xp.z * st;
+            let b = -xp.x * sp + xp.y * cp;
+            let h = (a * a + b * b).sqrt();
+            if h > 1e-12 {
+                (c1[i], s1[i]) = ((a / h) as f32, (b / h) as f32);
+            }
+        }
+        // [1, cos γ, sin γ, …, cos Mγ, sin Mγ] of the four texels at once (angle addition).
+        let mut trig = [[1.0f32; 4]; 2 * MAX_TWIST + 1];
+        let (mut c, mut s) = ([1.0f32; 4], [0.0f32; 4]);
+        for m in 1..=self.twist {
+            for i in 0..4 {
+                (c[i], s[i]) = (c[i] * c1[i] - s[i] * s1[i], s[i] * c1[i] + c[i] * s1[i]);
+            }
+            (trig[2 * m - 1], trig[2 * m]) = (c, s);
+        }
+        // Per component and channel, the eight weighted entries (four texels, two elevations)
+        // dotted with their twist terms in f32, the table's precision.
+        let mut acc = [[0.0f32; 3]; 2];
+        let mut g = [0.0f32; 2 * MAX_TWIST + 1];
+        let entry_len = self.components * 3 * nt;
+        for i in 0..4 {
+            if weight[i] == 0.0 {
+                continue;
+            }
+            for (e, we) in [(e0, 1.0 - te as f32), (e0 + 1, te as f32)] {
+                if we == 0.0 {
                     continue;
                 }
-                let (j, k) = (j0 + dj, (k0 + dk) % self.cols);
-                // The texel's frame T = R_z(φ) R_y(θ): x = (cθ cφ, cθ sφ, −sθ), y = (−sφ, cφ, 0).
-                let ((st, ct), (sp, cp)) = (
-                    grid_sin_cos(j, self.rows - 1, PI),
-                    grid_sin_cos(k, self.cols, 2.0 * PI),
-                );
-                let (c1, s1) = {
-                    let a = xp.x * ct * cp + xp.y * ct * sp - xp.z * st;
-                    let b = -xp.x * sp + xp.y * cp;
-                    let h = a.hypot(b);
-                    if h > 1e-12 {
-                        (a / h, b / h)
-                    } else {
-                        (1.0, 0.0)
-                    }
-                };
-                twist_terms(c1, s1, trig);
-                let texel = &self.table[(j * self.cols + k) * per_texel..][..per_texel];
-                for (e, we) in [(e0, 1.0 - te), (e0 + 1, te)] {
-                    if we == 0.0 {
-                        continue;
-                    }
-                    for (q, o) in out.iter_mut().enumerate().take(self.components) {
-                        for (c, oc) in o.iter_mut().enumerate() {
-                            let f = &texel[((e * self.components + q) * 3 + c) * nt..][..nt];
-                            let v: f64 = f
-                                .iter()
-                                .zip(trig.iter())
-                                .map(|(a, b)| f64::from(*a) * b)
-                                .sum();
-                            *oc += w * we * v;
-                        }
-                    }
+                let scale = weight[i] * we;
+                for (gt, t) in g[..nt].iter_mut().zip(&trig[..nt]) {
+                    *gt = scale * t[i];
+                }
+                let entry = &self.table[start[i] + e * entry_len..][..entry_len];
+                for (f, a) in entry.chunks_exact(nt).zip(acc.iter_mut().flatten()) {
+                    *a += dot(f, &g[..nt]);
                 }
             }
         }
-        out
+        acc.map(|o| o.map(f64::from))
     }
+}
+
+/// `Σ a_i b_i` in four lanes (so that it vectorises; a fixed order, so deterministic).
+#[inline]
+fn dot(a: &[f32], b: &[f32]) -> f32 {
+    let mut lanes = [0.0f32; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for ((s, xl), yl) in lanes.iter_mut().zip(x).zip(y) {
+            *s += xl * yl;
+        }
+    }
+    let tail: f32 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + tail
 }
 
 /// `sin` and `cos` of `i / n · span` (a grid line's angle).
 #[inline]
 fn grid_sin_cos(i: usize, n: usize, span: f64) -> (f64, f64) {
     (span * i as f64 / n as f64).sin_cos()
-}
-
-/// `[1, cos γ, sin γ, …, cos Mγ, sin Mγ]` from `cos γ`, `sin γ` (angle addition).
-fn twist_terms(c1: f64, s1: f64, out: &mut [f64]) {
-    out[0] = 1.0;
-    let (mut c, mut s) = (1.0, 0.0);
-    for m in 1..=(out.len() - 1) / 2 {
-        (c, s) = (c * c1 - s * s1, s * c1 + c * s1);
-        out[2 * m - 1] = c;
-        out[2 * m] = s;
-    }
 }
 
 /// Index and fraction of `x` in the increasing `grid`, clamped to its ends.

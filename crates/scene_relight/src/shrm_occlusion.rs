@@ -124,7 +124,12 @@ impl VisibilityCache {
         eye: Vec3,
         seed: u64,
     ) -> (Arc<LobeVisibility>, Option<f64>) {
-        let key = (o, format!("{lobe:?}"), eye.to_array().map(f32::to_bits), seed);
+        let key = (
+            o,
+            format!("{lobe:?}"),
+            eye.to_array().map(f32::to_bits),
+            seed,
+        );
         let found = self.0.lock().ok().and_then(|c| {
             c.iter()
                 .find(|(k, _)| *k == key)
