@@ -7,7 +7,8 @@
 //! lobe's sampling routine (`prt_shading::sample` of the lobe alone, stratified, for the
 //! camera's view of the vertex) with their weights `lum(f cos / pdf)`, each traced once for
 //! visibility. This depends on the geometry and the view, not the lighting: it is traced once
-//! per relighting (a per-process set-up like the SHRM's prefilter, untimed, its cost noted).
+//! per binding of the bake ([`VisibilityCache`] in a [`crate::Bound`]: a set-up like the SHRM's
+//! prefilter, untimed, its cost noted).
 //! Each frame reads the environment along the *blocked* directions only, the light they would
 //! have brought, `B_c = (1/N) Σ_{blocked j} w_j L_c(ω_j)` (an unbiased estimate of
 //! `∫ f L (1 − V) cos` for the unit-colour lobe), and sets `k_c = 1 − B_c / U_c` with `U_c` the
