@@ -23,19 +23,20 @@ fn scene(dir: &Path, objects: &str) -> PathBuf {
     std::fs::write(
         &s,
         format!(
-            "[camera]\neye = [0.0, 0.9, 2.6]\ntarget = [0.0, 0.35, 0.0]\nfov_y = 40.0\nresolution = [64, 48]\n\n[environment]\nfile = {sky:?}\n\n[materials.clay]\ntype = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]\n\n{objects}"
+            "[camera]\neye = [0.0, 0.9, 2.6]\ntarget = [0.0, 0.35, 0.0]\nfov_y = 40.0\nresolution = [64, 48]\n\n[environment]\nfile = {sky:?}\n\n[materials.clay]\ntype = \"lambert\"\nalbedo = [0.8, 0.8, 0.8]\n\n[materials.brick]\ntype = \"lambert\"\nalbedo = [0.8, 0.45, 0.25]\n\n{objects}"
         ),
     )
     .unwrap();
     s
 }
 
-fn suzanne_on_floor(dir: &Path) -> PathBuf {
+/// Suzanne (no UVs) in `material` on the UV'd floor in `floor`.
+fn suzanne_on_floor(dir: &Path, material: &str, floor: &str) -> PathBuf {
     let m = repo().join("scenes/meshes/suzanne.obj");
     let q = repo().join("scenes/hard/quad.obj");
     scene(
         dir,
-        &format!("[[objects]]\nmesh = {m:?}\nmaterial = \"clay\"\nscale = 0.4\ntranslate = [0.0, 0.4, 0.0]\n\n[[objects]]\nmesh = {q:?}\nmaterial = \"clay\"\nscale = [2.0, 1.0, 2.0]\n"),
+        &format!("[[objects]]\nmesh = {m:?}\nmaterial = \"{material}\"\nscale = 0.4\ntranslate = [0.0, 0.4, 0.0]\n\n[[objects]]\nmesh = {q:?}\nmaterial = \"{floor}\"\nscale = [2.0, 1.0, 2.0]\n"),
     )
 }
 
@@ -51,8 +52,7 @@ fn suzanne_on_floor(dir: &Path) -> PathBuf {
 #[test]
 fn a_mesh_without_uvs_bakes_exports_and_relights_through_its_atlas() {
     let dir = tempfile::tempdir().unwrap();
-    let s = suzanne_on_floor(dir.path());
-    let order = 3usize;
+    let s = suzanne_on_floor(dir.path(), "clay", "clay");
     let bake = |threads: &str, name: &str| {
         let path = dir.path().join(name);
         let out = run(prt()
@@ -80,17 +80,7 @@ fn a_mesh_without_uvs_bakes_exports_and_relights_through_its_atlas() {
         entry["atlas"].is_array() && entry.get("uv_set").is_none(),
         "{entry}"
     );
-    let covered = |o: usize| {
-        b.objects[o]
-            .coverage
-            .as_ref()
-            .unwrap()
-            .hits
-            .iter()
-            .filter(|&&h| h > 0)
-            .count()
-    };
-    assert!(covered(0) > 1000, "{}", covered(0));
+    assert!(covered(&b, 0) > 1000, "{}", covered(&b, 0));
     // On a lightmap too coarse for her (fewer texels than vertices) she stays per vertex,
     // and the decision says why.
     let out = run(prt()
@@ -113,20 +103,42 @@ fn a_mesh_without_uvs_bakes_exports_and_relights_through_its_atlas() {
         "{d}"
     );
 
-    let glb = dir.path().join("t.glb");
+    export_and_relight(dir.path(), &s, &t1, 3);
+}
+
+/// The covered texels of object `o`'s lightmap.
+fn covered(b: &prt_bakefile::Bake, o: usize) -> usize {
+    b.objects[o]
+        .coverage
+        .as_ref()
+        .unwrap()
+        .hits
+        .iter()
+        .filter(|&&h| h > 0)
+        .count()
+}
+
+/// Exports the per-texel bake `bake` (order `order`) of scene `s`, validates the `.glb` and
+/// relights it with `tools/gltf_relight.py` from the file alone against `prt relight`'s texel
+/// radiance: every covered texel within `Q + γ_N·(M + Q)` (`Q` the script's bound for the
+/// 8-bit codes, `M` its magnitudes, `γ_N` the f32 rounding of prt's sums, as in
+/// export_cli.rs), and the script finds exactly the bake's covered texels.
+fn export_and_relight(dir: &Path, s: &Path, bake: &Path, order: usize) {
+    let b = prt_bakefile::read_bake(bake).unwrap();
+    let glb = dir.join("t.glb");
     run(prt()
         .arg("export")
-        .arg(&s)
+        .arg(s)
         .arg("--bake")
-        .arg(&t1)
+        .arg(bake)
         .arg("--out")
         .arg(&glb));
     validate(&glb);
     let Some(py) = common::python_or_skip() else {
         return;
     };
-    let csv = |n: &str| dir.path().join(format!("{n}.csv"));
-    relight_vertex_colours(&s, &t1, &csv("prt"));
+    let csv = |n: &str| dir.join(format!("{n}.csv"));
+    relight_vertex_colours(s, bake, &csv("prt"));
     let ours = read_rows(&csv("prt"));
     let (theirs, mags, quant) = gltf_relight_texels(&py, &glb, csv);
     let gamma = texel_sum_gamma(order);
@@ -134,7 +146,7 @@ fn a_mesh_without_uvs_bakes_exports_and_relights_through_its_atlas() {
         let (a, m, q) = (&theirs[&o.name], &mags[&o.name], &quant[&o.name]);
         let mine: std::collections::HashMap<usize, [f64; 3]> =
             ours[&o.name].iter().copied().collect();
-        assert_eq!(a.len(), covered(k), "{}: covered texels", o.name);
+        assert_eq!(a.len(), covered(&b, k), "{}: covered texels", o.name);
         let mut worst = 0.0f64;
         for ((p, x), ((_, mp), (_, qp))) in a.iter().zip(m.iter().zip(q)) {
             let y = mine[&(*p + o.point_first as usize)];
@@ -153,6 +165,30 @@ fn a_mesh_without_uvs_bakes_exports_and_relights_through_its_atlas() {
         }
         eprintln!("{}: worst texel at {worst:.3} of its bound", o.name);
     }
+}
+
+/// The other kinds of bake an engine reads through an atlas: one bounce between a coloured
+/// suzanne and a grey floor makes the transfer differ per channel (three transfer channels,
+/// SPEC §3.9), and that file too exports, validates and relights from the `.glb` alone to
+/// prt's texel radiance.
+#[test]
+fn a_bounced_multichannel_atlas_bake_relights_from_the_glb_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = suzanne_on_floor(dir.path(), "brick", "clay");
+    let path = dir.path().join("bounced.prtb");
+    run(prt()
+        .arg("bake")
+        .arg(&s)
+        .args(["--rays", "16", "--order", "3", "--bounces", "1"])
+        .args(["--per-texel", "192", "--out"])
+        .arg(&path));
+    let b = prt_bakefile::read_bake(&path).unwrap();
+    assert!(
+        b.objects.iter().all(|o| o.channels == 3),
+        "a bounced coloured scene has per-channel transfer"
+    );
+    assert!(b.meta.settings["lightmaps"][0]["atlas"].is_array());
+    export_and_relight(dir.path(), &s, &path, 3);
 }
 
 /// The Khronos glTF-Validator on `glb` (skipped, with a line, when it is not installed):
