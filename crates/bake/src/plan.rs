@@ -135,6 +135,26 @@ pub fn plan(scene: &Scene, settings: &BakeSettings) -> (Vec<ObjectPlan>, Vec<Dec
                 wanted
             }
         };
+        // A lobe without a zonal form baked below the order it needs (capped or fixed): the
+        // same test relighting's `--glossy auto` applies (`prt_scene_relight::sharp_lobe`).
+        let loss =
+            (needs_visibility && wanted > order && !matches!(material, Material::Phong { .. }))
+                .then(|| {
+                    glossy_table(material, order)
+                        .projection_error
+                        .last()
+                        .map_or(0.0, |e| e * e)
+                })
+                .filter(|&l| l > settings.error_target);
+        if let Some(loss) = loss {
+            say(
+                "glossy lobe: relight with an SHRM".into(),
+                format!(
+                    "the lobe loses {loss:.2e} of its energy beyond the baked order {order}, more than the error target {}: `prt relight --glossy auto` (or `shrm`) shades it from a spherical harmonic reflection map prefiltered to the order it needs, with the lobe's own traced occlusion",
+                    settings.error_target
+                ),
+            );
+        }
         if needs_visibility {
             say(
                 "visibility transfer".into(),
@@ -162,6 +182,30 @@ mod tests {
     use prt_scene::test_util::icosphere;
     use prt_scene::{Camera, Environment};
 
+    /// A unit icosphere in a `pbr` metal of `roughness`.
+    fn metal_sphere(roughness: f32) -> Scene {
+        let cam = Camera::look_at(
+            glam::DVec3::new(0.0, 0.0, 4.0),
+            glam::DVec3::ZERO,
+            40.0,
+            8,
+            8,
+        );
+        let mut scene = Scene::new(cam, Environment::uniform([1.0; 3]));
+        let m = scene.add_material(
+            "m",
+            Material::Pbr {
+                base_color: [0.8; 3],
+                metallic: 1.0,
+                roughness,
+                base_color_texture: None,
+                metallic_roughness_texture: None,
+            },
+        );
+        scene.add_mesh(icosphere(1), m);
+        scene
+    }
+
     /// The order of a `pbr` object follows its roughness: the sharper the lobe, the more bands
     /// its `D·V` table needs for the same share of its energy (measured: 14, 6, 6 bands for
     /// roughness 0.6, 0.8, 1 at a 1 % target).
@@ -170,31 +214,12 @@ mod tests {
         let orders: Vec<usize> = [0.6f32, 0.8, 1.0]
             .iter()
             .map(|&roughness| {
-                let cam = Camera::look_at(
-                    glam::DVec3::new(0.0, 0.0, 4.0),
-                    glam::DVec3::ZERO,
-                    40.0,
-                    8,
-                    8,
-                );
-                let mut scene = Scene::new(cam, Environment::uniform([1.0; 3]));
-                let m = scene.add_material(
-                    "m",
-                    Material::Pbr {
-                        base_color: [0.8; 3],
-                        metallic: 1.0,
-                        roughness,
-                        base_color_texture: None,
-                        metallic_roughness_texture: None,
-                    },
-                );
-                scene.add_mesh(icosphere(1), m);
                 let settings = BakeSettings {
                     max_order: 20,
                     error_target: 0.01,
                     ..BakeSettings::default()
                 };
-                let (plans, _) = plan(&scene, &settings);
+                let (plans, _) = plan(&metal_sphere(roughness), &settings);
                 assert!(plans[0].needs_visibility);
                 plans[0].order
             })
@@ -204,5 +229,24 @@ mod tests {
             "{orders:?}"
         );
         assert!(orders[2] >= lambert_order(0.01));
+    }
+
+    /// A lobe baked below the order it needs gets the decision to relight it from an SHRM; one
+    /// baked at what it needs, or a lobe that needs no more (roughness 1 at a 1 % target: 6
+    /// bands, as measured above), does not.
+    #[test]
+    fn a_lobe_baked_below_its_order_is_sent_to_the_shrm() {
+        let says_shrm = |roughness: f32, order: usize| {
+            let settings = BakeSettings {
+                order: Some(order),
+                error_target: 0.01,
+                ..BakeSettings::default()
+            };
+            let (_, log) = plan(&metal_sphere(roughness), &settings);
+            log.iter().any(|d| d.decision.contains("SHRM"))
+        };
+        assert!(says_shrm(0.6, 6));
+        assert!(!says_shrm(0.6, 14));
+        assert!(!says_shrm(1.0, 6));
     }
 }

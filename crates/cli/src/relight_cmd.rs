@@ -113,7 +113,10 @@ pub struct RelightArgs {
     /// per environment, looked up per sub-pixel sample (per vertex for exports and reports),
     /// times a specular occlusion traced along the lobe's own directions once per run
     /// (per-vertex bakes; otherwise the bake's visibility at its order) — an approximation;
-    /// crates/relight/README.md, "Spherical harmonic reflection maps".
+    /// crates/relight/README.md, "Spherical harmonic reflection maps"; `auto`, per object
+    /// `shrm` where the lobe loses more of its energy beyond the baked order than the bake's
+    /// error target (the bake's decision line says so: its order was capped or fixed below
+    /// what the lobe needs), `fitted` elsewhere.
     #[arg(long, help_heading = "Glossy materials", value_enum, default_value_t = GlossyArg::Fitted)]
     pub glossy: GlossyArg,
     /// With --glossy hybrid: the fit error (relative L2, against the lobe) from which a point
@@ -229,6 +232,8 @@ pub enum GlossyArg {
     Hybrid,
     /// Spherical harmonic reflection map lookup with specular occlusion.
     Shrm,
+    /// Per object: shrm where the lobe is too sharp for the baked order, fitted elsewhere.
+    Auto,
 }
 
 /// `--stop` values (see [`StopRule`]).
@@ -451,6 +456,7 @@ pub(crate) fn glossy_path(args: &RelightArgs) -> Result<prt_scene_relight::Gloss
         GlossyArg::Fitted => prt_scene_relight::GlossyPath::Fitted,
         GlossyArg::Exact => prt_scene_relight::GlossyPath::Exact,
         GlossyArg::Shrm => prt_scene_relight::GlossyPath::Shrm,
+        GlossyArg::Auto => prt_scene_relight::GlossyPath::Auto,
         GlossyArg::Hybrid => {
             if !(args.fit_error >= 0.0 && args.fit_error.is_finite()) {
                 bail!(

@@ -38,7 +38,85 @@ pub enum GlossyPath {
     /// shadowed over unshadowed lighting at the bake's order — an approximation). The diffuse
     /// part is the bake's shadowed transfer, as on the fitted path.
     Shrm,
+    /// Per object: [`GlossyPath::Shrm`] where the material's glossy lobe (Blinn–Phong, Ward,
+    /// Cook–Torrance, `pbr`) loses more of its energy beyond the baked order than the bake's
+    /// error target — the bake plan's rule, stated in its decision line — and
+    /// [`GlossyPath::Fitted`] elsewhere ([`sharp_lobe`]).
+    Auto,
 }
+
+impl GlossyPath {
+    /// This path for an object of `bake` baked at `order` in the material named `name`:
+    /// [`GlossyPath::Auto`] resolved by [`sharp_lobe`] (with a note naming `object` when it
+    /// picks the SHRM), any other path as it is.
+    pub(crate) fn for_object(
+        self,
+        bake: &prt_bakefile::Bake,
+        (material, name): (&Material, &str),
+        order: usize,
+        (object, notes): (&str, &mut Vec<String>),
+    ) -> Self {
+        if self != Self::Auto {
+            return self;
+        }
+        match sharp_lobe(bake, material, name, order) {
+            Some((loss, target)) => {
+                notes.push(format!(
+                    "{object}: --glossy auto: SHRM (its lobe loses {loss:.2e} of its energy beyond the baked order {order}, above the bake's error target {target})"
+                ));
+                Self::Shrm
+            }
+            None => Self::Fitted,
+        }
+    }
+}
+
+/// Whether `material` (named `name` in the scene) has a glossy lobe without a zonal form that
+/// is too sharp for an object baked at `order`: the fraction of its energy beyond that order
+/// (the square of the relative L2 projection error the bake's BRDF table of the material
+/// records, or of `prt_shading::projection::glossy_table` when the bake has none) and the
+/// bake's error target, when the fraction is above the target. The bake plan raises the order
+/// until the fraction is within the target, so a lobe is sharp here exactly when its order was
+/// capped (`--max-order`) or fixed (`--order`) below what it needs.
+#[must_use]
+pub fn sharp_lobe(
+    bake: &prt_bakefile::Bake,
+    material: &Material,
+    name: &str,
+    order: usize,
+) -> Option<(f64, f64)> {
+    if order == 0
+        || !matches!(
+            material,
+            Material::BlinnPhong { .. }
+                | Material::Ward { .. }
+                | Material::CookTorrance { .. }
+                | Material::Pbr { .. }
+        )
+    {
+        return None;
+    }
+    let target = bake
+        .meta
+        .settings
+        .get("error_target")
+        .and_then(serde_json::Value::as_f64)
+        .unwrap_or(DEFAULT_ERROR_TARGET);
+    let stored = bake
+        .glossy
+        .iter()
+        .find(|t| t.material == name)
+        .and_then(|t| t.projection_error.get(order - 1).copied());
+    let error = stored.unwrap_or_else(|| {
+        let t = prt_shading::projection::glossy_table(material, order);
+        t.projection_error.last().copied().unwrap_or(0.0)
+    });
+    let loss = error * error;
+    (loss > target).then_some((loss, target))
+}
+
+/// The bake's error target when a file does not record one (prt-bake's default).
+const DEFAULT_ERROR_TARGET: f64 = 1e-3;
 
 /// A glossy lobe without a zonal form at one object: the material whose lobe shape is fitted
 /// (for a `pbr` material that varies, its mean roughness), and the colour weights of its

@@ -350,13 +350,20 @@ impl<'r> Run<'r> {
             &mut totals.stats.notes,
         );
         let notes = &mut totals.stats.notes;
-        let spec = SpecularTerms::new(scene, self.bake, o, &surface, &rows, opt.glossy, notes);
+        let name = scene.material_names.get(scene.meshes[o].material);
+        let glossy = opt.glossy.for_object(
+            self.bake,
+            (material, name.map_or("", String::as_str)),
+            baked,
+            (&obj.name, notes),
+        );
+        let spec = SpecularTerms::new(scene, self.bake, o, &surface, &rows, glossy, notes);
         let specular = spec.input(order, &surface, eye)?;
         // The SHRM path's traced occlusion and per-sample lookups need the object's vertices,
         // all of them, as its points; with the traced occlusion the fitted specular (products
         // at the bake's order) is not needed.
         let per_vertex = !self.per_pixel && self.lightmaps[o].is_none() && subset.is_none();
-        let traced_occlusion = opt.glossy == GlossyPath::Shrm
+        let traced_occlusion = glossy == GlossyPath::Shrm
             && per_vertex
             && self.lighting.is_none()
             && spec.glossy.is_some();
@@ -384,7 +391,7 @@ impl<'r> Run<'r> {
         totals.stats.points += points;
         let notes = &mut totals.stats.notes;
         let exact_points =
-            spec.hybrid_exact_points(opt.glossy, &surface, eye, points, &obj.name, notes);
+            spec.hybrid_exact_points(glossy, &surface, eye, points, &obj.name, notes);
         let exact_points = exact_points.as_deref();
         let diffuse_scale = per_point_diffuse
             .then(|| spec.diffuse_scale(material, &surface, exact_points, eye, points));
@@ -419,7 +426,7 @@ impl<'r> Run<'r> {
             }
             None => specular_part,
         };
-        let (specular_part, per_sample) = if opt.glossy == GlossyPath::Shrm {
+        let (specular_part, per_sample) = if glossy == GlossyPath::Shrm {
             let object = (o, traced_occlusion);
             let fitted = (specular_part, fitted_input);
             self.shrm_specular(&spec, &terms, &surface, fitted, object, totals)?

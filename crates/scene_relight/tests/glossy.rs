@@ -150,7 +150,9 @@ fn check(material: Material, path: prt_scene_relight::GlossyPath) {
                     (albedo_and_norm(&ward, el[i - 1]).0 - albedo_and_norm(&ward, el[i]).0).abs();
                 dv * b_norm + (2.0 * std::f64::consts::PI).sqrt() * e_n * f_norm + interp
             }
-            prt_scene_relight::GlossyPath::Hybrid { .. } | prt_scene_relight::GlossyPath::Shrm => {
+            prt_scene_relight::GlossyPath::Hybrid { .. }
+            | prt_scene_relight::GlossyPath::Shrm
+            | prt_scene_relight::GlossyPath::Auto => {
                 unreachable!("checked by their own tests")
             }
             prt_scene_relight::GlossyPath::Fitted => {

@@ -233,3 +233,27 @@ fn enclosed_floor_has_no_specular() {
     assert!(s.occlusion().iter().flatten().all(|k| *k <= 0.125));
     assert!(relit.radiance[0].iter().flatten().all(|v| *v <= 0.125));
 }
+
+/// `--glossy auto` picks the SHRM for a lobe too sharp for the baked order — the metal at
+/// roughness 0.6 loses more than the bake's 10⁻³ of its energy beyond order 6 (it needs 14
+/// bands for 1 %: prt-bake's plan test) — and then relights exactly as `--glossy shrm`, with
+/// a note; a diffuse material is never sent there.
+#[test]
+fn auto_sends_a_lobe_too_sharp_for_the_baked_order_to_the_shrm() {
+    let (scene, accel, bake) = floor_bake();
+    let (loss, target) = prt_scene_relight::sharp_lobe(&bake, &metal(), "metal", 6)
+        .expect("roughness 0.6 is too sharp for order 6");
+    assert!(loss > target && target == 1e-3, "{loss} {target}");
+    let lambert = Material::Lambert { albedo: [0.5; 3] };
+    assert!(prt_scene_relight::sharp_lobe(&bake, &lambert, "metal", 6).is_none());
+    let auto = RelightOptions {
+        glossy: GlossyPath::Auto,
+        ..shrm_options(0.0)
+    };
+    let a = prt_scene_relight::relight(&scene, &accel, &bake, &auto).unwrap();
+    let s = prt_scene_relight::relight(&scene, &accel, &bake, &shrm_options(0.0)).unwrap();
+    assert!(a.shrm[0].is_some());
+    assert_eq!(a.radiance, s.radiance);
+    let notes = a.stats.notes.join(" ");
+    assert!(notes.contains("--glossy auto: SHRM"), "{notes}");
+}
