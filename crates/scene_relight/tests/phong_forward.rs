@@ -32,11 +32,11 @@
 //! The cosine-inside model must be within it and the frozen-cosine one must not.
 //!
 //! Measured (two 1024-spp renders, 64 × 48, two order-16 per-pixel bakes of 4096 rays, 1124
-//! pixels; about 40 s on 2 busy cores; printed with `--nocapture`): cosine inside
+//! pixels; 40–55 s on 2 busy cores; printed with `--nocapture`): cosine inside
 //! `e = 0.0138` against `allowed = 0.0195` (e_ref 0.0106, e_bake 0.0077, truncation 0.0028,
 //! footprint 0.0030), a systematic part `sqrt(e² − e_ref² − e_bake²)` of about 0.004 (the
-//! zonal fit's error and the truncated visibility's ringing at the horizon); cosine frozen
-//! `e = 0.0594`, systematic 0.058.
+//! model's own — the zonal fit, the visibility truncated at the horizon — not separated);
+//! cosine frozen `e = 0.0594`, systematic 0.058.
 
 use glam::DVec3;
 use prt_bake::{BakeSettings, PointKind};
