@@ -88,15 +88,20 @@ impl GlossyLobe {
     /// for other materials.
     pub(crate) fn phong(material: &Material) -> Option<Self> {
         match *material {
-            Material::Phong { specular, .. } => Some(Self {
-                levels: vec![*material],
-                level_roughness: vec![0.0],
-                point_roughness: vec![0.0],
-                colour_a: vec![specular],
-                colour_b: vec![[0.0; 3]],
-                colour_c: vec![[0.0; 3]],
-            }),
+            Material::Phong { specular, .. } => Some(Self::single(material, specular)),
             _ => None,
+        }
+    }
+
+    /// One lobe shape, `material`'s, of one specular colour (no roughness levels).
+    fn single(material: &Material, specular: [f32; 3]) -> Self {
+        Self {
+            levels: vec![*material],
+            level_roughness: vec![0.0],
+            point_roughness: vec![0.0],
+            colour_a: vec![specular],
+            colour_b: vec![[0.0; 3]],
+            colour_c: vec![[0.0; 3]],
         }
     }
 
@@ -111,14 +116,7 @@ impl GlossyLobe {
         match *material {
             Material::BlinnPhong { specular, .. }
             | Material::Ward { specular, .. }
-            | Material::CookTorrance { specular, .. } => Some(Self {
-                levels: vec![*material],
-                level_roughness: vec![0.0],
-                point_roughness: vec![0.0],
-                colour_a: vec![specular],
-                colour_b: vec![[0.0; 3]],
-                colour_c: vec![[0.0; 3]],
-            }),
+            | Material::CookTorrance { specular, .. } => Some(Self::single(material, specular)),
             Material::Pbr { roughness, .. } => {
                 let mats: Vec<Material> = points.map_or_else(|| vec![*material], <[_]>::to_vec);
                 let weights = |k: prt_shading::projection::PbrComponent| -> Vec<[f32; 3]> {
