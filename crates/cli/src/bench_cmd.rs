@@ -76,6 +76,7 @@ fn run_relight(bench: &BenchRelightArgs) -> Result<()> {
         rotate_y_step_deg: args.rotate_y_step,
         points: None,
         glossy: glossy_path(args)?,
+        phong: args.phong_model.into(),
     };
     let bound = prt_scene_relight::Bound::new(&scene, &accel, &bake)?;
     let asked = bound.relight(&opt)?.stats;

@@ -25,3 +25,21 @@ pub fn bake_bounces(option: Option<u32>, scene: &Scene, path: &Path) -> Result<u
         ),
     }
 }
+
+/// `--phong-model` values (see [`prt_scene_relight::PhongModel`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PhongArg {
+    /// The light's cosine taken out of the integral at the lobe's centre.
+    FrozenCosine,
+    /// The cosine inside, fitted per view elevation like the glossy lobes.
+    Fitted,
+}
+
+impl From<PhongArg> for prt_scene_relight::PhongModel {
+    fn from(a: PhongArg) -> Self {
+        match a {
+            PhongArg::FrozenCosine => Self::FrozenCosine,
+            PhongArg::Fitted => Self::Fitted,
+        }
+    }
+}

@@ -123,6 +123,15 @@ pub struct RelightArgs {
     /// is shaded by the exact path; 0 shades every point exactly.
     #[arg(long, help_heading = "Glossy materials", default_value_t = 0.1)]
     pub fit_error: f32,
+    /// How the `phong` material's lobe is relit: `frozen-cosine`, the light's cosine taken
+    /// out of the integral at the lobe's centre (Sloan et al. 2002; exact only at normal view:
+    /// 7.9 % off the path tracer on a sphere of exponent 10); `fitted`, the cosine inside,
+    /// fitted per view elevation as --glossy fitted fits the other lobes and shaded at the
+    /// same cost (what `prt fit-lighting` inverts; crates/scene_relight/README.md measures
+    /// both). With `fitted`, --glossy exact and hybrid shade Phong by the fit (the bake holds
+    /// no per-elevation table for it).
+    #[arg(long, help_heading = "Glossy materials", value_enum, default_value_t = crate::common::PhongArg::FrozenCosine)]
+    pub phong_model: crate::common::PhongArg,
     /// Reflectance fields (`prt reflectance`): how each pixel's sampled function is
     /// reconstructed on the fine grid (`nearest`: zero-order hold; `linear`: bilinear,
     /// periodic in azimuth; `legall53` / `cdf97`: wavelet interpolation, periodic in azimuth
@@ -317,6 +326,7 @@ pub fn run(args: &RelightArgs) -> Result<()> {
         rotate_y_step_deg: 0.0,
         points: None,
         glossy: glossy_path(args)?,
+        phong: args.phong_model.into(),
     };
     // Bound once: a per-pixel bake's footprints, a per-texel bake's lightmaps and the
     // camera's rays serve every relighting and image of the command.
@@ -771,6 +781,7 @@ fn run_choose(args: &RelightArgs, bakes: &[ChoiceBake<'_>], target: f64) -> Resu
     let base = RelightOptions {
         order: args.order,
         glossy: glossy_path(args)?,
+        phong: args.phong_model.into(),
         ..Default::default()
     };
     let adaptive = adaptive_params(args);

@@ -10,7 +10,8 @@ mod common;
 use common::{bunny_scene, json, prt, run};
 use std::path::Path;
 
-/// Bakes `scene` at order 4 and writes `prt relight`'s image of it; returns (bake, image).
+/// Bakes `scene` at order 4 and writes `prt relight`'s image of it, Phong lobes relit by the
+/// fit's forward model (`--phong-model fitted`, the cosine inside); returns (bake, image).
 fn bake_and_image(
     scene: &Path,
     dir: &Path,
@@ -28,7 +29,7 @@ fn bake_and_image(
         .arg(scene)
         .arg("--bake")
         .arg(&bake)
-        .arg("--out")
+        .args(["--phong-model", "fitted", "--out"])
         .arg(&image));
     (bake, image)
 }

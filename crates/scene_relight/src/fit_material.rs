@@ -5,7 +5,9 @@
 //! Given the material, the image is linear in the lighting; given the lighting and exponent, it is
 //! linear in the albedo (`I = a ⊙ D·L + S_e·L` on the material's pixels, `D` the diffuse transfer at
 //! unit albedo, `S_e` the specular at exponent `e`); the exponent enters through the Phong
-//! lobe's bands (`prt-relight`'s per-band lobe, the same tables relighting uses). So at each exponent the
+//! lobe relighting shades with the options' [`crate::PhongModel`] (by default the lobe with the
+//! light's cosine inside, fitted per view elevation at each exponent tried; the fitted tables
+//! are cached per exponent and order). So at each exponent the
 //! fit searches the albedo (golden section per channel) with the lighting solved for each
 //! albedo (variable projection), and searches the exponent by golden section on `ln e`.
 //!
@@ -263,7 +265,7 @@ pub fn fit_material(
     let basis = |m: Material| -> Result<[DMatrix<f64>; 3], SceneRelightError> {
         let s = with_material(scene, index, m);
         let bd = Bound::new(&s, bound.accel(), bound.bake())?;
-        basis_images(&bd, &pixels, &sqrt_w, model)
+        basis_images(&bd, &pixels, &sqrt_w, model, opt.phong)
     };
     let d = basis(Material::Lambert { albedo: [1.0; 3] })?;
     let b2: f64 = b.iter().map(DVector::norm_squared).sum();

@@ -34,6 +34,7 @@
 use crate::bound::Bound;
 use crate::error::SceneRelightError;
 use crate::imaging::{object_ids, RgbImage};
+use crate::lobe::PhongModel;
 use crate::relit::RelightOptions;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -60,6 +61,11 @@ pub struct FitOptions {
     /// hemisphere blocked ([`unoccluded_pixels`]; per-pixel bakes without bounces); `None`:
     /// every object pixel.
     pub max_occlusion: Option<f64>,
+    /// The forward model of `phong` lobes: by default the light's cosine inside the integral
+    /// ([`PhongModel::Fitted`]); relighting's default, the cosine frozen at the lobe's centre,
+    /// is 7.9 % off the path tracer on one unoccluded Phong sphere (exponent 10), an error a
+    /// fit through it inherits (crates/scene_relight/README.md).
+    pub phong: PhongModel,
 }
 
 impl FitOptions {
@@ -75,6 +81,7 @@ impl FitOptions {
             weights: None,
             truth: None,
             max_occlusion: None,
+            phong: PhongModel::Fitted,
         }
     }
 }
@@ -86,6 +93,8 @@ pub struct LightingFit {
     pub order: usize,
     /// Bands of the forward model.
     pub model_order: usize,
+    /// The forward model of `phong` lobes.
+    pub phong_model: PhongModel,
     /// Bands the image determines (`0..well_determined`; see the module docs).
     pub well_determined: usize,
     /// SH coefficients, `[r, g, b]` per basis function in index order `l(l+1)+m`.
@@ -202,8 +211,8 @@ pub fn unoccluded_pixels(
 }
 
 /// The image under each basis function alone (column `i`: the lighting `e_i` in every
-/// channel), at the pixels `pixels`, each row scaled by `sqrt_weights`: `[channel](pixels ×
-/// n²)`.
+/// channel), `phong` lobes relit by `phong`, at the pixels `pixels`, each row scaled by
+/// `sqrt_weights`: `[channel](pixels × n²)`.
 ///
 /// # Errors
 /// Relighting errors.
@@ -212,6 +221,7 @@ pub fn basis_images(
     pixels: &[usize],
     sqrt_weights: &[f64],
     n: usize,
+    phong: PhongModel,
 ) -> Result<[DMatrix<f64>; 3], SceneRelightError> {
     let n2 = n * n;
     let mut a = [
@@ -222,6 +232,7 @@ pub fn basis_images(
     let once = RelightOptions {
         timing_frames: 1,
         warmup_frames: 0,
+        phong,
         ..RelightOptions::default()
     };
     for i in 0..n2 {
@@ -481,7 +492,7 @@ pub fn fit_lighting(
     let model = model_order(bound, opt)?;
     let (pixels, sqrt_w, b) =
         prepare_pixels(bound, image, opt.weights.as_deref(), opt.max_occlusion)?;
-    let a = basis_images(bound, &pixels, &sqrt_w, model)?;
+    let a = basis_images(bound, &pixels, &sqrt_w, model, opt.phong)?;
     fit_from_design(&a, &b, pixels.len(), opt, model)
 }
 
@@ -523,6 +534,7 @@ pub fn fit_from_design(
     Ok(LightingFit {
         order: opt.order,
         model_order: model,
+        phong_model: opt.phong,
         well_determined: well,
         coefficients: full[..opt.order * opt.order].to_vec(),
         regularised_bands: (well..opt.order).collect(),

@@ -46,5 +46,6 @@ pub use error::SceneRelightError;
 pub use imaging::{form_image, form_image_with, object_mask, roi_image, ImageRays, RgbImage};
 pub use lobe::sharp_lobe;
 pub use relit::{
-    baked_scene, check_bake, relight, GlossyPath, RelightOptions, RelightStats, Relit, ShrmSpecular,
+    baked_scene, check_bake, relight, GlossyPath, PhongModel, RelightOptions, RelightStats, Relit,
+    ShrmSpecular,
 };

@@ -118,6 +118,31 @@ pub fn sharp_lobe(
 /// The bake's error target when a file does not record one (prt-bake's default).
 const DEFAULT_ERROR_TARGET: f64 = 1e-3;
 
+/// How the `phong` material's specular lobe is relit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PhongModel {
+    /// The light's cosine taken out of the integral at the lobe's centre (Sloan, Kautz &
+    /// Snyder 2002; Lee & Kim 2014 eq. 4.4): `specular · (e+2)/(e+1) · max(0, n·ω_o) ·
+    /// Σ_lm A_l (L ⊛ V)_lm y_lm(r)`, one zonal lobe about the mirror direction `r` (prt-relight's
+    /// crate docs). Exact for a uniform environment only in the limit of a sharp lobe seen
+    /// along the normal; measured against the path tracer it is 7.9 % off on a single
+    /// unoccluded sphere of exponent 10 (crates/scene_relight/README.md). What relighting has
+    /// always done, and its default.
+    #[default]
+    FrozenCosine,
+    /// The cosine inside the integral: `g = f_s max(0, cos θ_i)` fitted per view elevation by
+    /// zonal lobes about axes in the plane of the normal and the view, exactly as the glossy
+    /// lobes without a zonal form are on [`GlossyPath::Fitted`]
+    /// (`prt_shading::projection::fitted_table`), and shaded by the same kernels at the same
+    /// cost: `specular ⊙ Σ_k Σ_lm A^k_l(θ_o) (L ⊛ V)_lm y_lm(a_k)`. Visibility enters as on the
+    /// frozen-cosine path (the product `L ⊛ V` at the relit order). What `prt fit-lighting`
+    /// inverts. The bake holds no per-elevation table for Phong, so with this model a Phong
+    /// lobe takes the fitted path whatever [`GlossyPath`] says, except `Shrm`, whose lookup
+    /// also has the cosine inside.
+    Fitted,
+}
+
 /// A glossy lobe without a zonal form at one object: the material whose lobe shape is fitted
 /// (for a `pbr` material that varies, its mean roughness), and the colour weights of its
 /// components per point (one entry when uniform): `a`, `b` and, for the exact path of `pbr`,
@@ -137,6 +162,27 @@ pub(crate) struct GlossyLobe {
 }
 
 impl GlossyLobe {
+    /// The `phong` material's lobe as a fitted glossy lobe ([`PhongModel::Fitted`]); `None`
+    /// for other materials.
+    pub(crate) fn phong(material: &Material) -> Option<Self> {
+        match *material {
+            Material::Phong { specular, .. } => Some(Self::single(material, specular)),
+            _ => None,
+        }
+    }
+
+    /// One lobe shape, `material`'s, of one specular colour (no roughness levels).
+    fn single(material: &Material, specular: [f32; 3]) -> Self {
+        Self {
+            levels: vec![*material],
+            level_roughness: vec![0.0],
+            point_roughness: vec![0.0],
+            colour_a: vec![specular],
+            colour_b: vec![[0.0; 3]],
+            colour_c: vec![[0.0; 3]],
+        }
+    }
+
     /// The lobe of `material` at an object named `object` (`points`: the material resolved per
     /// point when it varies over the surface); a note when a texture varies the roughness.
     pub(crate) fn of(
@@ -148,14 +194,7 @@ impl GlossyLobe {
         match *material {
             Material::BlinnPhong { specular, .. }
             | Material::Ward { specular, .. }
-            | Material::CookTorrance { specular, .. } => Some(Self {
-                levels: vec![*material],
-                level_roughness: vec![0.0],
-                point_roughness: vec![0.0],
-                colour_a: vec![specular],
-                colour_b: vec![[0.0; 3]],
-                colour_c: vec![[0.0; 3]],
-            }),
+            | Material::CookTorrance { specular, .. } => Some(Self::single(material, specular)),
             Material::Pbr { roughness, .. } => {
                 let mats: Vec<Material> = points.map_or_else(|| vec![*material], <[_]>::to_vec);
                 let weights = |k: prt_shading::projection::PbrComponent| -> Vec<[f32; 3]> {

@@ -18,7 +18,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 pub use crate::binding::{baked_scene, check_bake, lightmaps};
-pub use crate::lobe::{view_dependent, ExportLobe, GlossyPath, ViewDependent};
+pub use crate::lobe::{view_dependent, ExportLobe, GlossyPath, PhongModel, ViewDependent};
 pub use crate::shrm_path::ShrmSpecular;
 
 /// How to relight.
@@ -48,6 +48,9 @@ pub struct RelightOptions {
     /// How glossy lobes without a zonal form (Blinn–Phong, Ward, Cook–Torrance, `pbr`) are
     /// relit.
     pub glossy: GlossyPath,
+    /// How the `phong` material's lobe is relit (the light's cosine frozen at the lobe's
+    /// centre, the default, or inside the integral).
+    pub phong: PhongModel,
 }
 
 impl Default for RelightOptions {
@@ -61,6 +64,7 @@ impl Default for RelightOptions {
             rotate_y_step_deg: 0.0,
             points: None,
             glossy: GlossyPath::Fitted,
+            phong: PhongModel::FrozenCosine,
         }
     }
 }
@@ -357,7 +361,9 @@ impl<'r> Run<'r> {
             baked,
             (&obj.name, notes),
         );
-        let spec = SpecularTerms::new(scene, self.bake, o, &surface, &rows, glossy, notes);
+        let spec = SpecularTerms::new(
+            scene, self.bake, o, &surface, &rows, glossy, opt.phong, notes,
+        );
         let specular = spec.input(order, &surface, eye)?;
         // The SHRM path's traced occlusion and per-sample lookups need the object's vertices,
         // all of them, as its points; with the traced occlusion the fitted specular (products

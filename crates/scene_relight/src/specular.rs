@@ -4,7 +4,7 @@
 //! visibility; and, for `pbr` on the fitted path, the diffuse factor `1 − s̄_d(θ_o)`.
 
 use crate::error::SceneRelightError;
-use crate::lobe::{fitted_cached, FittedF32, GlossyLobe, GlossyPath};
+use crate::lobe::{fitted_cached, FittedF32, GlossyLobe, GlossyPath, PhongModel};
 use crate::points::{PointSet, Rows};
 use glam::Vec3;
 use prt_bakefile::{Bake, GlossyBrdfTable, TransferKind};
@@ -29,9 +29,9 @@ pub(crate) struct SpecularTerms<'b> {
 }
 
 impl<'b> SpecularTerms<'b> {
-    /// The terms of object `o` of `scene` relit from `bake` along `path`, at the points
-    /// `points` (whose materials are resolved per point when they vary); notes of what is not
-    /// relit go to `notes`.
+    /// The terms of object `o` of `scene` relit from `bake` along `path` (a `phong` lobe by
+    /// `phong_model`), at the points `points` (whose materials are resolved per point when they
+    /// vary); notes of what is not relit go to `notes`.
     pub(crate) fn new(
         scene: &Scene,
         bake: &'b Bake,
@@ -39,13 +39,31 @@ impl<'b> SpecularTerms<'b> {
         points: &PointSet,
         rows: &Rows<'_>,
         path: GlossyPath,
+        phong_model: PhongModel,
         notes: &mut Vec<String>,
     ) -> Self {
         let (mesh, obj) = (&scene.meshes[o], &bake.objects[o]);
         let material = &scene.materials[mesh.material];
         let order = rows.order;
-        let phong = phong_params(material, &obj.name, notes);
-        let glossy = GlossyLobe::of(material, points.materials.as_deref(), notes, &obj.name);
+        // A Phong lobe with the cosine inside is a fitted glossy lobe, on the fitted path
+        // whatever `path` says but SHRM (the bake has no per-elevation table for Phong).
+        let fitted_phong = match phong_model {
+            PhongModel::Fitted => GlossyLobe::phong(material),
+            PhongModel::FrozenCosine => None,
+        };
+        let is_fitted_phong = fitted_phong.is_some();
+        let path = match path {
+            GlossyPath::Shrm => GlossyPath::Shrm,
+            _ if is_fitted_phong => GlossyPath::Fitted,
+            other => other,
+        };
+        let (phong, glossy) = match fitted_phong {
+            Some(g) => (None, Some(g)),
+            None => (
+                phong_params(material, &obj.name, notes),
+                GlossyLobe::of(material, points.materials.as_deref(), notes, &obj.name),
+            ),
+        };
         // The fitted lobe's table (built once per object, outside the timed frames).
         let fitted = match (&glossy, path) {
             (Some(g), GlossyPath::Fitted | GlossyPath::Hybrid { .. } | GlossyPath::Shrm) => {
