@@ -5,7 +5,7 @@ use crate::settings::BakeSettings;
 use prt_bakefile::Decision;
 use prt_scene::{Material, Scene};
 use prt_sh::zonal;
-use prt_shading::projection::glossy_table;
+use prt_shading::projection::{glossy_table, lobe_energy_beyond};
 
 /// The baker's plan for one object (mesh).
 #[derive(Clone, Debug)]
@@ -137,15 +137,10 @@ pub fn plan(scene: &Scene, settings: &BakeSettings) -> (Vec<ObjectPlan>, Vec<Dec
         };
         // A lobe without a zonal form baked below the order it needs (capped or fixed): the
         // same test relighting's `--glossy auto` applies (`prt_scene_relight::sharp_lobe`).
-        let loss =
-            (needs_visibility && wanted > order && !matches!(material, Material::Phong { .. }))
-                .then(|| {
-                    glossy_table(material, order)
-                        .projection_error
-                        .last()
-                        .map_or(0.0, |e| e * e)
-                })
-                .filter(|&l| l > settings.error_target);
+        let loss = (needs_visibility && wanted > order)
+            .then(|| lobe_energy_beyond(material, order))
+            .flatten()
+            .filter(|&l| l > settings.error_target);
         if let Some(loss) = loss {
             say(
                 "glossy lobe: relight with an SHRM".into(),

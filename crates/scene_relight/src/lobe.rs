@@ -74,7 +74,7 @@ impl GlossyPath {
 /// Whether `material` (named `name` in the scene) has a glossy lobe without a zonal form that
 /// is too sharp for an object baked at `order`: the fraction of its energy beyond that order
 /// (the square of the relative L2 projection error the bake's BRDF table of the material
-/// records, or of `prt_shading::projection::glossy_table` when the bake has none) and the
+/// records, or [`prt_shading::projection::lobe_energy_beyond`] when it has none) and the
 /// bake's error target, when the fraction is above the target. The bake plan raises the order
 /// until the fraction is within the target, so a lobe is sharp here exactly when its order was
 /// capped (`--max-order`) or fixed (`--order`) below what it needs.
@@ -85,33 +85,25 @@ pub fn sharp_lobe(
     name: &str,
     order: usize,
 ) -> Option<(f64, f64)> {
-    if order == 0
-        || !matches!(
-            material,
-            Material::BlinnPhong { .. }
-                | Material::Ward { .. }
-                | Material::CookTorrance { .. }
-                | Material::Pbr { .. }
-        )
-    {
-        return None;
-    }
     let target = bake
         .meta
         .settings
         .get("error_target")
         .and_then(serde_json::Value::as_f64)
         .unwrap_or(DEFAULT_ERROR_TARGET);
+    // The bake's own table of the material when it has one to this order (free), else the
+    // same projection computed here; `None` for materials without such a lobe.
     let stored = bake
         .glossy
         .iter()
         .find(|t| t.material == name)
-        .and_then(|t| t.projection_error.get(order - 1).copied());
-    let error = stored.unwrap_or_else(|| {
-        let t = prt_shading::projection::glossy_table(material, order);
-        t.projection_error.last().copied().unwrap_or(0.0)
-    });
-    let loss = error * error;
+        .and_then(|t| t.projection_error.get(order.checked_sub(1)?))
+        .map(|e| e * e)
+        .filter(|_| prt_shading::projection::has_fitted_lobe(material));
+    let loss = match stored {
+        Some(l) => l,
+        None => prt_shading::projection::lobe_energy_beyond(material, order)?,
+    };
     (loss > target).then_some((loss, target))
 }
 

@@ -86,6 +86,36 @@ pub fn glossy_table(material: &Material, order: usize) -> GlossyBrdfTable {
     )
 }
 
+/// The share of the specular lobe's energy beyond `order` bands for the lobes without a zonal
+/// form (Blinn–Phong, Ward, Cook–Torrance, `pbr`'s `D·V`; `None` for the others): the square of
+/// [`glossy_table`]'s relative L2 projection error at that order. The bake plan raises an
+/// object's order until this is within its error target; where it is not (a capped or fixed
+/// order) the plan and relighting's `--glossy auto` send the lobe to the SHRM.
+#[must_use]
+pub fn lobe_energy_beyond(material: &Material, order: usize) -> Option<f64> {
+    if order == 0 || !has_fitted_lobe(material) {
+        return None;
+    }
+    let e = glossy_table(material, order)
+        .projection_error
+        .last()
+        .copied()?;
+    Some(e * e)
+}
+
+/// Whether `material`'s specular lobe is one without a zonal form (Blinn–Phong, Ward,
+/// Cook–Torrance, `pbr`), which relighting fits ([`fitted_table`]) or looks up in an SHRM.
+#[must_use]
+pub fn has_fitted_lobe(material: &Material) -> bool {
+    matches!(
+        material,
+        Material::BlinnPhong { .. }
+            | Material::Ward { .. }
+            | Material::CookTorrance { .. }
+            | Material::Pbr { .. }
+    )
+}
+
 /// The colour-independent parts of the `pbr` BRDF's view-dependent term (see
 /// [`crate::pbr_terms`]), each tabulated like a glossy BRDF; relighting weights them per
 /// channel by `A = 0.04(1 − m) + m·c`, `B = 0.96(1 − m) + m(1 − c)` and
