@@ -29,15 +29,21 @@ fn floor_bake() -> (Scene, prt_tracer::Accel, prt_bakefile::Bake) {
     let mut scene = Scene::new(cam, Environment::uniform([1.0; 3]));
     let m = scene.add_material("metal", metal());
     scene.add_mesh(prt_scene::test_util::floor_quad(1.0, 0.0), m);
-    let accel = prt_tracer::Accel::build(&scene).unwrap();
+    let (accel, bake) = baked(&scene, 6, 256);
+    (scene, accel, bake)
+}
+
+/// `scene`'s BVH and its bake at `order` with `rays` rays per point, no bounces.
+fn baked(scene: &Scene, order: usize, rays: u32) -> (prt_tracer::Accel, prt_bakefile::Bake) {
+    let accel = prt_tracer::Accel::build(scene).unwrap();
     let settings = BakeSettings {
-        order: Some(6),
-        rays: 256,
+        order: Some(order),
+        rays,
         bounces: 0,
         ..BakeSettings::final_quality()
     };
-    let out = bake(&scene, &accel, &settings).unwrap();
-    (scene, accel, out.bake)
+    let out = bake(scene, &accel, &settings).unwrap();
+    (accel, out.bake)
 }
 
 /// Relighting options of the SHRM path, one untimed frame, the environment turned by `deg`.
@@ -214,21 +220,8 @@ fn enclosed_floor_has_no_specular() {
     scene.add_mesh(prt_scene::test_util::floor_quad(0.5, 0.0), m);
     let walls = prt_scene::test_util::axis_box(Vec3::new(-1.0, -0.5, -1.0), Vec3::splat(1.0));
     scene.add_mesh(walls, m);
-    let accel = prt_tracer::Accel::build(&scene).unwrap();
-    let settings = BakeSettings {
-        order: Some(4),
-        rays: 64,
-        bounces: 0,
-        ..BakeSettings::final_quality()
-    };
-    let out = bake(&scene, &accel, &settings).unwrap();
-    let opt = RelightOptions {
-        glossy: GlossyPath::Shrm,
-        timing_frames: 1,
-        warmup_frames: 0,
-        ..Default::default()
-    };
-    let relit = prt_scene_relight::relight(&scene, &accel, &out.bake, &opt).unwrap();
+    let (accel, bake) = baked(&scene, 4, 64);
+    let relit = prt_scene_relight::relight(&scene, &accel, &bake, &shrm_options(0.0)).unwrap();
     let s = relit.shrm[0].as_ref().unwrap();
     assert!(s.occlusion().iter().flatten().all(|k| *k <= 0.125));
     assert!(relit.radiance[0].iter().flatten().all(|v| *v <= 0.125));
