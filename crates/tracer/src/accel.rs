@@ -47,11 +47,12 @@
 //!   build ([`AccelOptions::pad_boxes`]).
 
 use crate::error::TracerError;
+use crate::traverse;
 use glam::{DVec3, Vec3, Vec3A};
 use obvhs::{
     aabb::Aabb,
     cwbvh::{builder::build_cwbvh, CwBvh},
-    ray::{Ray, RayHit},
+    ray::Ray,
     triangle::Triangle,
     Boundable, BvhBuildParams,
 };
@@ -326,10 +327,9 @@ impl Group {
     /// The closest hit closer than `best.t` in this group; updates `best`.
     fn closest(&self, group: usize, ray: &WorldRay, t0: f64, best: &mut Best, masks: &Masks) {
         let (local, start) = self.local_ray(ray, t0, best.t);
-        let mut hit = RayHit::none();
         let scale = self.scale;
         if self.masked {
-            self.bvh.ray_traverse(local, &mut hit, |_, slot| {
+            traverse::closest(&self.bvh, local, |slot| {
                 match ray.intersect_uv(&self.world[slot], best.t) {
                     Some((t, u, v)) if self.covers(slot, u, v, masks) => {
                         if t < best.t || best.slot.is_none() {
@@ -345,7 +345,7 @@ impl Group {
             });
             return;
         }
-        self.bvh.ray_traverse(local, &mut hit, |_, slot| {
+        traverse::closest(&self.bvh, local, |slot| {
             match ray.intersect(&self.world[slot], best.t) {
                 Some(t) => {
                     if t < best.t || best.slot.is_none() {
@@ -366,7 +366,7 @@ impl Group {
         let (local, start) = self.local_ray(ray, t0, tmax);
         let scale = self.scale;
         if self.masked {
-            return !self.bvh.ray_traverse_miss(local, |_, slot| {
+            return traverse::any(&self.bvh, local, |slot| {
                 match ray.intersect_uv(&self.world[slot], tmax) {
                     Some((t, u, v)) if self.covers(slot, u, v, masks) => {
                         (((t - start) * scale) as f32).max(0.0)
@@ -375,7 +375,7 @@ impl Group {
                 }
             });
         }
-        !self.bvh.ray_traverse_miss(local, |_, slot| {
+        traverse::any(&self.bvh, local, |slot| {
             match ray.intersect(&self.world[slot], tmax) {
                 Some(t) => (((t - start) * scale) as f32).max(0.0),
                 None => f32::INFINITY,

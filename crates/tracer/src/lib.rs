@@ -40,6 +40,7 @@ pub mod rng;
 pub mod sequence;
 mod settings;
 pub mod test_util;
+pub mod traverse;
 mod vertex;
 
 pub use accel::{
