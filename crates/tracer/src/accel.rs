@@ -48,6 +48,7 @@
 
 use crate::error::TracerError;
 use crate::traverse;
+use smallvec::SmallVec;
 use glam::{DVec3, Vec3, Vec3A};
 use obvhs::{
     aabb::Aabb,
@@ -93,6 +94,9 @@ const SPAWN_SIZE_FLOOR: f32 = 1.0 / 1_048_576.0;
 /// Smallest `tmax` handed to obvhs, in traversal units (bug C: its node test culls everything
 /// when `tmax < 1e-4`).
 const MIN_TRAVERSAL_TMAX: f32 = 2.5e-4;
+
+/// Scale groups a ray's visit list holds without a heap allocation.
+const INLINE_GROUPS: usize = 8;
 
 /// Options of [`Accel::build_with`].
 #[derive(Clone, Copy, Debug)]
@@ -322,6 +326,12 @@ impl Group {
             ),
             _ => true,
         }
+    }
+
+    /// Where the ray enters the group's box (`0` when it starts inside), if it does by `tmax`.
+    fn entry(&self, ray: &WorldRay, tmax: f64) -> Option<f64> {
+        let (t0, _) = ray.clip(self.lo, self.hi)?;
+        (t0 <= tmax).then_some(t0.max(0.0))
     }
 
     /// The closest hit closer than `best.t` in this group; updates `best`.
@@ -695,16 +705,14 @@ impl Accel {
         self.groups.iter().map(|g| g.scale).collect()
     }
 
-    /// The groups the ray's box test passes, with the entry `t`, nearest first.
+    /// The groups the ray's box test passes, with the entry `t`, nearest first (on the stack
+    /// for up to [`INLINE_GROUPS`] groups: this runs once per ray).
     fn groups_on(&self, ray: &WorldRay, tmax: f64) -> impl Iterator<Item = (usize, f64)> {
-        let mut on: Vec<(usize, f64)> = self
+        let mut on: SmallVec<[(usize, f64); INLINE_GROUPS]> = self
             .groups
             .iter()
             .enumerate()
-            .filter_map(|(i, g)| {
-                let (t0, _) = ray.clip(g.lo, g.hi)?;
-                (t0 <= tmax).then_some((i, t0.max(0.0)))
-            })
+            .filter_map(|(i, g)| g.entry(ray, tmax).map(|t0| (i, t0)))
             .collect();
         if on.len() > 1 {
             on.sort_by(|a, b| a.1.total_cmp(&b.1));
@@ -755,8 +763,11 @@ impl Accel {
                 t0 <= tmax && g.occluded(&ray, t0.max(0.0), tmax, &self.masks)
             });
         }
-        self.groups_on(&ray, tmax)
-            .any(|(gi, t0)| self.groups[gi].occluded(&ray, t0, tmax, &self.masks))
+        // Any order gives the same answer: no sorting.
+        self.groups.iter().any(|g| {
+            g.entry(&ray, tmax)
+                .is_some_and(|t0| g.occluded(&ray, t0, tmax, &self.masks))
+        })
     }
 
     /// Whether the segment from `from` to `to` is blocked, stopping `SHADOW_RAY_SHORTEN` short
