@@ -48,7 +48,6 @@
 
 use crate::error::TracerError;
 use crate::traverse;
-use smallvec::SmallVec;
 use glam::{DVec3, Vec3, Vec3A};
 use obvhs::{
     aabb::Aabb,
@@ -58,6 +57,7 @@ use obvhs::{
     Boundable, BvhBuildParams,
 };
 use prt_scene::{AlphaMask, Mesh, Scene, SurfacePoint};
+use smallvec::SmallVec;
 use std::time::Duration;
 
 /// Relative bound for moving a secondary ray's origin off its surface: `2^-18 ≈ 3.8e-6` of the
