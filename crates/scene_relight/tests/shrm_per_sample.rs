@@ -166,8 +166,12 @@ fn per_sample_lookup_follows_the_view_elevation_inside_triangles() {
 }
 
 /// Relighting (the traced occlusion included) and images formed with per-sample lookups are
-/// bit-identical on 1 and 2 threads, and the images differ from the Gouraud image of the same
-/// relit result (the lookups are used).
+/// bit-identical on 1 and 2 threads. Image formation looks the SHRM up per sample only on
+/// triangles whose vertex radiances spread by more than 40 % of the brightest in some
+/// channel: on this evenly lit floor (uniform map, the lobe's albedo changing slowly with the
+/// view) none do and the image is the Gouraud image of the same result; with one vertex made
+/// three times as bright (a spread of 2/3) the triangles around it are looked up per sample
+/// and the image differs from Gouraud's.
 #[test]
 fn per_sample_image_is_deterministic_and_used() {
     let pool = |threads: usize| {
@@ -194,7 +198,14 @@ fn per_sample_image_is_deterministic_and_used() {
         ..relit.clone()
     };
     let form = |r: &Relit| prt_scene_relight::form_image(&scene, &accel, r, 0.0).unwrap();
-    assert_ne!(form(&gouraud).pixels, two.pixels);
+    assert_eq!(form(&gouraud).pixels, two.pixels);
+    let mut uneven = relit.clone();
+    uneven.radiance[0][0] = uneven.radiance[0][0].map(|v| 3.0 * v);
+    let uneven_gouraud = Relit {
+        shrm: Vec::new(),
+        ..uneven.clone()
+    };
+    assert_ne!(form(&uneven_gouraud).pixels, form(&uneven).pixels);
     let unoccluded = Relit {
         shrm: vec![Some(Arc::new(relit.shrm[0].as_ref().unwrap().unoccluded()))],
         ..relit
