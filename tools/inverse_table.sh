@@ -105,7 +105,7 @@ EOF
       --bake "${m}_${env}.prtb" --order 1 --model-order 1 --mask-out "mask_${m}.png" >/dev/null
     "$prt" fit-lighting "${m}_${env}_0.exr" --scene "$s0" --bake "${m}_${env}.prtb" --order "$order" \
       --truth "true_${env}.json" --relight-out "fit_${m}_${env}_60.exr" --rotate-y 60 \
-      ${MAX_OCCLUSION:+--max-occlusion "$MAX_OCCLUSION"} --phong-model "${PHONG_MODEL:-fitted}" \
+      ${MAX_OCCLUSION:+--max-occlusion "$MAX_OCCLUSION"} ${ROBUST:+--robust} --phong-model "${PHONG_MODEL:-fitted}" \
       --json 2>/dev/null > "fit_${m}_${env}.json"
     # The truth's relighting at the fitted order: the bake relit under the projection's
     # first order² coefficients (fit-lighting's exactness: its own relit image fits back).

@@ -63,6 +63,11 @@ pub struct FitLightingArgs {
     /// only (crates/scene_relight/README.md measures it).
     #[arg(long, value_name = "FRACTION")]
     pub max_occlusion: Option<f64>,
+    /// Robust fit: iteratively reweighted least squares with Tukey's biweight, so pixels the
+    /// model cannot represent (a truncated model ringing across a compact light's terminator,
+    /// cast-shadow edges) lose their weight; the JSON's `downweighted` counts them.
+    #[arg(long)]
+    pub robust: bool,
     /// The forward model of `phong` lobes: `fitted` (the default), the light's cosine inside
     /// the integral; `frozen-cosine`, `prt relight`'s default, whose error against the path
     /// tracer (7.9 % on one Phong sphere of exponent 10) the fit would inherit
@@ -123,6 +128,7 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
         truth,
         max_occlusion: args.max_occlusion,
         phong: args.phong_model.into(),
+        robust: args.robust,
     };
     write_mask(args, &bound)?;
     if let Some(name) = &args.fit_material {

@@ -66,6 +66,11 @@ pub struct FitOptions {
     /// is 7.9 % off the path tracer on one unoccluded Phong sphere (exponent 10), an error a
     /// fit through it inherits (crates/scene_relight/README.md).
     pub phong: PhongModel,
+    /// Iteratively reweighted least squares with Tukey's biweight ([`solve_channel_robust`]):
+    /// pixels the forward model cannot represent (ringing of a truncated model across the
+    /// terminator of a compact light, cast-shadow edges) lose their weight instead of pulling
+    /// the coefficients.
+    pub robust: bool,
 }
 
 impl FitOptions {
@@ -82,6 +87,7 @@ impl FitOptions {
             truth: None,
             max_occlusion: None,
             phong: PhongModel::Fitted,
+            robust: false,
         }
     }
 }
@@ -118,6 +124,9 @@ pub struct LightingFit {
     pub residual_rms: [f64; 3],
     /// `‖residual‖ / ‖image‖` over those pixels and channels (weighted).
     pub relative_residual: f64,
+    /// Robust fits: equations (pixel and channel) whose final weight is below ½, of
+    /// `3 × pixels`; 0 otherwise.
+    pub downweighted: usize,
     /// Against the known coefficients, when given.
     pub truth: Option<TruthCheck>,
 }
@@ -370,6 +379,73 @@ pub fn solve_channel(
     Ok(out)
 }
 
+/// Most reweighting rounds of a robust solve (it stops earlier once no weight moves by more
+/// than [`ROBUST_SETTLED`]).
+const ROBUST_ROUNDS: usize = 50;
+
+/// A robust solve's weights have settled when none moved by more than this in a round.
+const ROBUST_SETTLED: f64 = 1e-6;
+
+/// Tukey's biweight constant in robust standard deviations (95 % efficiency when the residuals
+/// are Gaussian noise).
+const TUKEY_C: f64 = 4.685;
+
+/// [`solve_channel`], and with `robust` then iteratively reweighted (an M-estimator; Huber &
+/// Ronchetti, *Robust Statistics*, §7.8): each round gives equation `i` the weight
+/// `(1 − u²)²` for `|u| < 1`, else 0, with `u = r_i / (c · σ)`, `r_i` its residual, `σ` the
+/// residuals' robust scale `1.4826 · median |r|` and `c` = [`TUKEY_C`], and solves again
+/// (the prior and truncation as [`solve_channel`]), until the weights settle. Returns the solve (its `residual2` over the
+/// unweighted equations) and the equations whose final weight is below ½.
+///
+/// # Errors
+/// A failed SVD solve.
+pub fn solve_channel_robust(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    well: usize,
+    limit: f64,
+    robust: bool,
+) -> Result<(ChannelSolve, usize), SceneRelightError> {
+    let mut s = solve_channel(a, b, well, limit)?;
+    if !robust {
+        return Ok((s, 0));
+    }
+    let mut weights = vec![1.0; a.nrows()];
+    for _ in 0..ROBUST_ROUNDS {
+        let r = a * &s.x - b;
+        let mut abs: Vec<f64> = r.iter().map(|v| v.abs()).collect();
+        abs.sort_unstable_by(f64::total_cmp);
+        let sigma = 1.4826 * abs[abs.len() / 2];
+        if sigma <= 0.0 {
+            break;
+        }
+        let mut moved = 0.0f64;
+        for (w, ri) in weights.iter_mut().zip(r.iter()) {
+            let u = ri / (TUKEY_C * sigma);
+            let new = if u.abs() < 1.0 {
+                (1.0 - u * u).powi(2)
+            } else {
+                0.0
+            };
+            moved = moved.max((new - *w).abs());
+            *w = new;
+        }
+        if moved <= ROBUST_SETTLED {
+            break;
+        }
+        let mut aw = a.clone();
+        let mut bw = b.clone();
+        for (i, w) in weights.iter().enumerate() {
+            let sw = w.sqrt();
+            aw.row_mut(i).scale_mut(sw);
+            bw[i] *= sw;
+        }
+        s = solve_channel(&aw, &bw, well, limit)?;
+    }
+    s.residual2 = (a * &s.x - b).norm_squared();
+    Ok((s, weights.iter().filter(|w| **w < 0.5).count()))
+}
+
 /// Truncated-SVD solve of `[a; diag(damping)] x ≈ [b; 0]`.
 fn tsvd(
     a: &DMatrix<f64>,
@@ -517,8 +593,10 @@ pub fn fit_from_design(
     .min(opt.order);
     let mut full = vec![[0.0; 3]; model * model];
     let (mut residual_rms, mut r2, mut b2, mut dropped) = ([0.0; 3], 0.0, 0.0, 0);
+    let mut downweighted = 0;
     for c in 0..3 {
-        let s = solve_channel(&a[c], &b[c], well, opt.condition_limit)?;
+        let (s, low) = solve_channel_robust(&a[c], &b[c], well, opt.condition_limit, opt.robust)?;
+        downweighted += low;
         for (i, v) in s.x.iter().enumerate() {
             full[i][c] = *v;
         }
@@ -546,6 +624,7 @@ pub fn fit_from_design(
         pixels,
         residual_rms,
         relative_residual: if b2 > 0.0 { (r2 / b2).sqrt() } else { 0.0 },
+        downweighted,
         truth,
     })
 }
