@@ -148,6 +148,13 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
     if weighted {
         outln!("pixels weighted by the inverse of the image's variance channels");
     }
+    if args.robust {
+        outln!(
+            "robust (Tukey biweight): {} of {} equations (pixel × channel) down-weighted below ½",
+            fit.downweighted,
+            3 * fit.pixels
+        );
+    }
     outln!(
         "fitted {} bands (model {}) over {} pixels (relative residual {:.4}); {} well determined, {} singular directions dropped",
         fit.order,
