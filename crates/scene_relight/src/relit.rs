@@ -92,9 +92,10 @@ pub struct Relit {
     /// in it, as inverse lighting needs).
     pub emission: bool,
     /// Per object (empty when none): the `--glossy shrm` specular of a per-vertex bake relit
-    /// at every point, which image formation looks up at each sub-pixel ray's interpolated
-    /// normal and position instead of interpolating `radiance` (which holds the per-vertex
-    /// lookups, for everything else that reads it).
+    /// at every point, which image formation looks up at a sub-pixel ray's interpolated
+    /// normal and position, on triangles whose vertex lookups disagree, instead of
+    /// interpolating `radiance` (which holds the per-vertex lookups, for everything else that
+    /// reads it).
     pub shrm: Vec<Option<Arc<ShrmSpecular>>>,
 }
 

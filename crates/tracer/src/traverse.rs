@@ -29,7 +29,7 @@ pub const NODE_TMIN: f32 = 1.0e-4;
 /// `hit` returns the ray-local distance of a hit (or `∞`), which shortens the ray.
 pub fn closest<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, mut hit: F) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if wide_node_test() {
         #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
         unsafe {
             return avx2::closest(bvh, ray, hit);
@@ -42,7 +42,7 @@ pub fn closest<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, mut hit: F) {
 /// slot (traversal stops at the first).
 pub fn any<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, mut hit: F) -> bool {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if wide_node_test() {
         #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
         unsafe {
             return avx2::any(bvh, ray, hit);
@@ -51,7 +51,7 @@ pub fn any<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, mut hit: F) -> bool {
     !bvh.ray_traverse_miss(ray, |_, slot| hit(slot))
 }
 
-/// Whether [`node_hits`] runs the AVX2 node test on this CPU.
+/// Whether [`closest`], [`any`] and [`node_hits`] run the AVX2 node test on this CPU.
 #[must_use]
 pub fn wide_node_test() -> bool {
     #[cfg(target_arch = "x86_64")]
