@@ -79,17 +79,124 @@ pub struct DirectOptions<'a> {
 /// origin on the other surface's plane, and rays that *leave* that surface report it at
 /// `t ≈ 0`. Rays that enter it (a front face at `t ≈ 0`) are genuinely blocked and kept.
 pub(crate) fn trace(accel: &Accel, point: &SamplePoint, dir: Vec3) -> Option<prt_tracer::Hit> {
-    let mut origin = point.origin(dir);
-    for _ in 0..4 {
-        let hit = accel.closest_hit(origin, dir, f32::INFINITY)?;
+    let first = accel.closest_hit(point.origin(dir), dir, f32::INFINITY);
+    resolve(accel, point, dir, first)
+}
+
+/// [`trace`] given the first hit from the point's own origin.
+fn resolve(
+    accel: &Accel,
+    point: &SamplePoint,
+    dir: Vec3,
+    first: Option<prt_tracer::Hit>,
+) -> Option<prt_tracer::Hit> {
+    let mut hit = first?;
+    for _ in 1..4 {
         let near = hit.t <= 4.0 * point.offset.max(hit.offset);
-        if near && hit.shading_normal.dot(dir) > 0.0 {
-            origin = hit.spawn_origin(dir);
-            continue;
+        if !(near && hit.shading_normal.dot(dir) > 0.0) {
+            return Some(hit);
         }
-        return Some(hit);
+        hit = accel.closest_hit(hit.spawn_origin(dir), dir, f32::INFINITY)?;
     }
-    None
+    let near = hit.t <= 4.0 * point.offset.max(hit.offset);
+    (!(near && hit.shading_normal.dot(dir) > 0.0)).then_some(hit)
+}
+
+/// [`trace`] of many rays of one point: `out[k]` for `dirs[k]` (`None` also where `skip[k]`),
+/// the same hits bit for bit. The rays are traced in packets in the order of the cells
+/// `cells[k]` of their sample points (a Morton index of the unit square, so that a packet's
+/// directions lie close together and share most of the BVH nodes they visit).
+fn trace_point(
+    accel: &Accel,
+    point: &SamplePoint,
+    dirs: &[Vec3],
+    cells: &[u8],
+    skip: &[bool],
+    scratch: &mut TraceScratch,
+) {
+    let TraceScratch {
+        order,
+        origins,
+        sorted,
+        hits,
+        out,
+    } = scratch;
+    // A counting sort by cell: stable, so equal cells keep the sequence's order.
+    let mut start = [0u32; 257];
+    for (&c, &s) in cells.iter().zip(skip) {
+        if !s {
+            start[usize::from(c) + 1] += 1;
+        }
+    }
+    for i in 0..256 {
+        start[i + 1] += start[i];
+    }
+    order.resize(start[256] as usize, 0);
+    for (k, (&c, &s)) in cells.iter().zip(skip).enumerate() {
+        if !s {
+            let slot = &mut start[usize::from(c)];
+            order[*slot as usize] = k as u32;
+            *slot += 1;
+        }
+    }
+    origins.clear();
+    sorted.clear();
+    for &k in order.iter() {
+        let d = dirs[k as usize];
+        origins.push(point.origin(d));
+        sorted.push(d);
+    }
+    hits.clear();
+    hits.resize(order.len(), None);
+    accel.closest_hits(origins, sorted, f32::INFINITY, hits);
+    out.clear();
+    out.resize(dirs.len(), None);
+    for (&k, &h) in order.iter().zip(hits.iter()) {
+        out[k as usize] = resolve(accel, point, dirs[k as usize], h);
+    }
+}
+
+/// Buffers of [`trace_point`], reused from point to point.
+#[derive(Default)]
+struct TraceScratch {
+    order: Vec<u32>,
+    origins: Vec<Vec3>,
+    sorted: Vec<Vec3>,
+    hits: Vec<Option<prt_tracer::Hit>>,
+    /// The result: the hit of each ray, in the rays' order.
+    out: Vec<Option<prt_tracer::Hit>>,
+}
+
+/// The Morton index of the 16 × 16 cell of the unit square that `u` falls in.
+fn morton_cell(u: [f32; 2]) -> u8 {
+    let spread = |x: f32| {
+        let v = ((x * 16.0) as u32).min(15);
+        (v & 1) | (v & 2) << 1 | (v & 4) << 2 | (v & 8) << 3
+    };
+    (spread(u[0]) | spread(u[1]) << 1) as u8
+}
+
+/// The directions of a point's rays (`warp` of the sequence's points), their cells and
+/// whether each is blocked without a ray (`below`).
+fn point_rays(
+    frame: &Frame,
+    seq: &R2,
+    first: u32,
+    rays: u32,
+    warp: fn([f32; 2]) -> Vec3,
+    below: impl Fn(Vec3) -> bool,
+) -> (Vec<Vec3>, Vec<u8>, Vec<bool>) {
+    let mut dirs = Vec::with_capacity(rays as usize);
+    let mut cells = Vec::with_capacity(rays as usize);
+    let mut skip = Vec::with_capacity(rays as usize);
+    for k in 0..rays {
+        let u = seq.get(first + k);
+        let dir = frame.to_world(warp(u)).normalize();
+        dirs.push(dir);
+        cells.push(morton_cell(u));
+        skip.push(below(dir));
+    }
+    (dirs, cells, skip)
 }
 
 /// The direct pass at one point: shadowed (and visibility) transfer, hits for bounces.
@@ -120,13 +227,20 @@ pub(crate) fn direct_sided(
     let mut y = vec![0.0f32; n2];
     let mut sum = vec![0.0f64; n2];
     let mut res = DirectResult::default();
+    let mut scratch = TraceScratch::default();
     let seq = R2::new(opt.seed, SequencePurpose::Diffuse, opt.object, index);
-    for k in 0..opt.rays {
-        let dir = frame
-            .to_world(sample_cosine_hemisphere(seq.get(opt.first_ray + k)))
-            .normalize();
-        let blocked = below(dir)
-            || match trace(accel, point, dir) {
+    let (dirs, cells, skip) = point_rays(
+        &frame,
+        &seq,
+        opt.first_ray,
+        opt.rays,
+        sample_cosine_hemisphere,
+        below,
+    );
+    trace_point(accel, point, &dirs, &cells, &skip, &mut scratch);
+    for ((&dir, &below), hit) in dirs.iter().zip(&skip).zip(&scratch.out) {
+        let blocked = below
+            || match hit {
                 Some(hit) => {
                     res.hit_count += 1;
                     if hit.shading_normal.dot(dir) > 0.0 {
@@ -155,11 +269,17 @@ pub(crate) fn direct_sided(
     if opt.visibility {
         let seq = R2::new(opt.seed, SequencePurpose::Visibility, opt.object, index);
         sum.iter_mut().for_each(|s| *s = 0.0);
-        for k in 0..opt.rays {
-            let dir = frame
-                .to_world(sample_uniform_hemisphere(seq.get(opt.first_ray + k)))
-                .normalize();
-            if !below(dir) && trace(accel, point, dir).is_none() {
+        let (dirs, cells, skip) = point_rays(
+            &frame,
+            &seq,
+            opt.first_ray,
+            opt.rays,
+            sample_uniform_hemisphere,
+            below,
+        );
+        trace_point(accel, point, &dirs, &cells, &skip, &mut scratch);
+        for ((&dir, &below), hit) in dirs.iter().zip(&skip).zip(&scratch.out) {
+            if !below && hit.is_none() {
                 opt.basis.eval_f32_unchecked(dir, &mut y);
                 for (s, v) in sum.iter_mut().zip(&y) {
                     *s += f64::from(*v);

@@ -16,6 +16,14 @@
 //!   Before timing, the setup asserts that both agree on hit/miss for all but at most 0.1 % of
 //!   each batch (rays grazing triangle edges) and prints the disagreement counts. The prt side
 //!   also builds its full [`prt_tracer::Hit`] record; the obvhs side only finds `t` and the id.
+//! - `packets/{pixels,bake,incoherent}/{single,packet}`: [`Accel::closest_hit`] one ray at a
+//!   time against [`Accel::closest_hits`] (packets of eight) on the same rays, in parallel over
+//!   chunks of 1024 rays:
+//!   - `pixels`: eight jittered camera rays per pixel of a 128×128 grid, a pixel's together;
+//!   - `bake`: 1024 cosine-distributed rays from each of 128 bunny triangle centroids
+//!     (offset along the face normal), ordered along a Morton curve over the 32×32 strata they come from, as the
+//!     bake orders them;
+//!   - `incoherent`: the incoherent rays above in packets (the worst case).
 //! - `render/bunny_64x48_4spp_1bounce`: camera samples per second of a full render.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
@@ -231,6 +239,8 @@ fn bench(c: &mut Criterion) {
     }
     g.finish();
 
+    packets(c, &accel, &mesh, eye, center, &incoherent);
+
     // A full render: bunny on a floor, lat-long sky, 64×48 pixels, 4 spp, 1 bounce.
     let floor = test_util::quad(
         Vec3::new(-2.0 * radius, lo.y, -2.0 * radius),
@@ -264,6 +274,96 @@ fn bench(c: &mut Criterion) {
     g.bench_function("bunny_64x48_4spp_1bounce", |b| {
         b.iter(|| renderer.render().unwrap())
     });
+    g.finish();
+}
+
+/// Eight jittered camera rays per pixel of a `size`×`size` grid, a pixel's rays together.
+fn pixel_rays(eye: Vec3, target: Vec3, size: u32) -> Vec<(Vec3, Vec3)> {
+    let cam = PinholeCamera::new(&test_util::camera(eye, target, 40.0, size, size))
+        .expect("valid camera");
+    let mut rng = Pcg64::seed_from_u64(8);
+    let mut out = Vec::new();
+    for y in 0..size {
+        for x in 0..size {
+            for _ in 0..8 {
+                let (jx, jy): (f64, f64) = (rng.random(), rng.random());
+                let d = cam.direction(f64::from(x) + jx, f64::from(y) + jy);
+                out.push((eye, d + Vec3::ZERO));
+            }
+        }
+    }
+    out
+}
+
+/// 1024 cosine-distributed rays from the centroids of `points` triangles of `mesh`, jittered in 32×32
+/// strata of the unit square taken along a Morton curve.
+fn bake_rays(mesh: &Mesh, points: usize) -> Vec<(Vec3, Vec3)> {
+    let mut rng = Pcg64::seed_from_u64(9);
+    let morton = |i: u32| -> (u32, u32) {
+        let bits = |v: u32| (0..5).fold(0, |acc, b| acc | ((v >> (2 * b)) & 1) << b);
+        (bits(i), bits(i >> 1))
+    };
+    let step = mesh.indices.len() / points;
+    let mut out = Vec::new();
+    for p in 0..points {
+        let [a, b, c] = mesh.indices[p * step].map(|i| mesh.positions[i as usize]);
+        let (pos, n) = ((a + b + c) / 3.0, (b - a).cross(c - a).normalize());
+        let t = n.any_orthonormal_vector();
+        let b = n.cross(t);
+        let origin = pos + n * 1e-4;
+        for i in 0..1024 {
+            let (sx, sy) = morton(i);
+            let u0 = (sx as f32 + rng.random::<f32>()) / 32.0;
+            let u1 = (sy as f32 + rng.random::<f32>()) / 32.0;
+            let (s, c) = (std::f32::consts::TAU * u1).sin_cos();
+            let r = u0.sqrt();
+            let d = (t * (r * c) + b * (r * s) + n * (1.0 - u0).max(0.0).sqrt()).normalize();
+            out.push((origin, d + Vec3::ZERO));
+        }
+    }
+    out
+}
+
+fn packets(
+    c: &mut Criterion,
+    accel: &Accel,
+    mesh: &Mesh,
+    eye: Vec3,
+    center: Vec3,
+    incoherent: &[(Vec3, Vec3)],
+) {
+    let batches = [
+        ("pixels", pixel_rays(eye, center, 128)),
+        ("bake", bake_rays(mesh, 128)),
+        ("incoherent", incoherent.to_vec()),
+    ];
+    let mut g = c.benchmark_group("packets");
+    for (name, batch) in &batches {
+        let (origins, dirs): (Vec<Vec3>, Vec<Vec3>) = batch.iter().copied().unzip();
+        // The same hits either way (tests/accel.rs checks it bit for bit; here: a count).
+        let count = |packets: bool| {
+            origins
+                .par_chunks(1024)
+                .zip(dirs.par_chunks(1024))
+                .map(|(o, d)| {
+                    if packets {
+                        let mut out = vec![None; o.len()];
+                        accel.closest_hits(o, d, f32::INFINITY, &mut out);
+                        out.iter().filter(|h| h.is_some()).count()
+                    } else {
+                        o.iter()
+                            .zip(d)
+                            .filter(|&(&o, &d)| accel.closest_hit(o, d, f32::INFINITY).is_some())
+                            .count()
+                    }
+                })
+                .sum::<usize>()
+        };
+        assert_eq!(count(false), count(true), "{name}");
+        g.throughput(Throughput::Elements(batch.len() as u64));
+        g.bench_function(format!("{name}/single"), |b| b.iter(|| count(false)));
+        g.bench_function(format!("{name}/packet"), |b| b.iter(|| count(true)));
+    }
     g.finish();
 }
 

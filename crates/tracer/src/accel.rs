@@ -47,7 +47,7 @@
 //!   build ([`AccelOptions::pad_boxes`]).
 
 use crate::error::TracerError;
-use crate::traverse;
+use crate::traverse::{self, PACKET};
 use glam::{DVec3, Vec3, Vec3A};
 use obvhs::{
     aabb::Aabb,
@@ -289,6 +289,139 @@ impl WorldRay {
     }
 }
 
+/// From this many rays of a packet on, a candidate triangle is tested against all the
+/// packet's rays at once ([`PacketRays::hits`]); fewer go one by one.
+const VECTOR_TESTS: u32 = 3;
+
+/// The lanes set in `mask`, lowest first.
+fn lanes_of(mask: u8) -> impl Iterator<Item = usize> {
+    (0..PACKET).filter(move |i| mask & (1 << i) != 0)
+}
+
+/// One f64 per ray of a packet. Each operation is the IEEE operation lane by lane (no fused
+/// multiply-add), so a formula written with it gives, in every lane, what the same formula
+/// gives in scalar f64.
+#[derive(Clone, Copy)]
+struct Lanes([f64; PACKET]);
+
+impl Lanes {
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        Self([x; PACKET])
+    }
+
+    #[inline(always)]
+    fn zip(self, o: Self, f: impl Fn(f64, f64) -> f64) -> Self {
+        Self(std::array::from_fn(|i| f(self.0[i], o.0[i])))
+    }
+
+    /// Bit `i` set where `f` holds for lane `i`.
+    #[inline(always)]
+    fn mask(self, f: impl Fn(f64) -> bool) -> u8 {
+        (0..PACKET).fold(0, |m, i| m | u8::from(f(self.0[i])) << i)
+    }
+}
+
+impl std::ops::Add for Lanes {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        self.zip(o, |a, b| a + b)
+    }
+}
+
+impl std::ops::Sub for Lanes {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        self.zip(o, |a, b| a - b)
+    }
+}
+
+impl std::ops::Mul for Lanes {
+    type Output = Self;
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        self.zip(o, |a, b| a * b)
+    }
+}
+
+/// `l × r` as glam's `DVec3::cross` computes it.
+#[inline(always)]
+fn cross(l: [Lanes; 3], r: [Lanes; 3]) -> [Lanes; 3] {
+    [
+        l[1] * r[2] - r[1] * l[2],
+        l[2] * r[0] - r[2] * l[0],
+        l[0] * r[1] - r[0] * l[1],
+    ]
+}
+
+/// `l · r` as glam's `DVec3::dot` computes it.
+#[inline(always)]
+fn dot(l: [Lanes; 3], r: [Lanes; 3]) -> Lanes {
+    l[0] * r[0] + l[1] * r[1] + l[2] * r[2]
+}
+
+/// The world rays of a packet, one component per [`Lanes`], and the distances of the last
+/// [`PacketRays::hits`].
+struct PacketRays {
+    origin: [Lanes; 3],
+    dir: [Lanes; 3],
+    t: std::cell::Cell<[f64; PACKET]>,
+}
+
+impl PacketRays {
+    fn new(rays: &[WorldRay; PACKET]) -> Self {
+        let axis = |f: &dyn Fn(&WorldRay) -> f64| Lanes(std::array::from_fn(|i| f(&rays[i])));
+        Self {
+            origin: [
+                axis(&|r| r.origin.x),
+                axis(&|r| r.origin.y),
+                axis(&|r| r.origin.z),
+            ],
+            dir: [axis(&|r| r.dir.x), axis(&|r| r.dir.y), axis(&|r| r.dir.z)],
+            t: std::cell::Cell::new([0.0; PACKET]),
+        }
+    }
+
+    /// [`WorldRay::intersect`] of `tri` for every ray at once, each up to its `best.t`: the
+    /// lanes that hit (their distances then in [`PacketRays::t`]). The same operations in the
+    /// same order as the scalar test, so the same lanes and the same distances.
+    #[inline(always)]
+    fn hits(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> u8 {
+        let [a, b, c] = tri.map(Vec3::as_dvec3);
+        let (e1, e2) = (b - a, c - a);
+        let s = |v: DVec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
+        let (a, e1, e2) = (s(a), s(e1), s(e2));
+        let p = cross(self.dir, e2);
+        let det = dot(e1, p);
+        let inv = Lanes::splat(1.0).zip(det, |one, d| one / d);
+        let tv = [
+            self.origin[0] - a[0],
+            self.origin[1] - a[1],
+            self.origin[2] - a[2],
+        ];
+        let u = dot(tv, p) * inv;
+        let q = cross(tv, e1);
+        let v = dot(self.dir, q) * inv;
+        let t = dot(e2, q) * inv;
+        let uv = u + v;
+        let within = (0..PACKET).fold(0, |m, i| m | u8::from(t.0[i] <= best[i].t) << i);
+        let hit = det.mask(|d| d != 0.0)
+            & u.mask(|u| (0.0..=1.0).contains(&u))
+            & !(v.mask(|v| v < 0.0) | uv.mask(|s| s > 1.0))
+            & t.mask(|t| t >= 0.0)
+            & within;
+        self.t.set(t.0);
+        hit
+    }
+
+    /// Lane `lane`'s distance from the last [`PacketRays::hits`].
+    fn t(&self, lane: usize) -> f64 {
+        self.t.get()[lane]
+    }
+}
+
 impl Group {
     /// The obvhs ray for this group's space, starting where the ray enters the group's box
     /// (or at its origin if that is inside), and the world `t` of that start.
@@ -334,40 +467,51 @@ impl Group {
         (t0 <= tmax).then_some(t0.max(0.0))
     }
 
+    /// The exact test of candidate `slot` for a closest-hit query: updates `best` if the
+    /// triangle is hit (and covered) at `t ≤ best.t` and is closer, or as close with a smaller
+    /// `(group, slot)` — a rule that does not depend on the order candidates come in, so a
+    /// packet and a single ray find the same hit. Returns the hit's ray-local distance (or
+    /// `∞`) for the traversal.
+    #[inline]
+    fn consider(
+        &self,
+        group: usize,
+        slot: usize,
+        ray: &WorldRay,
+        start: f64,
+        best: &mut Best,
+        masks: &Masks,
+    ) -> f32 {
+        let found = if self.masked {
+            match ray.intersect_uv(&self.world[slot], best.t) {
+                Some((t, u, v)) if self.covers(slot, u, v, masks) => Some(t),
+                _ => None,
+            }
+        } else {
+            ray.intersect(&self.world[slot], best.t)
+        };
+        match found {
+            Some(t) => self.accept(group, slot, t, start, best),
+            None => f32::INFINITY,
+        }
+    }
+
+    /// A hit at world distance `t ≤ best.t` on candidate `slot`, taken as [`Group::consider`]
+    /// takes it; returns its ray-local distance.
+    #[inline]
+    fn accept(&self, group: usize, slot: usize, t: f64, start: f64, best: &mut Best) -> f32 {
+        let key = (group, slot);
+        if t < best.t || best.slot.is_none_or(|b| t == best.t && key < b) {
+            *best = Best { t, slot: Some(key) };
+        }
+        (((t - start) * self.scale) as f32).max(0.0)
+    }
+
     /// The closest hit closer than `best.t` in this group; updates `best`.
     fn closest(&self, group: usize, ray: &WorldRay, t0: f64, best: &mut Best, masks: &Masks) {
         let (local, start) = self.local_ray(ray, t0, best.t);
-        let scale = self.scale;
-        if self.masked {
-            traverse::closest(&self.bvh, local, |slot| {
-                match ray.intersect_uv(&self.world[slot], best.t) {
-                    Some((t, u, v)) if self.covers(slot, u, v, masks) => {
-                        if t < best.t || best.slot.is_none() {
-                            *best = Best {
-                                t,
-                                slot: Some((group, slot)),
-                            };
-                        }
-                        (((t - start) * scale) as f32).max(0.0)
-                    }
-                    _ => f32::INFINITY,
-                }
-            });
-            return;
-        }
         traverse::closest(&self.bvh, local, |slot| {
-            match ray.intersect(&self.world[slot], best.t) {
-                Some(t) => {
-                    if t < best.t || best.slot.is_none() {
-                        *best = Best {
-                            t,
-                            slot: Some((group, slot)),
-                        };
-                    }
-                    (((t - start) * scale) as f32).max(0.0)
-                }
-                None => f32::INFINITY,
-            }
+            self.consider(group, slot, ray, start, best, masks)
         });
     }
 
@@ -749,6 +893,99 @@ impl Accel {
         }
         let (gi, slot) = best.slot?;
         Some(self.hit_record(gi, slot, &ray, best.t))
+    }
+
+    /// [`Accel::closest_hit`] of many rays, `out[i]` for `origins[i]`, `dirs[i]`, all with
+    /// `tmax`: the same hits, bit for bit. Rays are traced in packets of
+    /// [`traverse::PACKET`] in the order given, so rays that leave from nearby points in nearby
+    /// directions should come next to each other (a pixel's camera rays, a point's sorted
+    /// bake rays); scenes of several scale groups trace one ray at a time.
+    ///
+    /// # Panics
+    /// If the three slices differ in length.
+    pub fn closest_hits(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmax: f32,
+        out: &mut [Option<Hit>],
+    ) {
+        assert!(
+            origins.len() == dirs.len() && dirs.len() == out.len(),
+            "closest_hits: {} origins, {} directions, {} outputs",
+            origins.len(),
+            dirs.len(),
+            out.len()
+        );
+        let [g] = self.groups.as_slice() else {
+            for ((o, d), h) in origins.iter().zip(dirs).zip(out.iter_mut()) {
+                *h = self.closest_hit(*o, *d, tmax);
+            }
+            return;
+        };
+        for ((o, d), h) in origins
+            .chunks(traverse::PACKET)
+            .zip(dirs.chunks(traverse::PACKET))
+            .zip(out.chunks_mut(traverse::PACKET))
+        {
+            self.closest_packet(g, o, d, tmax, h);
+        }
+    }
+
+    /// Up to [`traverse::PACKET`] rays of [`Accel::closest_hits`] through the only group.
+    fn closest_packet(
+        &self,
+        g: &Group,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        tmax: f32,
+        out: &mut [Option<Hit>],
+    ) {
+        let idle = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
+        let mut local = [idle; PACKET];
+        let mut world = [WorldRay::new(Vec3::ZERO, Vec3::X); PACKET];
+        let mut start = [0.0f64; PACKET];
+        let mut best: [Best; PACKET] = std::array::from_fn(|_| Best { t: 0.0, slot: None });
+        let mut active = 0u8;
+        for (lane, (&o, &d)) in origins.iter().zip(dirs).enumerate() {
+            let Some(t) = Self::checked(o, d, tmax) else {
+                continue;
+            };
+            let ray = WorldRay::new(o, d);
+            let Some((t0, _)) = ray.clip(g.lo, g.hi) else {
+                continue;
+            };
+            best[lane].t = t;
+            (local[lane], start[lane]) = g.local_ray(&ray, t0.max(0.0), t);
+            world[lane] = ray;
+            active |= 1 << lane;
+        }
+        let lanes = PacketRays::new(&world);
+        traverse::closest_packet(&g.bvh, &local, active, |todo, slot, tmax| {
+            if g.masked || todo.count_ones() < VECTOR_TESTS {
+                for lane in lanes_of(todo) {
+                    let t = g.consider(
+                        0,
+                        slot,
+                        &world[lane],
+                        start[lane],
+                        &mut best[lane],
+                        &self.masks,
+                    );
+                    tmax[lane] = tmax[lane].min(t);
+                }
+                return;
+            }
+            for lane in lanes_of(todo & lanes.hits(&g.world[slot], &best)) {
+                let t = g.accept(0, slot, lanes.t(lane), start[lane], &mut best[lane]);
+                tmax[lane] = tmax[lane].min(t);
+            }
+        });
+        for (lane, h) in out.iter_mut().enumerate() {
+            *h = best[lane]
+                .slot
+                .map(|(gi, slot)| self.hit_record(gi, slot, &world[lane], best[lane].t));
+        }
     }
 
     /// Whether anything is hit with `t ∈ [0, tmax]` along the unit direction `dir`.

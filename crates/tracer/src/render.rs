@@ -2,8 +2,9 @@
 
 use crate::accel::{point_offset, Accel, Hit};
 use crate::camera::PinholeCamera;
-use crate::rng::{stream, PixelKeys, Purpose};
+use crate::rng::{stream, PixelKeys, Purpose, Sampler};
 use crate::settings::{Mode, RenderSettings};
+use crate::traverse;
 use crate::vertex::Vertex;
 use crate::TracerError;
 use glam::{DVec3, Vec3};
@@ -500,47 +501,75 @@ impl<'s> Renderer<'s> {
         })
     }
 
-    /// Adds samples `from..to` of every pixel of the tile to its sums.
+    /// Adds samples `from..to` of every pixel of the tile to its sums. A pixel's camera rays
+    /// are traced [`traverse::PACKET`] at a time ([`Accel::closest_hits`]: the same hits as
+    /// one by one), then each sample's path goes on alone, in sample order.
     fn render_tile(&self, cam: &PinholeCamera, t: &mut TileSums, from: u32, to: u32) {
-        let aov = self.settings.aovs;
         let eye = cam.eye();
+        let eyes = [eye; traverse::PACKET];
+        let mut dirs = [Vec3::ZERO; traverse::PACKET];
+        let mut hits = [None; traverse::PACKET];
         for ty in 0..t.h {
             for tx in 0..t.w {
                 let (x, y) = (t.x0 + tx, t.y0 + ty);
                 let pixel = u64::from(y) * u64::from(cam.width()) + u64::from(x);
                 let p = &mut t.pixels[(ty * t.w + tx) as usize];
                 let keys = PixelKeys::new(self.settings.seed, pixel);
-                for sample in from..to {
-                    let mut s = keys.sampler(u64::from(sample));
-                    let [jx, jy] = s.next_2d();
-                    let dir =
-                        cam.direction(f64::from(x) + f64::from(jx), f64::from(y) + f64::from(jy));
-                    let mut l = match self.accel.closest_hit(eye, dir, f32::INFINITY) {
-                        None => self.background(dir),
-                        Some(hit) => {
-                            let v = self.vertex(&hit);
-                            p.hits += 1;
-                            if aov {
-                                let (_, ns) = v.oriented(-dir);
-                                p.normal += ns.as_dvec3();
-                                p.albedo += Vec3::from_array(v.mat.albedo()).as_dvec3();
-                                p.depth += f64::from(hit.t);
-                            }
-                            self.li_surface(v, -dir, &mut s)
-                        }
-                    };
-                    if !l.is_finite() {
-                        p.invalid += 1;
-                        l = Vec3::ZERO;
+                let mut first = from;
+                while first < to {
+                    let n = (to - first).min(traverse::PACKET as u32) as usize;
+                    let mut samplers: [Sampler; traverse::PACKET] = std::array::from_fn(|i| {
+                        keys.sampler(u64::from(first) + (i as u64).min(n as u64 - 1))
+                    });
+                    for (s, d) in samplers.iter_mut().zip(&mut dirs).take(n) {
+                        let [jx, jy] = s.next_2d();
+                        *d = cam
+                            .direction(f64::from(x) + f64::from(jx), f64::from(y) + f64::from(jy));
                     }
-                    let l = l.as_dvec3();
-                    p.sum += l;
-                    p.sum_sq += l * l;
-                    if sample % 2 == 0 {
-                        p.sum_even += l;
+                    self.accel
+                        .closest_hits(&eyes[..n], &dirs[..n], f32::INFINITY, &mut hits[..n]);
+                    for (i, s) in samplers.iter_mut().enumerate().take(n) {
+                        self.add_sample(p, first + i as u32, dirs[i], hits[i], s);
                     }
+                    first += n as u32;
                 }
             }
+        }
+    }
+
+    /// One camera sample's radiance added to its pixel's sums: the path from the camera ray's
+    /// hit (or the background along `dir`), with the sampler after the pixel jitter.
+    fn add_sample(
+        &self,
+        p: &mut PixelSums,
+        sample: u32,
+        dir: Vec3,
+        hit: Option<Hit>,
+        s: &mut Sampler,
+    ) {
+        let mut l = match hit {
+            None => self.background(dir),
+            Some(hit) => {
+                let v = self.vertex(&hit);
+                p.hits += 1;
+                if self.settings.aovs {
+                    let (_, ns) = v.oriented(-dir);
+                    p.normal += ns.as_dvec3();
+                    p.albedo += Vec3::from_array(v.mat.albedo()).as_dvec3();
+                    p.depth += f64::from(hit.t);
+                }
+                self.li_surface(v, -dir, s)
+            }
+        };
+        if !l.is_finite() {
+            p.invalid += 1;
+            l = Vec3::ZERO;
+        }
+        let l = l.as_dvec3();
+        p.sum += l;
+        p.sum_sq += l * l;
+        if sample.is_multiple_of(2) {
+            p.sum_even += l;
         }
     }
 

@@ -18,9 +18,23 @@
 //! exact triangle tests of `accel` see the same candidates: hits and images are bit-identical
 //! with and without AVX2 (`tests/accel.rs` compares the node masks on random nodes and rays,
 //! and whole traversals against obvhs' own).
+//!
+//! **Packets.** [`closest_packet`] traverses up to [`PACKET`] rays together (Wald, Slusallek,
+//! Benthin & Wagner 2001, "Interactive Rendering with Coherent Ray Tracing", with a mask of
+//! the rays still in each node): a node is fetched once for the packet, and its eight child
+//! boxes are tested against the eight rays with the rays in the SIMD lanes. Each (ray, child)
+//! test is the single-ray test's arithmetic, operation for operation, with that ray's own
+//! `tmax`, so every ray reaches exactly the primitives whose boxes the single-ray traversal
+//! would accept at the same `tmax`; only the order of the candidates differs, which the
+//! caller's closest-hit rule makes irrelevant (ties resolved by slot, not by order). Rays that
+//! share an origin and nearby directions (a bake point's sorted rays, a pixel's camera rays)
+//! share most nodes, and the fetch and the loop's bookkeeping are paid once for all of them.
 
 use glam::{UVec2, Vec3A};
 use obvhs::{cwbvh::CwBvh, ray::Ray, ray::RayHit};
+
+/// Rays in a packet: the lanes of one AVX2 register.
+pub const PACKET: usize = 8;
 
 /// obvhs' fixed lower bound on a node's slab `tmin` (its private `EPSILON`; bug C of `accel`).
 pub const NODE_TMIN: f32 = 1.0e-4;
@@ -49,6 +63,36 @@ pub fn any<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, mut hit: F) -> bool {
         }
     }
     !bvh.ray_traverse_miss(ray, |_, slot| hit(slot))
+}
+
+/// Closest-hit traversal of up to [`PACKET`] rays together: the rays whose bit is set in
+/// `active`. `hit(lanes, slot, tmax)` is called for every candidate primitive slot with the
+/// lanes (bit `i`: ray `i`) whose boxes reach it; it tests the slot against each of those rays
+/// and lowers `tmax[i]` to the ray-local distance of a hit closer than it, which shortens
+/// that ray (`tmax` starts at the rays' own `tmax`). Without AVX2 each ray runs [`closest`]
+/// in turn.
+pub fn closest_packet<F: FnMut(u8, usize, &mut [f32; PACKET])>(
+    bvh: &CwBvh,
+    rays: &[Ray; PACKET],
+    active: u8,
+    mut hit: F,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if wide_node_test() {
+        #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
+        unsafe {
+            return avx2::closest_packet(bvh, rays, active, hit);
+        }
+    }
+    let mut tmax: [f32; PACKET] = std::array::from_fn(|i| rays[i].tmax);
+    for (lane, ray) in rays.iter().enumerate() {
+        if active & (1 << lane) != 0 {
+            closest(bvh, *ray, |slot| {
+                hit(1 << lane, slot, &mut tmax);
+                tmax[lane]
+            });
+        }
+    }
 }
 
 /// Whether [`closest`], [`any`] and [`node_hits`] run the AVX2 node test on this CPU.
@@ -81,12 +125,14 @@ pub fn node_hits(node: &obvhs::cwbvh::node::CwBvhNode, ray: &Ray, oct_inv4: u32)
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)] // Intrinsics and `#[target_feature]` functions, called only after detection.
 mod avx2 {
-    use super::{CwBvh, Ray, UVec2, Vec3A, NODE_TMIN};
+    use super::{CwBvh, Ray, UVec2, Vec3A, NODE_TMIN, PACKET};
     use obvhs::cwbvh::node::{extract_byte64, CwBvhNode};
+    use smallvec::SmallVec;
     use std::arch::x86_64::{
-        __m256, _mm256_add_ps, _mm256_cmp_ps, _mm256_cvtepi32_ps, _mm256_cvtepu8_epi32,
-        _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps,
-        _mm_loadl_epi64, _CMP_LE_OQ,
+        __m256, _mm256_add_ps, _mm256_blendv_ps, _mm256_cmp_ps, _mm256_cvtepi32_ps,
+        _mm256_cvtepu8_epi32, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
+        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sub_ps, _mm_loadl_epi64,
+        _CMP_LE_OQ, _CMP_LT_OQ,
     };
 
     /// [`super::closest`] with the AVX2 node test.
@@ -165,6 +211,22 @@ mod avx2 {
     #[inline]
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+        let mut inside = slot_hits(node, ray, ray.tmax);
+        let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+        let mut mask = 0u32;
+        while inside != 0 {
+            let child = inside.trailing_zeros() as usize;
+            inside &= inside - 1;
+            mask |= extract_byte64(child_bits8, child) << extract_byte64(bit_index8, child);
+        }
+        mask
+    }
+
+    /// The child slots (bit `i`: slot `i`) whose boxes the ray's slab test accepts with the
+    /// ray ending at `tmax`.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn slot_hits(node: &CwBvhNode, ray: &Ray, tmax_ray: f32) -> u32 {
         let scale = node.compute_extent() * ray.inv_direction;
         let offset = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
         let d = ray.direction;
@@ -192,15 +254,178 @@ mod avx2 {
         let tmin = _mm256_max_ps(tmin_x, _mm256_max_ps(tmin_y, tmin_z));
         let tmax = _mm256_min_ps(tmax_x, _mm256_min_ps(tmax_y, tmax_z));
         let tmin = _mm256_max_ps(tmin, _mm256_set1_ps(NODE_TMIN));
-        let tmax = _mm256_min_ps(tmax, _mm256_set1_ps(ray.tmax));
-        let mut inside = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32;
-        let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-        let mut mask = 0u32;
-        while inside != 0 {
-            let child = inside.trailing_zeros() as usize;
-            inside &= inside - 1;
-            mask |= extract_byte64(child_bits8, child) << extract_byte64(bit_index8, child);
+        let tmax = _mm256_min_ps(tmax, _mm256_set1_ps(tmax_ray));
+        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32
+    }
+
+    /// A packet's rays with one component per register (lane `i`: ray `i`).
+    struct Lanes {
+        origin: [__m256; 3],
+        inv_direction: [__m256; 3],
+        /// All ones in the lanes whose direction runs towards `−axis`.
+        negative: [__m256; 3],
+    }
+
+    impl Lanes {
+        #[inline]
+        #[target_feature(enable = "avx2")]
+        unsafe fn new(rays: &[Ray; PACKET]) -> Self {
+            let axis = |f: &dyn Fn(&Ray) -> f32| {
+                let v: [f32; PACKET] = std::array::from_fn(|i| f(&rays[i]));
+                _mm256_loadu_ps(v.as_ptr())
+            };
+            let zero = _mm256_setzero_ps();
+            let dir = [
+                axis(&|r| r.direction.x),
+                axis(&|r| r.direction.y),
+                axis(&|r| r.direction.z),
+            ];
+            Self {
+                origin: [
+                    axis(&|r| r.origin.x),
+                    axis(&|r| r.origin.y),
+                    axis(&|r| r.origin.z),
+                ],
+                inv_direction: [
+                    axis(&|r| r.inv_direction.x),
+                    axis(&|r| r.inv_direction.y),
+                    axis(&|r| r.inv_direction.z),
+                ],
+                negative: dir.map(|d| _mm256_cmp_ps::<_CMP_LT_OQ>(d, zero)),
+            }
         }
-        mask
+    }
+
+    /// Per child slot, the lanes (bit `i`: ray `i`) whose slab test accepts the child: the
+    /// arithmetic of [`node_hits`] for each ray, with the rays in the lanes instead of the
+    /// children.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn packet_node_hits(
+        node: &CwBvhNode,
+        lanes: &Lanes,
+        rays: &[Ray; PACKET],
+        tmax: &[f32; PACKET],
+        arriving: u8,
+    ) -> [u8; 8] {
+        if arriving.count_ones() <= SPARSE_LANES {
+            return sparse_node_hits(node, rays, tmax, arriving);
+        }
+        let tmax = _mm256_loadu_ps(tmax.as_ptr());
+        let extent = node.compute_extent();
+        let p = Vec3A::from(node.p);
+        let mut scale = [_mm256_setzero_ps(); 3];
+        let mut offset = [_mm256_setzero_ps(); 3];
+        for a in 0..3 {
+            let inv = lanes.inv_direction[a];
+            scale[a] = _mm256_mul_ps(_mm256_set1_ps(extent[a]), inv);
+            offset[a] = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(p[a]), lanes.origin[a]), inv);
+        }
+        let planes = [
+            (&node.child_min_x, &node.child_max_x),
+            (&node.child_min_y, &node.child_max_y),
+            (&node.child_min_z, &node.child_max_z),
+        ];
+        let node_tmin = _mm256_set1_ps(NODE_TMIN);
+        let mut out = [0u8; 8];
+        for (child, lanes_hit) in out.iter_mut().enumerate() {
+            if node.child_meta[child] == 0 {
+                continue;
+            }
+            let mut near = [_mm256_setzero_ps(); 3];
+            let mut far = [_mm256_setzero_ps(); 3];
+            for a in 0..3 {
+                let lo = _mm256_set1_ps(f32::from(planes[a].0[child]));
+                let hi = _mm256_set1_ps(f32::from(planes[a].1[child]));
+                let neg = lanes.negative[a];
+                let (qn, qf) = (_mm256_blendv_ps(lo, hi, neg), _mm256_blendv_ps(hi, lo, neg));
+                near[a] = _mm256_add_ps(_mm256_mul_ps(qn, scale[a]), offset[a]);
+                far[a] = _mm256_add_ps(_mm256_mul_ps(qf, scale[a]), offset[a]);
+            }
+            let t0 = _mm256_max_ps(near[0], _mm256_max_ps(near[1], near[2]));
+            let t1 = _mm256_min_ps(far[0], _mm256_min_ps(far[1], far[2]));
+            let t0 = _mm256_max_ps(t0, node_tmin);
+            let t1 = _mm256_min_ps(t1, tmax);
+            *lanes_hit = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t0, t1)) as u8;
+        }
+        out
+    }
+
+    /// At most this many rays in a node: test them one by one, eight children at a time.
+    const SPARSE_LANES: u32 = 2;
+
+    /// [`packet_node_hits`] for the few rays of `arriving`, each by the single-ray test (the
+    /// same per-ray arithmetic; the SIMD lanes are the children).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn sparse_node_hits(
+        node: &CwBvhNode,
+        rays: &[Ray; PACKET],
+        tmax: &[f32; PACKET],
+        arriving: u8,
+    ) -> [u8; 8] {
+        let mut out = [0u8; 8];
+        let mut todo = arriving;
+        while todo != 0 {
+            let lane = todo.trailing_zeros() as usize;
+            todo &= todo - 1;
+            let mut slots = slot_hits(node, &rays[lane], tmax[lane]);
+            while slots != 0 {
+                let child = slots.trailing_zeros() as usize;
+                slots &= slots - 1;
+                out[child] |= 1 << lane;
+            }
+        }
+        out
+    }
+
+    /// The octant order obvhs' traversal gives a direction's children (`oct_inv4 & 7`).
+    fn octant_inverse(d: Vec3A) -> usize {
+        usize::from(d.x >= 0.0) << 2 | usize::from(d.y >= 0.0) << 1 | usize::from(d.z >= 0.0)
+    }
+
+    /// [`super::closest_packet`] with the AVX2 packet node test.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn closest_packet<F: FnMut(u8, usize, &mut [f32; PACKET])>(
+        bvh: &CwBvh,
+        rays: &[Ray; PACKET],
+        active: u8,
+        mut hit: F,
+    ) {
+        if bvh.nodes.is_empty() || active == 0 {
+            return;
+        }
+        let lanes = Lanes::new(rays);
+        let mut tmax: [f32; PACKET] = std::array::from_fn(|i| rays[i].tmax);
+        // A node's children are visited nearest first for the octant of the first ray in it, as
+        // obvhs orders them (a ray alone in a subtree goes through it in its own order).
+        let octants: [usize; PACKET] = std::array::from_fn(|i| octant_inverse(rays[i].direction));
+        let mut stack: SmallVec<[(u32, u8); 64]> = SmallVec::new();
+        stack.push((0, active));
+        while let Some((index, arriving)) = stack.pop() {
+            let node = &bvh.nodes[index as usize];
+            let hits = packet_node_hits(node, &lanes, rays, &tmax, arriving);
+            for (child, &lanes_hit) in hits.iter().enumerate() {
+                let todo = lanes_hit & arriving;
+                if todo == 0 || !node.is_leaf(child) {
+                    continue;
+                }
+                let (first, count) = node.child_primitives(child);
+                for slot in first..first + count {
+                    hit(todo, slot as usize, &mut tmax);
+                }
+            }
+            let oct_inv = octants[arriving.trailing_zeros() as usize];
+            for priority in 0..8 {
+                let child = priority ^ oct_inv;
+                let going = hits[child] & arriving;
+                if going != 0 && !node.is_leaf(child) {
+                    stack.push((node.child_node_index(child), going));
+                }
+            }
+        }
     }
 }

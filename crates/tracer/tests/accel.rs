@@ -480,3 +480,109 @@ fn test10_wide_node_test_matches_obvhs() {
         "{accepted} {candidates}"
     );
 }
+
+/// Packets (`Accel::closest_hits`, `traverse::closest_packet`) against single rays: without
+/// shortening, every lane reaches exactly the candidates its single-ray traversal reaches (the
+/// same node tests); with it, every lane's hit is the single ray's, bit for bit, on coherent
+/// packets (a bake point's rays, a pixel's camera rays), incoherent ones, partial packets and
+/// finite `tmax`.
+#[test]
+fn test11_packets_match_single_rays() {
+    use prt_tracer::traverse::{self, PACKET};
+    let meshes = vec![
+        test_util::uv_sphere(Vec3::ZERO, 1.0, 24, 48, true),
+        test_util::uv_sphere(Vec3::new(0.8, 0.6, 0.3), 0.5, 12, 24, true),
+        test_util::open_box(Vec3::new(0.0, -0.5, 0.0), 2.0),
+    ];
+    let a = accel(&meshes);
+    let mut rng = Pcg64::seed_from_u64(11);
+    let mut hits = 0;
+    for case in 0..3000 {
+        let n = [PACKET, 3, 11, 64][case % 4];
+        let (mut origins, mut dirs) = (Vec::new(), Vec::new());
+        let centre = unit_dir(&mut rng) * rng.random_range(0.0f32..3.0);
+        let axis = unit_dir(&mut rng);
+        for _ in 0..n {
+            let (o, d) = match case % 3 {
+                // A bake point: one origin, directions in a narrow cone.
+                0 => (centre, (axis + unit_dir(&mut rng) * 0.15).normalize()),
+                // Camera rays: one origin, aimed at the objects.
+                1 => {
+                    let target = unit_dir(&mut rng) * rng.random_range(0.0f32..1.2);
+                    (axis * 4.0, (target - axis * 4.0).normalize())
+                }
+                // Incoherent.
+                _ => (
+                    unit_dir(&mut rng) * rng.random_range(0.0f32..3.0),
+                    unit_dir(&mut rng),
+                ),
+            };
+            origins.push(o);
+            dirs.push(d);
+        }
+        let tmax = [f32::INFINITY, 0.5, 2.0][case / 4 % 3];
+        let mut got = vec![None; n];
+        a.closest_hits(&origins, &dirs, tmax, &mut got);
+        for i in 0..n {
+            let want = a.closest_hit(origins[i], dirs[i], tmax);
+            assert_eq!(got[i], want, "case {case}, ray {i} of {n}");
+            hits += usize::from(want.is_some());
+        }
+    }
+    assert!(hits > 20_000, "{hits} hits");
+
+    // The node tests: candidates per lane without shortening.
+    let mut tris: Vec<Triangle> = Vec::new();
+    for m in &meshes {
+        for idx in &m.indices {
+            let [v0, v1, v2] = idx.map(|i| Vec3A::from(m.positions[i as usize]));
+            tris.push(Triangle { v0, v1, v2 });
+        }
+    }
+    let bvh = build_cwbvh_from_tris(
+        &tris,
+        BvhBuildParams::medium_build(),
+        &mut Duration::default(),
+    );
+    let mut candidates = 0;
+    for case in 0..2000 {
+        let o = unit_dir(&mut rng) * rng.random_range(0.0f32..3.0);
+        let axis = unit_dir(&mut rng);
+        let spread = [0.05f32, 0.5, 3.0][case % 3];
+        let rays: [Ray; PACKET] = std::array::from_fn(|_| {
+            let mut d = (axis + unit_dir(&mut rng) * spread).normalize_or(Vec3::Z);
+            if case % 5 == 0 {
+                d.y = 0.0;
+            }
+            Ray::new(
+                Vec3A::from(o),
+                Vec3A::from(d),
+                0.0,
+                [f32::INFINITY, 1.0][case % 2],
+            )
+        });
+        let active = if case % 7 == 0 { 0b1010_0110 } else { 0xff };
+        let mut packet = vec![Vec::new(); PACKET];
+        traverse::closest_packet(&bvh, &rays, active, |lanes, slot, _| {
+            for (lane, seen) in packet.iter_mut().enumerate() {
+                if lanes & (1 << lane) != 0 {
+                    seen.push(slot);
+                }
+            }
+        });
+        for (lane, ray) in rays.iter().enumerate() {
+            let mut single = Vec::new();
+            if active & (1 << lane) != 0 {
+                traverse::closest(&bvh, *ray, |slot| {
+                    single.push(slot);
+                    f32::INFINITY
+                });
+            }
+            packet[lane].sort_unstable();
+            single.sort_unstable();
+            assert_eq!(packet[lane], single, "case {case}, lane {lane}");
+            candidates += single.len();
+        }
+    }
+    assert!(candidates > 20_000, "{candidates} candidates");
+}
