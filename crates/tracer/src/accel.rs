@@ -291,7 +291,7 @@ impl WorldRay {
 
 /// From this many rays of a packet on, a candidate triangle is tested against all the
 /// packet's rays at once ([`PacketRays::hits`]); fewer go one by one.
-const VECTOR_TESTS: u32 = 3;
+const VECTOR_TESTS: u32 = 2;
 
 /// The lanes set in `mask`, lowest first.
 fn lanes_of(mask: u8) -> impl Iterator<Item = usize> {
