@@ -387,8 +387,32 @@ impl PacketRays {
     /// [`WorldRay::intersect`] of `tri` for every ray at once, each up to its `best.t`: the
     /// lanes that hit (their distances then in [`PacketRays::t`]). The same operations in the
     /// same order as the scalar test, so the same lanes and the same distances.
-    #[inline(always)]
+    #[inline]
     fn hits(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> u8 {
+        #[cfg(target_arch = "x86_64")]
+        if traverse::wide_node_test() {
+            #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
+            unsafe {
+                return self.hits_avx2(tri, best);
+            }
+        }
+        self.hits_lanes(tri, best)
+    }
+
+    /// [`PacketRays::hits`] compiled for AVX2: four lanes to an instruction.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[allow(unsafe_code)] // `#[target_feature]`, called only after detection.
+    #[target_feature(enable = "avx2")]
+    unsafe fn hits_avx2(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> u8 {
+        self.hits_lanes(tri, best)
+    }
+
+    /// The body of [`PacketRays::hits`].
+    #[inline(always)]
+    fn hits_lanes(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> u8 {
         let [a, b, c] = tri.map(Vec3::as_dvec3);
         let (e1, e2) = (b - a, c - a);
         let s = |v: DVec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
