@@ -14,6 +14,11 @@
 //! and vertex colours applied; glossy lobes of
 //! intermediate surfaces are not represented). Rays that hit the back of a surface bring
 //! nothing (the transfer of `q` describes its front side) and are counted in the report.
+//!
+//! A point's rays are traced as packets of eight (`Accel::closest_hits`) in the order of the
+//! Morton cell of their sample points, so that a packet's directions lie close together; the
+//! hits come back in the sequence's order and are summed in it, so the estimate is the same,
+//! bit for bit, as tracing the rays one by one.
 
 use glam::Vec3;
 use prt_sh::Basis;
