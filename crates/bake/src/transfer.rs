@@ -204,6 +204,31 @@ fn point_rays(
     (dirs, cells, skip)
 }
 
+/// The rays `first .. first + count` of `seq` (directions by `warp` in `frame`) traced from
+/// `point` into `scratch.out`; returns their directions and which are blocked without a ray
+/// (`below`).
+fn trace_rays(
+    accel: &Accel,
+    point: &SamplePoint,
+    frame: &Frame,
+    (seq, first, count): (&R2, u32, u32),
+    warp: fn([f32; 2]) -> Vec3,
+    below: impl Fn(Vec3) -> bool,
+    scratch: &mut TraceScratch,
+) -> (Vec<Vec3>, Vec<bool>) {
+    let (dirs, cells, skip) = point_rays(frame, seq, first, count, warp, below);
+    trace_point(accel, point, &dirs, &cells, &skip, scratch);
+    (dirs, skip)
+}
+
+/// Adds the basis functions at `dir` to `sum` (`y`: scratch of the basis' length).
+fn add_basis(basis: &Basis, dir: Vec3, y: &mut [f32], sum: &mut [f64]) {
+    basis.eval_f32_unchecked(dir, y);
+    for (s, v) in sum.iter_mut().zip(y.iter()) {
+        *s += f64::from(*v);
+    }
+}
+
 /// The direct pass at one point: shadowed (and visibility) transfer, hits for bounces.
 #[must_use]
 pub fn direct(
@@ -233,17 +258,14 @@ pub(crate) fn direct_sided(
     let mut sum = vec![0.0f64; n2];
     let mut res = DirectResult::default();
     let mut scratch = TraceScratch::default();
-    let seq = R2::new(opt.seed, SequencePurpose::Diffuse, opt.object, index);
-    let (dirs, cells, skip) = point_rays(
-        &frame,
-        &seq,
-        opt.first_ray,
-        opt.rays,
-        sample_cosine_hemisphere,
-        below,
-    );
-    trace_point(accel, point, &dirs, &cells, &skip, &mut scratch);
-    for ((&dir, &below), hit) in dirs.iter().zip(&skip).zip(&scratch.out) {
+    let mut traced = |purpose: SequencePurpose, warp: fn([f32; 2]) -> Vec3| {
+        let seq = R2::new(opt.seed, purpose, opt.object, index);
+        let rays = (&seq, opt.first_ray, opt.rays);
+        let (dirs, skip) = trace_rays(accel, point, &frame, rays, warp, below, &mut scratch);
+        (dirs, skip, std::mem::take(&mut scratch.out))
+    };
+    let (dirs, skip, hits) = traced(SequencePurpose::Diffuse, sample_cosine_hemisphere);
+    for ((&dir, &below), hit) in dirs.iter().zip(&skip).zip(&hits) {
         let blocked = below
             || match hit {
                 Some(hit) => {
@@ -263,32 +285,17 @@ pub(crate) fn direct_sided(
                 None => false,
             };
         if !blocked {
-            opt.basis.eval_f32_unchecked(dir, &mut y);
-            for (s, v) in sum.iter_mut().zip(&y) {
-                *s += f64::from(*v);
-            }
+            add_basis(opt.basis, dir, &mut y, &mut sum);
         }
     }
     let w = PI / f64::from(opt.rays);
     res.shadowed = sum.iter().map(|s| s * w).collect();
     if opt.visibility {
-        let seq = R2::new(opt.seed, SequencePurpose::Visibility, opt.object, index);
         sum.iter_mut().for_each(|s| *s = 0.0);
-        let (dirs, cells, skip) = point_rays(
-            &frame,
-            &seq,
-            opt.first_ray,
-            opt.rays,
-            sample_uniform_hemisphere,
-            below,
-        );
-        trace_point(accel, point, &dirs, &cells, &skip, &mut scratch);
-        for ((&dir, &below), hit) in dirs.iter().zip(&skip).zip(&scratch.out) {
+        let (dirs, skip, hits) = traced(SequencePurpose::Visibility, sample_uniform_hemisphere);
+        for ((&dir, &below), hit) in dirs.iter().zip(&skip).zip(&hits) {
             if !below && hit.is_none() {
-                opt.basis.eval_f32_unchecked(dir, &mut y);
-                for (s, v) in sum.iter_mut().zip(&y) {
-                    *s += f64::from(*v);
-                }
+                add_basis(opt.basis, dir, &mut y, &mut sum);
             }
         }
         let w = 2.0 * PI / f64::from(opt.rays);

@@ -19,6 +19,32 @@ fn unit_dir(rng: &mut Pcg64) -> Vec3 {
     Vec3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
+/// A unit sphere and a smaller one overlapping it (rings and segments of each), in an open box.
+fn spheres_in_a_box(big: (u32, u32), small: (u32, u32)) -> Vec<Mesh> {
+    vec![
+        test_util::uv_sphere(Vec3::ZERO, 1.0, big.0, big.1, true),
+        test_util::uv_sphere(Vec3::new(0.5, 0.3, 0.2), 0.7, small.0, small.1, true),
+        test_util::open_box(Vec3::new(0.0, -0.5, 0.0), 2.0),
+    ]
+}
+
+/// The meshes' triangles and a plain obvhs CWBVH over them (`medium_build`).
+fn plain_bvh(meshes: &[Mesh]) -> (Vec<Triangle>, obvhs::cwbvh::CwBvh) {
+    let mut tris: Vec<Triangle> = Vec::new();
+    for m in meshes {
+        for idx in &m.indices {
+            let [v0, v1, v2] = idx.map(|i| Vec3A::from(m.positions[i as usize]));
+            tris.push(Triangle { v0, v1, v2 });
+        }
+    }
+    let bvh = build_cwbvh_from_tris(
+        &tris,
+        BvhBuildParams::medium_build(),
+        &mut Duration::default(),
+    );
+    (tris, bvh)
+}
+
 /// Reference: closest Möller–Trumbore hit over every triangle, in f64.
 fn brute_force(meshes: &[Mesh], o: Vec3, d: Vec3) -> Option<(f64, u32, u32)> {
     let (o, d) = (o.as_dvec3(), d.as_dvec3());
@@ -71,11 +97,7 @@ fn test01_validate_every_preset() {
 
 #[test]
 fn test02_closest_hit_matches_brute_force() {
-    let meshes = vec![
-        test_util::uv_sphere(Vec3::ZERO, 1.0, 10, 20, true),
-        test_util::uv_sphere(Vec3::new(0.5, 0.3, 0.2), 0.7, 8, 16, true),
-        test_util::open_box(Vec3::new(0.0, -0.5, 0.0), 2.0),
-    ];
+    let meshes = spheres_in_a_box((10, 20), (8, 16));
     let a = accel(&meshes);
     let mut rng = Pcg64::seed_from_u64(1);
     let (mut hits, mut agree) = (0, 0);
@@ -408,21 +430,10 @@ fn test10_wide_node_test_matches_obvhs() {
     if !traverse::wide_node_test() {
         eprintln!("no AVX2 on this CPU: the wide node test is not used, nothing to compare");
     }
-    let mut tris: Vec<Triangle> = Vec::new();
-    for m in [
+    let (tris, bvh) = plain_bvh(&[
         test_util::uv_sphere(Vec3::ZERO, 1.0, 16, 32, true),
         test_util::open_box(Vec3::new(1.5, 0.0, 0.0), 1.0),
-    ] {
-        for idx in &m.indices {
-            let [v0, v1, v2] = idx.map(|i| Vec3A::from(m.positions[i as usize]));
-            tris.push(Triangle { v0, v1, v2 });
-        }
-    }
-    let bvh = build_cwbvh_from_tris(
-        &tris,
-        BvhBuildParams::medium_build(),
-        &mut Duration::default(),
-    );
+    ]);
     let mut rng = Pcg64::seed_from_u64(10);
     let (mut accepted, mut candidates) = (0u64, 0usize);
     for i in 0..20_000 {
@@ -489,11 +500,7 @@ fn test10_wide_node_test_matches_obvhs() {
 #[test]
 fn test11_packets_match_single_rays() {
     use prt_tracer::traverse::{self, PACKET};
-    let meshes = vec![
-        test_util::uv_sphere(Vec3::ZERO, 1.0, 24, 48, true),
-        test_util::uv_sphere(Vec3::new(0.8, 0.6, 0.3), 0.5, 12, 24, true),
-        test_util::open_box(Vec3::new(0.0, -0.5, 0.0), 2.0),
-    ];
+    let meshes = spheres_in_a_box((24, 48), (12, 24));
     let a = accel(&meshes);
     let mut rng = Pcg64::seed_from_u64(11);
     let mut hits = 0;
@@ -532,18 +539,7 @@ fn test11_packets_match_single_rays() {
     assert!(hits > 20_000, "{hits} hits");
 
     // The node tests: candidates per lane without shortening.
-    let mut tris: Vec<Triangle> = Vec::new();
-    for m in &meshes {
-        for idx in &m.indices {
-            let [v0, v1, v2] = idx.map(|i| Vec3A::from(m.positions[i as usize]));
-            tris.push(Triangle { v0, v1, v2 });
-        }
-    }
-    let bvh = build_cwbvh_from_tris(
-        &tris,
-        BvhBuildParams::medium_build(),
-        &mut Duration::default(),
-    );
+    let (_, bvh) = plain_bvh(&meshes);
     let mut candidates = 0;
     for case in 0..2000 {
         let o = unit_dir(&mut rng) * rng.random_range(0.0f32..3.0);
