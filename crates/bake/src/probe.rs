@@ -8,9 +8,11 @@
 //! the same directions, so where they see the same sky their probes differ only by the
 //! smoothly varying cosine, and a difference between them is what visibility does between
 //! them, not sampling noise. Directions below a point's horizon weigh nothing and are not
-//! traced (about half of them), and the basis values are computed once per object.
+//! traced (about half of them), and the basis values are computed once per object. A
+//! point's rays are traced in packets ordered by the Morton cell of their sample points
+//! (`transfer::trace_point`; the sums stay in the sequence's order).
 
-use crate::transfer::trace;
+use crate::transfer::{morton_cell, trace_point, TraceScratch};
 use crate::BakeError;
 use glam::Vec3;
 use prt_sh::Basis;
@@ -34,6 +36,8 @@ pub(crate) struct Probe<'a> {
     extent: f32,
     /// The shared directions.
     dirs: Vec<Vec3>,
+    /// The Morton cell of each direction's sample point (the order rays are traced in).
+    cells: Vec<u8>,
     /// `ys[k * len .. (k + 1) * len]`: the basis at `dirs[k]`.
     ys: Vec<f64>,
     /// Coefficients per probe.
@@ -59,6 +63,7 @@ impl<'a> Probe<'a> {
         let dirs: Vec<Vec3> = (0..rays)
             .map(|k| sample_uniform_sphere(seq.get(k)).normalize())
             .collect();
+        let cells = (0..rays).map(|k| morton_cell(seq.get(k))).collect();
         let mut ys = vec![0.0f64; dirs.len() * len];
         for (d, y) in dirs.iter().zip(ys.chunks_exact_mut(len)) {
             basis.eval_unchecked(d.as_dvec3(), y);
@@ -67,6 +72,7 @@ impl<'a> Probe<'a> {
             accel,
             extent: accel.mesh_extent(mesh),
             dirs,
+            cells,
             ys,
             len,
         })
@@ -82,15 +88,29 @@ impl<'a> Probe<'a> {
             offset_normal: n,
             offset: point_offset(p, self.extent),
         };
+        let cosines: Vec<f64> = self.dirs.iter().map(|d| f64::from(n.dot(*d))).collect();
+        let below: Vec<bool> = cosines.iter().map(|&c| c <= 0.0).collect();
+        let mut scratch = TraceScratch::default();
+        trace_point(
+            self.accel,
+            &point,
+            &self.dirs,
+            &self.cells,
+            &below,
+            &mut scratch,
+        );
         let mut sum = vec![0.0f64; self.len];
         let mut traced = 0u64;
-        for (d, y) in self.dirs.iter().zip(self.ys.chunks_exact(self.len)) {
-            let c = f64::from(n.dot(*d));
+        for ((&c, hit), y) in cosines
+            .iter()
+            .zip(&scratch.out)
+            .zip(self.ys.chunks_exact(self.len))
+        {
             if c <= 0.0 {
                 continue;
             }
             traced += 1;
-            if trace(self.accel, &point, *d).is_some() {
+            if hit.is_some() {
                 continue;
             }
             for (s, y) in sum.iter_mut().zip(y) {

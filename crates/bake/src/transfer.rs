@@ -78,17 +78,12 @@ pub struct DirectOptions<'a> {
     pub basis: &'a Basis,
 }
 
-/// Closest front-face hit along a ray from `point`, skipping a back face met within a few
-/// offsets of the origin. Such a hit happens at vertices that lie on another surface (the
-/// edge where a floor meets a wall): offsetting along the vertex's own normal leaves the
-/// origin on the other surface's plane, and rays that *leave* that surface report it at
-/// `t ≈ 0`. Rays that enter it (a front face at `t ≈ 0`) are genuinely blocked and kept.
-pub(crate) fn trace(accel: &Accel, point: &SamplePoint, dir: Vec3) -> Option<prt_tracer::Hit> {
-    let first = accel.closest_hit(point.origin(dir), dir, f32::INFINITY);
-    resolve(accel, point, dir, first)
-}
-
-/// [`trace`] given the first hit from the point's own origin.
+/// The closest front-face hit along `dir` from `point`, given the first hit from the point's
+/// own origin: a back face met within a few offsets of the origin is skipped. Such a hit
+/// happens at vertices that lie on another surface (the edge where a floor meets a wall):
+/// offsetting along the vertex's own normal leaves the origin on the other surface's plane,
+/// and rays that *leave* that surface report it at `t ≈ 0`. Rays that enter it (a front face
+/// at `t ≈ 0`) are genuinely blocked and kept.
 fn resolve(
     accel: &Accel,
     point: &SamplePoint,
@@ -111,7 +106,7 @@ fn resolve(
 /// the same hits bit for bit. The rays are traced in packets in the order of the cells
 /// `cells[k]` of their sample points (a Morton index of the unit square, so that a packet's
 /// directions lie close together and share most of the BVH nodes they visit).
-fn trace_point(
+pub(crate) fn trace_point(
     accel: &Accel,
     point: &SamplePoint,
     dirs: &[Vec3],
@@ -163,17 +158,17 @@ fn trace_point(
 
 /// Buffers of [`trace_point`], reused from point to point.
 #[derive(Default)]
-struct TraceScratch {
+pub(crate) struct TraceScratch {
     order: Vec<u32>,
     origins: Vec<Vec3>,
     sorted: Vec<Vec3>,
     hits: Vec<Option<prt_tracer::Hit>>,
     /// The result: the hit of each ray, in the rays' order.
-    out: Vec<Option<prt_tracer::Hit>>,
+    pub(crate) out: Vec<Option<prt_tracer::Hit>>,
 }
 
 /// The Morton index of the 16 × 16 cell of the unit square that `u` falls in.
-fn morton_cell(u: [f32; 2]) -> u8 {
+pub(crate) fn morton_cell(u: [f32; 2]) -> u8 {
     let spread = |x: f32| {
         let v = ((x * 16.0) as u32).min(15);
         (v & 1) | (v & 2) << 1 | (v & 4) << 2 | (v & 8) << 3
