@@ -129,10 +129,10 @@ mod avx2 {
     use obvhs::cwbvh::node::{extract_byte64, CwBvhNode};
     use smallvec::SmallVec;
     use std::arch::x86_64::{
-        __m256, _mm256_add_ps, _mm256_blendv_ps, _mm256_cmp_ps, _mm256_cvtepi32_ps,
-        _mm256_cvtepu8_epi32, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps, _mm256_movemask_ps,
-        _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_sub_ps, _mm_loadl_epi64,
-        _CMP_LE_OQ, _CMP_LT_OQ,
+        __m256, _mm256_add_ps, _mm256_blendv_ps, _mm256_broadcast_ss, _mm256_cmp_ps,
+        _mm256_cvtepi32_ps, _mm256_cvtepu8_epi32, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps,
+        _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps,
+        _mm256_sub_ps, _mm_loadl_epi64, _CMP_LE_OQ, _CMP_LT_OQ,
     };
 
     /// [`super::closest`] with the AVX2 node test.
@@ -321,11 +321,19 @@ mod avx2 {
             scale[a] = _mm256_mul_ps(_mm256_set1_ps(extent[a]), inv);
             offset[a] = _mm256_mul_ps(_mm256_sub_ps(_mm256_set1_ps(p[a]), lanes.origin[a]), inv);
         }
-        let planes = [
-            (&node.child_min_x, &node.child_max_x),
-            (&node.child_min_y, &node.child_max_y),
-            (&node.child_min_z, &node.child_max_z),
+        // The six planes of every child as floats, converted eight at a time (exact: bytes).
+        let bytes = [
+            &node.child_min_x,
+            &node.child_max_x,
+            &node.child_min_y,
+            &node.child_max_y,
+            &node.child_min_z,
+            &node.child_max_z,
         ];
+        let mut q = [[0.0f32; 8]; 6];
+        for (p, b) in q.iter_mut().zip(bytes) {
+            _mm256_storeu_ps(p.as_mut_ptr(), planes(b));
+        }
         let node_tmin = _mm256_set1_ps(NODE_TMIN);
         let mut out = [0u8; 8];
         for (child, lanes_hit) in out.iter_mut().enumerate() {
@@ -335,8 +343,8 @@ mod avx2 {
             let mut near = [_mm256_setzero_ps(); 3];
             let mut far = [_mm256_setzero_ps(); 3];
             for a in 0..3 {
-                let lo = _mm256_set1_ps(f32::from(planes[a].0[child]));
-                let hi = _mm256_set1_ps(f32::from(planes[a].1[child]));
+                let lo = _mm256_broadcast_ss(&q[2 * a][child]);
+                let hi = _mm256_broadcast_ss(&q[2 * a + 1][child]);
                 let neg = lanes.negative[a];
                 let (qn, qf) = (_mm256_blendv_ps(lo, hi, neg), _mm256_blendv_ps(hi, lo, neg));
                 near[a] = _mm256_add_ps(_mm256_mul_ps(qn, scale[a]), offset[a]);
