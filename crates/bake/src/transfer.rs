@@ -90,20 +90,21 @@ fn resolve(
     dir: Vec3,
     first: Option<prt_tracer::Hit>,
 ) -> Option<prt_tracer::Hit> {
+    let leaving = |h: &prt_tracer::Hit| {
+        h.t <= 4.0 * point.offset.max(h.offset) && h.shading_normal.dot(dir) > 0.0
+    };
     let mut hit = first?;
     for _ in 1..4 {
-        let near = hit.t <= 4.0 * point.offset.max(hit.offset);
-        if !(near && hit.shading_normal.dot(dir) > 0.0) {
+        if !leaving(&hit) {
             return Some(hit);
         }
         hit = accel.closest_hit(hit.spawn_origin(dir), dir, f32::INFINITY)?;
     }
-    let near = hit.t <= 4.0 * point.offset.max(hit.offset);
-    (!(near && hit.shading_normal.dot(dir) > 0.0)).then_some(hit)
+    (!leaving(&hit)).then_some(hit)
 }
 
-/// [`trace`] of many rays of one point: `out[k]` for `dirs[k]` (`None` also where `skip[k]`),
-/// the same hits bit for bit. The rays are traced in packets in the order of the cells
+/// The hits of many rays of one point, as [`resolve`] takes them: `out[k]` for `dirs[k]`
+/// (`None` also where `skip[k]`), the same hits, bit for bit, as one ray at a time. The rays are traced in packets in the order of the cells
 /// `cells[k]` of their sample points (a Morton index of the unit square, so that a packet's
 /// directions lie close together and share most of the BVH nodes they visit).
 pub(crate) fn trace_point(

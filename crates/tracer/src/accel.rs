@@ -370,12 +370,10 @@ fn dot(l: [Lanes; 3], r: [Lanes; 3]) -> Lanes {
     l[0] * r[0] + l[1] * r[1] + l[2] * r[2]
 }
 
-/// The world rays of a packet, one component per [`Lanes`], and the distances of the last
-/// [`PacketRays::hits`].
+/// The world rays of a packet, one component per [`Lanes`].
 struct PacketRays {
     origin: [Lanes; 3],
     dir: [Lanes; 3],
-    t: std::cell::Cell<[f64; PACKET]>,
 }
 
 impl PacketRays {
@@ -388,15 +386,14 @@ impl PacketRays {
                 axis(&|r| r.origin.z),
             ],
             dir: [axis(&|r| r.dir.x), axis(&|r| r.dir.y), axis(&|r| r.dir.z)],
-            t: std::cell::Cell::new([0.0; PACKET]),
         }
     }
 
     /// [`WorldRay::intersect`] of `tri` for every ray at once, each up to its `best.t`: the
-    /// lanes that hit (their distances then in [`PacketRays::t`]). The same operations in the
-    /// same order as the scalar test, so the same lanes and the same distances.
+    /// lanes that hit, and every lane's distance. The same operations in the same order as
+    /// the scalar test, so the same lanes and the same distances.
     #[inline]
-    fn hits(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> u8 {
+    fn hits(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
         #[cfg(target_arch = "x86_64")]
         if traverse::wide_node_test() {
             #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
@@ -414,13 +411,13 @@ impl PacketRays {
     #[cfg(target_arch = "x86_64")]
     #[allow(unsafe_code)] // `#[target_feature]`, called only after detection.
     #[target_feature(enable = "avx2")]
-    unsafe fn hits_avx2(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> u8 {
+    unsafe fn hits_avx2(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
         self.hits_lanes(tri, best)
     }
 
     /// The body of [`PacketRays::hits`].
     #[inline(always)]
-    fn hits_lanes(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> u8 {
+    fn hits_lanes(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
         let [a, b, c] = tri.map(Vec3::as_dvec3);
         let (e1, e2) = (b - a, c - a);
         let s = |v: DVec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
@@ -444,13 +441,7 @@ impl PacketRays {
             & !(v.mask(|v| v < 0.0) | uv.mask(|s| s > 1.0))
             & t.mask(|t| t >= 0.0)
             & within;
-        self.t.set(t.0);
-        hit
-    }
-
-    /// Lane `lane`'s distance from the last [`PacketRays::hits`].
-    fn t(&self, lane: usize) -> f64 {
-        self.t.get()[lane]
+        (hit, t.0)
     }
 }
 
@@ -1008,8 +999,9 @@ impl Accel {
                 }
                 return;
             }
-            for lane in lanes_of(todo & lanes.hits(&g.world[slot], &best)) {
-                let t = g.accept(0, slot, lanes.t(lane), start[lane], &mut best[lane]);
+            let (hit, t) = lanes.hits(&g.world[slot], &best);
+            for lane in lanes_of(todo & hit) {
+                let t = g.accept(0, slot, t[lane], start[lane], &mut best[lane]);
                 tmax[lane] = tmax[lane].min(t);
             }
         });

@@ -8,7 +8,7 @@
 //!   along the geometric normal, to the side of the new direction, by a bound proportional to
 //!   the magnitude of the coordinates ([`SPAWN_RELATIVE_OFFSET`], derived from f32 rounding);
 //!   shadow rays to a point stop [`SHADOW_RAY_SHORTEN`] short of it.
-//! - [`Renderer`] / [`render`]: an unbiased path tracer of distant environment light. Next-event
+//! - [`Renderer`] / [`render`](fn@render): an unbiased path tracer of distant environment light. Next-event
 //!   estimation samples the environment map (`prt_shading::EnvSampler`), the BRDF is importance
 //!   sampled (`prt_shading::sample`), and the two are combined with Veach's multiple importance
 //!   sampling (power heuristic by default, balance on request; Veach & Guibas 1995). Delta
