@@ -74,6 +74,13 @@ pub struct FitLightingArgs {
     /// (crates/scene_relight/README.md). --relight-out relights with the same model.
     #[arg(long, value_enum, default_value_t = crate::common::PhongArg::Fitted)]
     pub phong_model: crate::common::PhongArg,
+    /// Look for up to this many compact sources (a sun, lamps) beside the SH lighting: each is
+    /// a small cap whose image — BRDF, cosine and cast shadow — is traced exactly, which an SH
+    /// model of practical order cannot represent (crates/scene_relight/README.md); a source is
+    /// kept only if it lowers the residual by 2 % or more. Their projections are added to the
+    /// coefficients; the JSON's `sources` lists them. 0: SH only.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub sources: usize,
     /// Write the fitted pixels as a mask PNG (255 fitted, 0 not): `prt compare --mask` takes it.
     #[arg(long)]
     pub mask_out: Option<PathBuf>,
@@ -129,9 +136,17 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
         max_occlusion: args.max_occlusion,
         phong: args.phong_model.into(),
         robust: args.robust,
+        max_sources: args.sources,
     };
     write_mask(args, &bound)?;
     if let Some(name) = &args.fit_material {
+        if args.sources > 0 {
+            eprintln!(
+                "warning: {}: --fit-material fits SH lighting only; --sources {} is not searched in a material fit",
+                args.image.display(),
+                args.sources
+            );
+        }
         return run_material(args, &bound, &image, name, &opt, weighted);
     }
     let fit = fit_lighting(&bound, &image, &opt)
@@ -176,6 +191,18 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
             (false, false) => "regularised, model only",
         };
         outln!("band {l}: condition number {k:.3e}, gain {g:.3e} ({state})");
+    }
+    for (k, src) in fit.sources.iter().enumerate() {
+        let [x, y, z] = src.direction;
+        outln!(
+            "source {k}: direction ({x:.4}, {y:.4}, {z:.4}), radius {:.1}°, power [{:.4}, {:.4}, {:.4}] (relative residual {:.4} → {:.4})",
+            src.radius_deg,
+            src.intensity[0],
+            src.intensity[1],
+            src.intensity[2],
+            fit.residual_by_sources[k],
+            fit.residual_by_sources[k + 1]
+        );
     }
     if let Some(t) = &fit.truth {
         outln!(

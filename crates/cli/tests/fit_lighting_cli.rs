@@ -93,6 +93,21 @@ fn fitted_lighting_is_the_bakes_own_and_glossy_objects_condition_it_better() {
         "relative L2 error of the fitted coefficients {rel}"
     );
     assert!(j["relative_residual"].as_f64().unwrap() < 1e-5, "{j}");
+    // A search for compact sources (`--sources`) on this image, which SH explains exactly:
+    // whatever it keeps explains rounding only, and the coefficients stay within the bound.
+    let s = fit(&lambert, &bake, &image, &["--sources", "2"]);
+    let with: Vec<[f64; 3]> = serde_json::from_value(s["coefficients"].clone()).unwrap();
+    let drift = with
+        .iter()
+        .zip(&got)
+        .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).powi(2)))
+        .sum::<f64>()
+        .sqrt();
+    assert!(drift < 1e-4 * norm.sqrt(), "{drift} {s}");
+    let by: Vec<f64> = serde_json::from_value(s["residual_by_sources"].clone()).unwrap();
+    let found = s["sources"].as_array().unwrap().len();
+    assert_eq!(by.len(), found + 1, "{s}");
+    assert!(by[0] < 1e-5, "{s}");
     // One view of the bunny sees only the normals facing the camera: band 2's gain (its
     // columns with bands 0-1 projected out, against band 0's) is far below the 1/4 of a
     // Lambertian object seeing every normal, under the 0.05 default, so bands 2-3 are

@@ -97,6 +97,12 @@ impl<'a> Bound<'a> {
         self.accel
     }
 
+    /// The pixel footprints of a per-pixel bake (`None` for other bakes).
+    #[must_use]
+    pub fn footprints(&self) -> Option<&prt_tracer::points::PixelFootprints> {
+        self.prepared.footprints.as_deref()
+    }
+
     /// The bake.
     #[must_use]
     pub fn bake(&self) -> &'a Bake {

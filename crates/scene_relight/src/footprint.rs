@@ -57,7 +57,7 @@ pub fn pixel_surface(scene: &Scene, footprints: &PixelFootprints, o: usize) -> V
 /// The normal-mapped shading normal a footprint sample sees (`None`: not normal mapped, the
 /// sample's interpolated normal shades), as the bake and the path tracer orient it
 /// ([`Scene::seen_normal_mapped`]).
-fn seen_normal(
+pub(crate) fn seen_normal(
     scene: &Scene,
     m: usize,
     at: Option<prt_scene::SurfacePoint>,

@@ -77,6 +77,9 @@ pub struct FitOptions {
     /// terminator of a compact light, cast-shadow edges) lose their weight instead of pulling
     /// the coefficients.
     pub robust: bool,
+    /// Compact sources to look for beside the SH lighting ([`crate::sources`]): at most this
+    /// many, each kept only where it pays; 0: SH only.
+    pub max_sources: usize,
 }
 
 impl FitOptions {
@@ -94,6 +97,7 @@ impl FitOptions {
             max_occlusion: None,
             phong: PhongModel::Fitted,
             robust: false,
+            max_sources: 0,
         }
     }
 }
@@ -135,6 +139,11 @@ pub struct LightingFit {
     pub downweighted: usize,
     /// Against the known coefficients, when given.
     pub truth: Option<TruthCheck>,
+    /// Compact sources fitted beside the SH part (their projections are in `coefficients`).
+    pub sources: Vec<crate::sources::Source>,
+    /// `‖residual‖ / ‖image‖` of the SH-only fit, then after each source found (weighted):
+    /// what each source explained. Empty without a source search.
+    pub residual_by_sources: Vec<f64>,
 }
 
 /// The fit against known coefficients.
@@ -352,8 +361,24 @@ pub fn solve_channel(
     well: usize,
     limit: f64,
 ) -> Result<ChannelSolve, SceneRelightError> {
+    solve_channel_with(a, b, a.ncols(), well, limit)
+}
+
+/// [`solve_channel`] where only the first `sh_cols` columns of `a` are SH coefficients (the
+/// prior's bands); the columns after them (compact sources, [`crate::sources`]) are not
+/// regularised.
+///
+/// # Errors
+/// A failed SVD solve.
+pub fn solve_channel_with(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    sh_cols: usize,
+    well: usize,
+    limit: f64,
+) -> Result<ChannelSolve, SceneRelightError> {
     let cols = a.ncols();
-    let model = (cols as f64).sqrt().round() as usize;
+    let model = (sh_cols as f64).sqrt().round() as usize;
     let mut damping = vec![0.0; cols];
     let mut out = tsvd(a, b, &damping, limit)?;
     if well >= model {
@@ -376,7 +401,12 @@ pub fn solve_channel(
         if s2 <= 0.0 {
             break;
         }
-        for (i, d) in damping.iter_mut().enumerate().skip(well * well) {
+        for (i, d) in damping
+            .iter_mut()
+            .enumerate()
+            .take(sh_cols)
+            .skip(well * well)
+        {
             let l = (i as f64).sqrt().floor();
             *d = noise * (l + 1.0) / s2.sqrt();
         }
@@ -413,7 +443,23 @@ pub fn solve_channel_robust(
     limit: f64,
     robust: bool,
 ) -> Result<(ChannelSolve, usize), SceneRelightError> {
-    let mut s = solve_channel(a, b, well, limit)?;
+    solve_channel_robust_with(a, b, a.ncols(), well, limit, robust)
+}
+
+/// [`solve_channel_robust`] with only the first `sh_cols` columns regularised
+/// ([`solve_channel_with`]).
+///
+/// # Errors
+/// A failed SVD solve.
+pub fn solve_channel_robust_with(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    sh_cols: usize,
+    well: usize,
+    limit: f64,
+    robust: bool,
+) -> Result<(ChannelSolve, usize), SceneRelightError> {
+    let mut s = solve_channel_with(a, b, sh_cols, well, limit)?;
     if !robust {
         return Ok((s, 0));
     }
@@ -447,7 +493,7 @@ pub fn solve_channel_robust(
             aw.row_mut(i).scale_mut(sw);
             bw[i] *= sw;
         }
-        s = solve_channel(&aw, &bw, well, limit)?;
+        s = solve_channel_with(&aw, &bw, sh_cols, well, limit)?;
     }
     s.residual2 = (a * &s.x - b).norm_squared();
     Ok((s, weights.iter().filter(|w| **w < 0.5).count()))
@@ -576,7 +622,38 @@ pub fn fit_lighting(
     let (pixels, sqrt_w, b) =
         prepare_pixels(bound, image, opt.weights.as_deref(), opt.max_occlusion)?;
     let a = basis_images(bound, &pixels, &sqrt_w, model, opt.phong)?;
-    fit_from_design(&a, &b, pixels.len(), opt, model)
+    if opt.max_sources == 0 {
+        return fit_from_design(&a, &b, pixels.len(), opt, model);
+    }
+    let well = well_bands(&a, opt, model);
+    let imgs = crate::sources::SourceImages::new(bound, &pixels, &sqrt_w)?;
+    let found = crate::sources::find_sources(
+        &imgs,
+        &a,
+        &b,
+        well,
+        opt.condition_limit,
+        opt.max_sources,
+        if opt.weights.is_some() {
+            crate::sources::NOISE_FLOOR
+        } else {
+            0.0
+        },
+    )?;
+    let b2: f64 = b.iter().map(DVector::norm_squared).sum();
+    let mut fit = fit_with_sources(&a, &b, pixels.len(), opt, model, &found)?;
+    fit.residual_by_sources = found
+        .residual2
+        .iter()
+        .map(|r| if b2 > 0.0 { (r / b2).sqrt() } else { 0.0 })
+        .collect();
+    Ok(fit)
+}
+
+/// The well-determined bands of the design `a` under `opt` (at most `opt.order`).
+fn well_bands(a: &[DMatrix<f64>; 3], opt: &FitOptions, model: usize) -> usize {
+    let (cond, gain) = conditioning(a, model);
+    well_determined(&cond, &gain, opt.condition_limit, opt.min_gain).min(opt.order)
 }
 
 /// [`fit_lighting`] from the weighted basis images `a` and weighted image `b`.
@@ -590,6 +667,21 @@ pub fn fit_from_design(
     opt: &FitOptions,
     model: usize,
 ) -> Result<LightingFit, SceneRelightError> {
+    let none = crate::sources::FoundSources::default();
+    fit_with_sources(a, b, pixels, opt, model, &none)
+}
+
+/// [`fit_from_design`] with the columns of `found`'s sources beside the SH ones: the SH part
+/// regularised as before, the sources' intensities free, the returned coefficients the SH
+/// part plus the sources' projections.
+fn fit_with_sources(
+    a: &[DMatrix<f64>; 3],
+    b: &[DVector<f64>; 3],
+    pixels: usize,
+    opt: &FitOptions,
+    model: usize,
+    found: &crate::sources::FoundSources,
+) -> Result<LightingFit, SceneRelightError> {
     let (condition_by_band, gain_by_band) = conditioning(a, model);
     let well = well_determined(
         &condition_by_band,
@@ -598,14 +690,31 @@ pub fn fit_from_design(
         opt.min_gain,
     )
     .min(opt.order);
-    let mut full = vec![[0.0; 3]; model * model];
+    let design = crate::sources::with_sources(a, &found.columns);
+    let sh_cols = model * model;
+    let mut full = vec![[0.0; 3]; sh_cols];
+    let mut sources = found.sources.clone();
     let (mut residual_rms, mut r2, mut b2, mut dropped) = ([0.0; 3], 0.0, 0.0, 0);
     let mut downweighted = 0;
     for c in 0..3 {
-        let (s, low) = solve_channel_robust(&a[c], &b[c], well, opt.condition_limit, opt.robust)?;
+        let (s, low) = solve_channel_robust_with(
+            &design[c],
+            &b[c],
+            sh_cols,
+            well,
+            opt.condition_limit,
+            opt.robust,
+        )?;
         downweighted += low;
-        for (i, v) in s.x.iter().enumerate() {
+        for (i, v) in s.x.iter().take(sh_cols).enumerate() {
             full[i][c] = *v;
+        }
+        for (k, src) in sources.iter_mut().enumerate() {
+            let power = s.x[sh_cols + k];
+            src.intensity[c] = power;
+            for (f, y) in full.iter_mut().zip(&found.sh[k]) {
+                f[c] += power * y;
+            }
         }
         residual_rms[c] = (s.residual2 / pixels as f64).sqrt();
         r2 += s.residual2;
@@ -633,6 +742,8 @@ pub fn fit_from_design(
         relative_residual: if b2 > 0.0 { (r2 / b2).sqrt() } else { 0.0 },
         downweighted,
         truth,
+        sources,
+        residual_by_sources: Vec::new(),
     })
 }
 
