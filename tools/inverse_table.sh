@@ -15,8 +15,9 @@
 # fraction of their hemisphere blocked (`prt fit-lighting --max-occlusion F`), and with
 # ONLY=lambert (or phong) only that material's rows run; the relit comparisons stay on every
 # object pixel away from silhouettes (the mask of a fit without the occlusion limit).
-# SOURCES=N (default 0) lets the fit look for up to N compact sources beside the SH lighting
-# (`prt fit-lighting --sources N`).
+# SOURCES=N sets how many compact sources the fit may find beside the SH lighting (`prt
+# fit-lighting --sources N`; unset: the command's default, 8; SOURCES=0: the SH-only rows of
+# the README before 2026-12-07's fourth session).
 # PHONG_MODEL (default fitted; or frozen-cosine) is the forward model of the Phong lobe, in the
 # fit (`prt fit-lighting --phong-model`) and in the truth's relighting alike.
 #
@@ -107,7 +108,7 @@ EOF
       --bake "${m}_${env}.prtb" --order 1 --model-order 1 --mask-out "mask_${m}.png" >/dev/null
     "$prt" fit-lighting "${m}_${env}_0.exr" --scene "$s0" --bake "${m}_${env}.prtb" --order "$order" \
       --truth "true_${env}.json" --relight-out "fit_${m}_${env}_60.exr" --rotate-y 60 \
-      ${MAX_OCCLUSION:+--max-occlusion "$MAX_OCCLUSION"} ${ROBUST:+--robust} --sources "${SOURCES:-0}" --phong-model "${PHONG_MODEL:-fitted}" \
+      ${MAX_OCCLUSION:+--max-occlusion "$MAX_OCCLUSION"} ${ROBUST:+--robust} ${SOURCES:+--sources "$SOURCES"} --phong-model "${PHONG_MODEL:-fitted}" \
       --json 2>/dev/null > "fit_${m}_${env}.json"
     # The truth's relighting at the fitted order: the bake relit under the projection's
     # first order² coefficients (fit-lighting's exactness: its own relit image fits back).

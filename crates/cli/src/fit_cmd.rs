@@ -78,9 +78,10 @@ pub struct FitLightingArgs {
     /// a small cap whose image — BRDF, cosine and cast shadow — is traced exactly, which an SH
     /// model of practical order cannot represent (crates/scene_relight/README.md); a source is
     /// kept only if it lowers the residual by 2 % or more. Their projections are added to the
-    /// coefficients; the JSON's `sources` lists them. 0: SH only.
-    #[arg(long, default_value_t = 0, value_name = "N")]
-    pub sources: usize,
+    /// coefficients; the JSON's `sources` lists them. 0: SH only. Default: 8 (searching stops
+    /// at the first source that does not pay); not searched with --fit-material.
+    #[arg(long, value_name = "N")]
+    pub sources: Option<usize>,
     /// Write the fitted pixels as a mask PNG (255 fitted, 0 not): `prt compare --mask` takes it.
     #[arg(long)]
     pub mask_out: Option<PathBuf>,
@@ -136,15 +137,16 @@ pub fn run(args: &FitLightingArgs) -> Result<()> {
         max_occlusion: args.max_occlusion,
         phong: args.phong_model.into(),
         robust: args.robust,
-        max_sources: args.sources,
+        max_sources: args
+            .sources
+            .unwrap_or(prt_scene_relight::sources::DEFAULT_MAX_SOURCES),
     };
     write_mask(args, &bound)?;
     if let Some(name) = &args.fit_material {
-        if args.sources > 0 {
+        if let Some(n @ 1..) = args.sources {
             eprintln!(
-                "warning: {}: --fit-material fits SH lighting only; --sources {} is not searched in a material fit",
+                "warning: {}: --fit-material fits SH lighting only; --sources {n} is not searched in a material fit",
                 args.image.display(),
-                args.sources
             );
         }
         return run_material(args, &bound, &image, name, &opt, weighted);

@@ -84,7 +84,8 @@ pub struct FitOptions {
 
 impl FitOptions {
     /// Options with the defaults of `prt fit-lighting` (condition limit 1000, minimum gain
-    /// 0.05, the bake's order as the model's, no weights, no truth).
+    /// 0.05, the bake's order as the model's, no weights, no truth, up to
+    /// [`crate::sources::DEFAULT_MAX_SOURCES`] compact sources).
     #[must_use]
     pub fn new(order: usize) -> Self {
         Self {
@@ -97,7 +98,7 @@ impl FitOptions {
             max_occlusion: None,
             phong: PhongModel::Fitted,
             robust: false,
-            max_sources: 0,
+            max_sources: crate::sources::DEFAULT_MAX_SOURCES,
         }
     }
 }

@@ -38,12 +38,20 @@ use serde::Serialize;
 /// 3.2° apart, `sqrt(4π / N)`).
 pub const CANDIDATES: usize = 4096;
 
+/// Sources `prt fit-lighting` looks for by default ([`crate::inverse::FitOptions::new`]).
+pub const DEFAULT_MAX_SOURCES: usize = 8;
+
 /// Angular radii (degrees) tried for a found source: a uniform cap of each, the best kept.
 pub const RADII_DEG: [f64; 8] = [0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0];
 
 /// A source is kept only if it lowers the weighted residual's squared norm by at least this
 /// fraction: below it, a "source" fits the model's other errors or the noise.
 pub const MIN_GAIN: f64 = 0.02;
+
+/// A source must also explain at least this fraction of the image's squared norm (0.1 % in
+/// L2): below it lies the rounding of the image's own storage (half-float EXR: a relative
+/// 2⁻¹¹ ≈ 4.9·10⁻⁴ per value), so an image the SH part explains exactly gets no source.
+pub const MIN_EXPLAINED: f64 = 1e-6;
 
 /// With the image's noise known (equations weighted by the inverse variance, so unit noise
 /// per equation), a source must also lower the residual's squared norm by this much: pure
@@ -453,7 +461,8 @@ pub struct FoundSources {
 
 /// Finds up to `max_sources` compact sources in the residual of the SH fit of `b` by the
 /// weighted design `a` (module docs), whose bands `≥ well` are regularised; a source must
-/// lower the residual's squared norm by [`MIN_GAIN`] of it and by at least `min_drop`
+/// lower the residual's squared norm by [`MIN_GAIN`] of it, by [`MIN_EXPLAINED`] of the
+/// image's and by at least `min_drop`
 /// ([`NOISE_FLOOR`] where the equations are weighted by the inverse of the image's variance,
 /// else 0).
 ///
@@ -477,6 +486,7 @@ pub fn find_sources(
         sh: Vec::new(),
         residual2: Vec::new(),
     };
+    let b2: f64 = b.iter().map(DVector::norm_squared).sum();
     let mut fit = solve(a, &found.columns, b, well, limit)?;
     let r2 = |f: &JointSolve| f.iter().map(|x| x.1.norm_squared()).sum();
     found.residual2.push(r2(&fit));
@@ -492,7 +502,11 @@ pub fn find_sources(
         let before: f64 = *found.residual2.last().unwrap_or(&0.0);
         let after: f64 = r2(&trial);
         let gain = before - after;
-        if intensity.iter().any(|&i| i <= 0.0) || gain < MIN_GAIN * before || gain < min_drop {
+        if intensity.iter().any(|&i| i <= 0.0)
+            || gain < MIN_GAIN * before
+            || gain < min_drop
+            || gain < MIN_EXPLAINED * b2
+        {
             break;
         }
         found.columns = cols;
