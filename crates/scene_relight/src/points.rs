@@ -8,6 +8,7 @@ use glam::Vec3;
 use prt_scene::lightmap::Lightmap;
 use prt_scene::{Material, Scene};
 use prt_tracer::points::PixelFootprints;
+use std::borrow::Cow;
 
 /// The surface points of one object relit (all of them, or a subset's, in its order).
 pub(crate) struct PointSet {
@@ -156,8 +157,18 @@ pub(crate) struct Rows<'s> {
 
 impl Rows<'_> {
     /// The rows of `data` (`[point][channel][coeff]` at the baked order), the first
-    /// `channels_out` channels at the relit order ([`select`]).
-    pub(crate) fn select(&self, data: &[f32], channels_out: usize) -> Vec<f32> {
+    /// `channels_out` channels at the relit order ([`select`]): `data` itself when that is
+    /// all of it (every point, channel and band: relighting at the baked order, as each of
+    /// inverse lighting's basis images does), else a copy.
+    pub(crate) fn select<'d>(&self, data: &'d [f32], channels_out: usize) -> Cow<'d, [f32]> {
+        if self.subset.is_none() && self.order == self.baked && self.channels == channels_out {
+            return Cow::Borrowed(data);
+        }
+        Cow::Owned(self.select_owned(data, channels_out))
+    }
+
+    /// [`Rows::select`], always a copy.
+    fn select_owned(&self, data: &[f32], channels_out: usize) -> Vec<f32> {
         select(
             data,
             self.baked,

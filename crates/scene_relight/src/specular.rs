@@ -23,7 +23,7 @@ pub(crate) struct SpecularTerms<'b> {
     /// Its BRDF tables from the bake (exact and hybrid paths; one per `pbr` component).
     exact_tables: Option<Vec<&'b GlossyBrdfTable>>,
     /// The visibility rows of the points relit, when a lobe is shaded against them.
-    vis_data: Option<Vec<f32>>,
+    vis_data: Option<std::borrow::Cow<'b, [f32]>>,
     /// Their low bands, for the adaptive path.
     vis_low: Option<Vec<f32>>,
 }
