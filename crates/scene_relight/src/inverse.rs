@@ -254,10 +254,17 @@ pub fn basis_images(
         DMatrix::zeros(pixels.len(), n2),
         DMatrix::zeros(pixels.len(), n2),
     ];
+    // A per-pixel bake's points are the image's pixels: only the fit's are relit (the
+    // others come out 0 and are not read).
+    let subset = bound.footprints().map(|_| {
+        let fit: Vec<u32> = pixels.iter().map(|&p| p as u32).collect();
+        vec![fit; bound.scene().meshes.len()]
+    });
     let once = RelightOptions {
         timing_frames: 1,
         warmup_frames: 0,
         phong,
+        points: subset,
         ..RelightOptions::default()
     };
     for i in 0..n2 {

@@ -42,8 +42,9 @@ pub struct RelightOptions {
     /// is lit by the environment rotated by `rotate_y_deg + k · step`; the radiance returned
     /// is frame 0's.
     pub rotate_y_step_deg: f64,
-    /// Shade only these points of each object (full order only; the others come out 0):
-    /// what a quality estimate relights at full order. `None`: every point.
+    /// Shade only these points of each object (vertices, or a per-pixel bake's pixels; full
+    /// order only; the others come out 0): what a quality estimate relights at full order, and
+    /// the fit pixels of inverse lighting's basis images. `None`: every point.
     pub points: Option<Vec<Vec<u32>>>,
     /// How glossy lobes without a zonal form (Blinn–Phong, Ward, Cook–Torrance, `pbr`) are
     /// relit.
@@ -585,8 +586,8 @@ impl<'r> Run<'r> {
     /// The points of object `o` to shade (`None`: all of them) and how many it has.
     ///
     /// # Errors
-    /// A subset asked of anything but full-order per-vertex relighting, or naming a point the
-    /// object does not have.
+    /// A subset asked of anything but full-order per-vertex or per-pixel relighting, or naming
+    /// a point the object does not have.
     fn subset(
         &self,
         o: usize,
@@ -600,9 +601,9 @@ impl<'r> Run<'r> {
             .as_ref()
             .map(|p| p.get(o).map_or(&[][..], Vec::as_slice));
         let lightmap = self.lightmaps[o].as_ref();
-        if subset.is_some() && (opt.adaptive.is_some() || self.per_pixel || lightmap.is_some()) {
+        if subset.is_some() && (opt.adaptive.is_some() || lightmap.is_some()) {
             return Err(SceneRelightError::Invalid(
-                "relighting a subset of points is for full-order per-vertex relighting only".into(),
+                "relighting a subset of points is for full-order per-vertex or per-pixel relighting only".into(),
             ));
         }
         let all_points = diffuse_block.data.len() / (channels * baked * baked).max(1);

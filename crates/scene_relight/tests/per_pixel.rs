@@ -36,7 +36,7 @@ use glam::DVec3;
 use prt_bake::{BakeSettings, PointKind};
 use prt_scene::test_util::{floor_quad, icosphere};
 use prt_scene::{Camera, EnvImage, Environment, Mapping, Material, Scene};
-use prt_scene_relight::{form_image, relight, RelightOptions, RgbImage};
+use prt_scene_relight::{form_image, relight, PhongModel, RelightOptions, RgbImage};
 use prt_tracer::{Accel, PinholeCamera};
 use std::f64::consts::PI;
 
@@ -378,6 +378,59 @@ fn a_bound_bake_relights_and_images_as_the_one_shot_functions() {
             let a = form_image(&scene, &accel, &once, deg).expect("image");
             let b = bound.form_image(&bound_relit, deg).expect("bound image");
             assert_eq!(a.pixels, b.pixels, "{points:?} order {order} at {deg}°");
+        }
+    }
+}
+
+/// Relighting a subset of a per-pixel bake's pixels (what inverse lighting's basis images do,
+/// `RelightOptions::points`) gives each listed pixel exactly the full relighting's value, and
+/// 0 elsewhere: diffuse and Phong (both Phong models), so the subset picks the right rows of
+/// the diffuse and the visibility transfer and the right surface points.
+#[test]
+fn a_per_pixel_subset_relights_its_pixels_as_the_full_relighting() {
+    let mut scene = scene(6);
+    let phong = scene.add_material(
+        "glossy",
+        Material::Phong {
+            albedo: [0.3, 0.25, 0.2],
+            specular: [0.5; 3],
+            exponent: 10.0,
+        },
+    );
+    scene.meshes[0].material = phong;
+    let accel = Accel::build(&scene).expect("accel");
+    let settings = BakeSettings {
+        order: Some(4),
+        rays: 64,
+        bounces: 0,
+        points: PointKind::Pixel,
+        ..BakeSettings::final_quality()
+    };
+    let bake = prt_bake::bake(&scene, &accel, &settings)
+        .expect("bake")
+        .bake;
+    let bound = prt_scene_relight::Bound::new(&scene, &accel, &bake).expect("bind");
+    let pixels = (W * H) as usize;
+    let subset: Vec<u32> = (0..pixels as u32).filter(|p| p % 7 == 3).collect();
+    for phong in [PhongModel::Fitted, PhongModel::FrozenCosine] {
+        let full = RelightOptions {
+            timing_frames: 1,
+            warmup_frames: 0,
+            phong,
+            ..RelightOptions::default()
+        };
+        let part = RelightOptions {
+            points: Some(vec![subset.clone(); scene.meshes.len()]),
+            ..full.clone()
+        };
+        let a = bound.relight(&full).expect("full");
+        let b = bound.relight(&part).expect("subset");
+        for (o, (ra, rb)) in a.radiance.iter().zip(&b.radiance).enumerate() {
+            assert!(ra.iter().any(|v| v[0] > 0.0), "object {o} is lit");
+            for p in 0..pixels {
+                let want = if p % 7 == 3 { ra[p] } else { [0.0; 3] };
+                assert_eq!(rb[p], want, "{phong:?}: object {o}, pixel {p}");
+            }
         }
     }
 }
