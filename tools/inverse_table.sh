@@ -16,7 +16,7 @@
 # ONLY=lambert (or phong) only that material's rows run; the relit comparisons stay on every
 # object pixel away from silhouettes (the mask of a fit without the occlusion limit).
 # SOURCES=N sets how many compact sources the fit may find beside the SH lighting (`prt
-# fit-lighting --sources N`; unset: the command's default, 8; SOURCES=0: the SH-only rows of
+# fit-lighting --sources N`; unset: the command's default, 16; SOURCES=0: the SH-only rows of
 # the README before 2026-12-07's fourth session).
 # PHONG_MODEL (default fitted; or frozen-cosine) is the forward model of the Phong lobe, in the
 # fit (`prt fit-lighting --phong-model`) and in the truth's relighting alike.

@@ -78,7 +78,7 @@ pub struct FitLightingArgs {
     /// a small cap whose image — BRDF, cosine and cast shadow — is traced exactly, which an SH
     /// model of practical order cannot represent (crates/scene_relight/README.md); a source is
     /// kept only if it lowers the residual by 2 % or more. Their projections are added to the
-    /// coefficients; the JSON's `sources` lists them. 0: SH only. Default: 8 (searching stops
+    /// coefficients; the JSON's `sources` lists them. 0: SH only. Default: 16 (searching stops
     /// at the first source that does not pay); not searched with --fit-material.
     #[arg(long, value_name = "N")]
     pub sources: Option<usize>,

@@ -39,7 +39,7 @@ use serde::Serialize;
 pub const CANDIDATES: usize = 4096;
 
 /// Sources `prt fit-lighting` looks for by default ([`crate::inverse::FitOptions::new`]).
-pub const DEFAULT_MAX_SOURCES: usize = 8;
+pub const DEFAULT_MAX_SOURCES: usize = 16;
 
 /// Angular radii (degrees) tried for a found source: a uniform cap of each, the best kept.
 pub const RADII_DEG: [f64; 8] = [0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0];
@@ -62,6 +62,9 @@ pub const NOISE_FLOOR: f64 = 50.0;
 
 /// Directions a cap's column is traced with (a delta source: 1).
 const CAP_DIRECTIONS: usize = 24;
+
+/// Footprint samples per pixel of a cap's column during the search ([`search_samples`]).
+const CAP_SEARCH_SAMPLES: usize = 4;
 
 /// A compact source found by the fit.
 #[derive(Clone, Debug, Serialize)]
@@ -339,6 +342,18 @@ impl Scan {
     }
 }
 
+/// Footprint samples per pixel a candidate's column is traced with while searching: all for
+/// a direction (one ray per sample), [`CAP_SEARCH_SAMPLES`] for a cap (whose
+/// [`CAP_DIRECTIONS`] rays per sample already average over the cap); the kept source's
+/// column uses them all.
+fn search_samples(c: Candidate) -> usize {
+    if c.radius_deg > 0.0 {
+        CAP_SEARCH_SAMPLES
+    } else {
+        usize::MAX
+    }
+}
+
 /// The direction and radius whose column best explains `residual`: the scan's best grid
 /// direction refined as a direction (a pattern search whose step halves from the grid's
 /// spacing to 0.05°), then the best radius of [`RADII_DEG`] there, and for a cap the axis
@@ -353,7 +368,7 @@ fn best_candidate(
     let eval = |c: Candidate| {
         score(
             q,
-            &imgs.column(&cap_directions(c.axis, c.radius_deg), usize::MAX),
+            &imgs.column(&cap_directions(c.axis, c.radius_deg), search_samples(c)),
             residual,
         )
     };

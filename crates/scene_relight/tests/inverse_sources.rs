@@ -224,7 +224,7 @@ fn a_source_column_matches_the_path_tracer_under_its_cap() {
 /// Why not exact, on an image the model can represent exactly: the search's objective is
 /// piecewise smooth (each of the cap's 24 directions enters or leaves a shadow as the axis
 /// moves), so the pattern search can stop at a local optimum a fraction of a degree from the
-/// axis (0.33° here), and the coefficients carry that misfit (0.45 %).
+/// axis (0.38° here), and the coefficients carry that misfit (0.49 %).
 #[test]
 fn the_fit_finds_a_source_it_is_shown() {
     let s = probe(Environment::uniform([0.0; 3]));
