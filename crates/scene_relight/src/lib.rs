@@ -38,6 +38,7 @@ pub mod relit;
 pub mod shrm;
 mod shrm_occlusion;
 mod shrm_path;
+mod solve;
 pub mod sources;
 mod specular;
 pub mod target;

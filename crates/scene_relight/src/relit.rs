@@ -1026,7 +1026,10 @@ mod tests {
             ..opt
         };
         let e = run(&scene, &bake, &adaptive).unwrap_err().to_string();
-        assert!(e.contains("full-order per-vertex relighting only"), "{e}");
+        assert!(
+            e.contains("full-order per-vertex or per-pixel relighting only"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -440,7 +440,7 @@ pub(crate) fn with_sources(a: &[DMatrix<f64>; 3], cols: &[[DVector<f64>; 3]]) ->
 /// Per channel, a joint solve's coefficients (SH part, then the sources) and its residual.
 type JointSolve = [(DVector<f64>, DVector<f64>); 3];
 
-/// The joint solve: SH part regularised as [`crate::inverse::solve_channel`], sources free.
+/// The joint solve: SH part regularised as [`crate::solve::solve_channel`], sources free.
 /// Returns per channel the solution and the residual vector.
 fn solve(
     a: &[DMatrix<f64>; 3],
@@ -453,7 +453,7 @@ fn solve(
     let sh = a[0].ncols();
     let mut out: JointSolve = Default::default();
     for (c, o) in out.iter_mut().enumerate() {
-        let s = crate::inverse::solve_channel_with(&full[c], &b[c], sh, well, limit)?;
+        let s = crate::solve::solve_channel_with(&full[c], &b[c], sh, well, limit)?;
         let r = &b[c] - &full[c] * &s.x;
         *o = (s.x, r);
     }
