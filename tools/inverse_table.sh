@@ -10,7 +10,8 @@
 # truth), fit, relight the fit at a new rotation (60°) and compare it, and the truth's
 # relighting at the same order, with a path-traced render at that rotation (object pixels).
 #
-# RADIUS (default 0.4) sets the spheres' radius and WIDTH (default 160) the image width (4:3).
+# RADIUS (default 0.4) sets the spheres' radius and WIDTH (default 320; 160 for the README's first
+# rows) the image width (4:3).
 # With MAX_OCCLUSION=F in the environment the fit keeps only the pixels with at most that
 # fraction of their hemisphere blocked (`prt fit-lighting --max-occlusion F`), and with
 # ONLY=lambert (or phong) only that material's rows run; the relit comparisons stay on every
@@ -21,7 +22,7 @@
 # PHONG_MODEL (default fitted; or frozen-cosine) is the forward model of the Phong lobe, in the
 # fit (`prt fit-lighting --phong-model`) and in the truth's relighting alike.
 #
-# Usage: tools/inverse_table.sh WORKDIR [PRT]   (about 20 minutes on 2 cores)
+# Usage: tools/inverse_table.sh WORKDIR [PRT]   (about 40 minutes on 2 cores at the defaults)
 set -euo pipefail
 work=${1:?usage: tools/inverse_table.sh WORKDIR [PRT]}
 prt=${2:-target/release/prt}
@@ -31,7 +32,7 @@ mkdir -p "$work"
 cd "$work"
 
 # A UV sphere of unit radius with its normals (64 × 32 quads), and the scenes.
-python3 - "$repo" "${RADIUS:-0.4}" "${WIDTH:-160}" <<'EOF'
+python3 - "$repo" "${RADIUS:-0.4}" "${WIDTH:-320}" <<'EOF'
 import math, sys
 repo, radius, width = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
 nu, nv = 64, 32
