@@ -22,7 +22,7 @@ pub struct RelightArgs {
     #[arg(long, help_heading = "Adaptive (Lee & Kim 2014)")]
     pub adaptive: bool,
     /// Adaptive: the ROI threshold T, in the unit of --threshold-unit (the thesis: 0.02 on
-    /// [0,1] display values; crates/relight/README.md measures speed against error for others,
+    /// [0, 1] display values; crates/relight/README.md measures speed against error for others,
     /// e.g. 0.09 radiance: 3.3× at 45.4 dB at order 10 and 4.3× at order 11 on the bunny).
     #[arg(
         long,

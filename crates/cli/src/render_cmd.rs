@@ -47,7 +47,7 @@ pub struct RenderArgs {
     /// Worker threads (default: all cores). The image does not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Output EXR (linear RGB f32 with metadata) [default: <scene name>.exr].
+    /// Output EXR (linear RGB f32 with metadata) (default: the scene file's name with .exr).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Also write an 8-bit sRGB PNG view here.

@@ -17,7 +17,7 @@ pub fn read_pair(
     Ok((a, b))
 }
 
-/// Fails unless two loaded images have the same size and the same [`ColorChannels`].
+/// Fails unless two loaded images have the same size and the same [`ColorChannels`](prt_image::read::ColorChannels).
 pub fn check_same_kind(a: &LoadedImage, b: &LoadedImage) -> Result<()> {
     if (a.image.width, a.image.height) != (b.image.width, b.image.height) {
         return Err(CompareError::SizeMismatch {

@@ -96,7 +96,7 @@ const TUKEY_C: f64 = 4.685;
 /// [`solve_channel`], and with `robust` then iteratively reweighted (an M-estimator; Huber &
 /// Ronchetti, *Robust Statistics*, §7.8): each round gives equation `i` the weight
 /// `(1 − u²)²` for `|u| < 1`, else 0, with `u = r_i / (c · σ)`, `r_i` its residual, `σ` the
-/// residuals' robust scale `1.4826 · median |r|` and `c` = [`TUKEY_C`], and solves again
+/// residuals' robust scale `1.4826 · median |r|` and `c = 4.685` (95 % efficiency under Gaussian noise), and solves again
 /// (the prior and truncation as [`solve_channel`]), until the weights settle. Returns the
 /// solve (its `residual2` over the unweighted equations) and the equations whose final weight
 /// is below ½.

@@ -61,7 +61,7 @@ pub const MIN_EXPLAINED: f64 = 1e-6;
 pub const NOISE_FLOOR: f64 = 50.0;
 
 /// Directions a cap's column is traced with (a delta source: 1).
-const CAP_DIRECTIONS: usize = 24;
+pub const CAP_DIRECTIONS: usize = 24;
 
 /// Footprint samples per pixel of a cap's column during the search ([`search_samples`]).
 const CAP_SEARCH_SAMPLES: usize = 4;

@@ -4,7 +4,7 @@
 //! Compact Representation of Reflectance Functions for Image-based Relighting*, Eurographics
 //! Symposium on Rendering 2004 (text: `shared/papers/masselus-2004-reflectance-functions-
 //! relighting.txt`): functions on a lat-long grid are transformed with the Haar, LeGall 5/3 or
-//! CDF 9/7 wavelet, "repeating the signal on vertical boundaries … [and] mirror[ing] the
+//! CDF 9/7 wavelet, "repeating the signal on vertical boundaries … \[and\] mirror\[ing\] the
 //! wavelets on horizontal boundaries" (§4), compressed by keeping their largest coefficients
 //! (§5.2), and coarse samplings are refined by wavelet interpolation (§4).
 //!
