@@ -454,7 +454,8 @@ pub fn fit_lighting(
     if opt.max_sources == 0 {
         return fit_from_design(&a, &b, pixels.len(), opt, model);
     }
-    let well = well_bands(&a, opt, model);
+    let conditioned = conditioning(&a, model);
+    let well = well_bands(&conditioned, opt);
     let imgs = crate::sources::SourceImages::new(bound, &pixels, &sqrt_w)?;
     let found = crate::sources::find_sources(
         &imgs,
@@ -470,7 +471,7 @@ pub fn fit_lighting(
         },
     )?;
     let b2: f64 = b.iter().map(DVector::norm_squared).sum();
-    let mut fit = fit_with_sources(&a, &b, pixels.len(), opt, model, &found)?;
+    let mut fit = fit_with_sources(&a, &b, pixels.len(), opt, conditioned, &found)?;
     fit.residual_by_sources = found
         .residual2
         .iter()
@@ -479,10 +480,13 @@ pub fn fit_lighting(
     Ok(fit)
 }
 
-/// The well-determined bands of the design `a` under `opt` (at most `opt.order`).
-fn well_bands(a: &[DMatrix<f64>; 3], opt: &FitOptions, model: usize) -> usize {
-    let (cond, gain) = conditioning(a, model);
-    well_determined(&cond, &gain, opt.condition_limit, opt.min_gain).min(opt.order)
+/// Per band of the model, the condition number and the gain ([`conditioning`]).
+type Conditioning = (Vec<f64>, Vec<f64>);
+
+/// The well-determined bands under `opt` (at most `opt.order`) of a design conditioned as
+/// `cond`.
+fn well_bands(cond: &Conditioning, opt: &FitOptions) -> usize {
+    well_determined(&cond.0, &cond.1, opt.condition_limit, opt.min_gain).min(opt.order)
 }
 
 /// [`fit_lighting`] from the weighted basis images `a` and weighted image `b`.
@@ -497,28 +501,23 @@ pub fn fit_from_design(
     model: usize,
 ) -> Result<LightingFit, SceneRelightError> {
     let none = crate::sources::FoundSources::default();
-    fit_with_sources(a, b, pixels, opt, model, &none)
+    fit_with_sources(a, b, pixels, opt, conditioning(a, model), &none)
 }
 
 /// [`fit_from_design`] with the columns of `found`'s sources beside the SH ones: the SH part
 /// regularised as before, the sources' intensities free, the returned coefficients the SH
-/// part plus the sources' projections.
+/// part plus the sources' projections. `conditioned` is [`conditioning`] of `a`.
 fn fit_with_sources(
     a: &[DMatrix<f64>; 3],
     b: &[DVector<f64>; 3],
     pixels: usize,
     opt: &FitOptions,
-    model: usize,
+    conditioned: Conditioning,
     found: &crate::sources::FoundSources,
 ) -> Result<LightingFit, SceneRelightError> {
-    let (condition_by_band, gain_by_band) = conditioning(a, model);
-    let well = well_determined(
-        &condition_by_band,
-        &gain_by_band,
-        opt.condition_limit,
-        opt.min_gain,
-    )
-    .min(opt.order);
+    let well = well_bands(&conditioned, opt);
+    let (condition_by_band, gain_by_band) = conditioned;
+    let model = (a[0].ncols() as f64).sqrt().round() as usize;
     let design = crate::sources::with_sources(a, &found.columns);
     let sh_cols = model * model;
     let mut full = vec![[0.0; 3]; sh_cols];

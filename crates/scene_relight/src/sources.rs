@@ -205,11 +205,18 @@ fn shade(scene: &Scene, s: &prt_tracer::points::PixelSample) -> Option<Shade> {
 /// The `i`-th of `n` points of a Fibonacci sphere (uniform in area, deterministic).
 #[must_use]
 pub fn fibonacci(i: usize, n: usize) -> Vec3 {
+    let (z, x, y) = spiral(i, n, -1.0);
+    DVec3::new(x, z, y).as_vec3()
+}
+
+/// Point `i` of an `n`-point Fibonacci spiral on the cap `z ≥ cos_max` about +z (uniform in
+/// solid angle; `cos_max = −1`: the whole sphere), as `(z, r cos φ, r sin φ)`.
+fn spiral(i: usize, n: usize, cos_max: f64) -> (f64, f64, f64) {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+    let z = 1.0 - (1.0 - cos_max) * (i as f64 + 0.5) / n as f64;
     let r = (1.0 - z * z).max(0.0).sqrt();
     let phi = golden * i as f64;
-    DVec3::new(r * phi.cos(), z, r * phi.sin()).as_vec3()
+    (z, r * phi.cos(), r * phi.sin())
 }
 
 /// The directions a cap of angular radius `radius_deg` about `axis` is traced with: its
@@ -223,15 +230,10 @@ pub fn cap_directions(axis: Vec3, radius_deg: f64) -> Vec<Vec3> {
     let axis = axis.as_dvec3().normalize();
     let (t, b) = axis.any_orthonormal_pair();
     let cos_max = radius_deg.to_radians().cos();
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     (0..CAP_DIRECTIONS)
         .map(|i| {
-            let z = 1.0 - (1.0 - cos_max) * (i as f64 + 0.5) / CAP_DIRECTIONS as f64;
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            let phi = golden * i as f64;
-            (axis * z + t * (r * phi.cos()) + b * (r * phi.sin()))
-                .normalize()
-                .as_vec3()
+            let (z, x, y) = spiral(i, CAP_DIRECTIONS, cos_max);
+            (axis * z + t * x + b * y).normalize().as_vec3()
         })
         .collect()
 }
