@@ -35,6 +35,34 @@ impl Environment {
             rotation_y_deg: 0.0,
         }
     }
+
+    /// A `width × height` lat-long environment, no rotation, whose texel `(i, j)` holds
+    /// `radiance(d)` at its centre direction `d` (`φ = 2π (i + ½)/width`, `θ = π (j + ½)/height`,
+    /// [`crate::envmap::latlong_direction`]).
+    #[must_use]
+    pub fn latlong_from_fn(
+        width: usize,
+        height: usize,
+        radiance: impl Fn(glam::DVec3) -> Rgb,
+    ) -> Self {
+        let texels = (0..height)
+            .flat_map(|j| (0..width).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let phi = 2.0 * std::f64::consts::PI * (i as f64 + 0.5) / width as f64;
+                let theta = std::f64::consts::PI * (j as f64 + 0.5) / height as f64;
+                radiance(crate::envmap::latlong_direction(phi, theta))
+            })
+            .collect();
+        Self {
+            image: EnvImage {
+                width,
+                height,
+                texels,
+            },
+            mapping: Mapping::LatLong,
+            rotation_y_deg: 0.0,
+        }
+    }
 }
 
 /// Unit-radius sphere centred at the origin: an icosahedron whose faces are split in 4

@@ -8,7 +8,7 @@
 use glam::{DMat4, DVec3};
 use prt_bake::{BakeSettings, PointKind};
 use prt_scene::test_util::{floor_quad, icosphere};
-use prt_scene::{Camera, EnvImage, Environment, Mapping, Material, Scene};
+use prt_scene::{Camera, Environment, Material, Scene};
 use prt_scene_relight::inverse::{fit_lighting, fit_pixels, FitOptions};
 use prt_scene_relight::sources::{cap_directions, source_sh, SourceImages};
 use prt_scene_relight::{Bound, RelightOptions};
@@ -26,30 +26,14 @@ fn axis() -> DVec3 {
 /// A 512 × 256 lat-long map: the cap (texels whose centre is within [`RADIUS_DEG`] of the
 /// axis) at [`CAP_RADIANCE`] over `background(direction)`.
 fn map(background: impl Fn(DVec3) -> [f32; 3]) -> Environment {
-    let (w, h) = (512usize, 256usize);
     let cos_max = RADIUS_DEG.to_radians().cos();
-    let mut texels = Vec::with_capacity(w * h);
-    for row in 0..h {
-        for col in 0..w {
-            let theta = std::f64::consts::PI * (row as f64 + 0.5) / h as f64;
-            let phi = 2.0 * std::f64::consts::PI * (col as f64 + 0.5) / w as f64;
-            let d = prt_scene::envmap::latlong_direction(phi, theta);
-            texels.push(if d.dot(axis()) >= cos_max {
-                [CAP_RADIANCE; 3]
-            } else {
-                background(d)
-            });
+    Environment::latlong_from_fn(512, 256, |d| {
+        if d.dot(axis()) >= cos_max {
+            [CAP_RADIANCE; 3]
+        } else {
+            background(d)
         }
-    }
-    Environment {
-        image: EnvImage {
-            width: w,
-            height: h,
-            texels,
-        },
-        mapping: Mapping::LatLong,
-        rotation_y_deg: 0.0,
-    }
+    })
 }
 
 /// The cap's power `∫ L dω` over its texels (each texel's exact solid angle).

@@ -45,10 +45,9 @@
 use glam::{DMat4, DVec3, Vec3};
 use prt_bake::{BakeSettings, PointKind};
 use prt_scene::test_util::icosphere;
-use prt_scene::{Camera, EnvImage, Environment, Mapping, Material, Scene};
+use prt_scene::{Camera, Environment, Material, Scene};
 use prt_scene_relight::{form_image, relight, RelightOptions};
 use prt_tracer::{Accel, PinholeCamera};
-use std::f64::consts::PI;
 use std::path::Path;
 
 const W: u32 = 128;
@@ -64,30 +63,10 @@ fn band_limited(d: DVec3) -> [f64; 3] {
 }
 
 fn sky() -> Environment {
-    let (w, h) = (256usize, 128usize);
-    let mut texels = Vec::with_capacity(w * h);
-    for j in 0..h {
-        for i in 0..w {
-            let phi = 2.0 * PI * (i as f64 + 0.5) / w as f64;
-            let theta = PI * (j as f64 + 0.5) / h as f64;
-            let d = DVec3::new(
-                phi.sin() * theta.sin(),
-                theta.cos(),
-                -phi.cos() * theta.sin(),
-            );
-            let c = band_limited(d);
-            texels.push([c[0] as f32, c[1] as f32, c[2] as f32]);
-        }
-    }
-    Environment {
-        image: EnvImage {
-            width: w,
-            height: h,
-            texels,
-        },
-        mapping: Mapping::LatLong,
-        rotation_y_deg: 0.0,
-    }
+    Environment::latlong_from_fn(256, 128, |d| {
+        let c = band_limited(d);
+        [c[0] as f32, c[1] as f32, c[2] as f32]
+    })
 }
 
 fn scene(environment: Environment, albedo: f32) -> Scene {

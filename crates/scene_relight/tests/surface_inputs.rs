@@ -14,10 +14,9 @@
 use glam::{DVec3, Vec3};
 use prt_bake::{BakeSettings, PointKind};
 use prt_scene::test_util::{gltf_scene, gltf_texture_root, write_gltf_quad};
-use prt_scene::{Camera, EnvImage, Environment, Mapping, Material, Scene};
+use prt_scene::{Camera, Environment, Material, Scene};
 use prt_scene_relight::{form_image, relight, RelightOptions};
 use prt_tracer::Accel;
-use std::f64::consts::PI;
 use std::path::Path;
 
 const W: u32 = 32;
@@ -26,29 +25,7 @@ const ORDER: usize = 4;
 /// A lat-long sky whose texels sample `1 + 0.6 y + 0.2 x` (brighter above): band-limited to
 /// order 2 up to the piecewise-constant texels.
 fn sky() -> Environment {
-    let (w, h) = (128usize, 64usize);
-    let texels = (0..h)
-        .flat_map(|j| (0..w).map(move |i| (i, j)))
-        .map(|(i, j)| {
-            let phi = 2.0 * PI * (i as f64 + 0.5) / w as f64;
-            let theta = PI * (j as f64 + 0.5) / h as f64;
-            let d = DVec3::new(
-                phi.sin() * theta.sin(),
-                theta.cos(),
-                -phi.cos() * theta.sin(),
-            );
-            [(1.0 + 0.6 * d.y + 0.2 * d.x) as f32; 3]
-        })
-        .collect();
-    Environment {
-        image: EnvImage {
-            width: w,
-            height: h,
-            texels,
-        },
-        mapping: Mapping::LatLong,
-        rotation_y_deg: 0.0,
-    }
+    Environment::latlong_from_fn(128, 64, |d| [(1.0 + 0.6 * d.y + 0.2 * d.x) as f32; 3])
 }
 
 fn camera() -> Camera {
