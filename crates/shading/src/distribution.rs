@@ -18,11 +18,20 @@ pub struct Distribution1D {
     func: Vec<f64>,
     cdf: Vec<f64>,
     sum: f64,
+    /// `func[i] / sum` (0 when `sum` is 0), so a draw divides nothing.
+    pmf: Vec<f64>,
+    /// `1 / (cdf[i + 1] − cdf[i])` where that is finite and positive, else 0 (the remapped
+    /// `u` of a draw is then computed with a division, or is 0.5 for an empty cell).
+    inv_width: Vec<f64>,
     /// `guide[j]` = number of CDF entries `≤ j / G` for `j = 0 ..= G`, with `G =
     /// guide.len() − 1` a power of two; empty when the CDF is not finite (the whole CDF is
     /// searched then).
     guide: Vec<u32>,
 }
+
+/// Guide ranges up to this long are counted entry by entry (no mispredicted branches); longer
+/// ones, where many cells of tiny weight share a bucket, by binary search.
+const SHORT_RANGE: usize = 8;
 
 /// The guide table of a CDF (see [`Distribution1D`]'s `guide`): `G` is the power of two at
 /// or above the number of cells, so a bucket holds about one cell on average.
@@ -71,10 +80,27 @@ impl Distribution1D {
             }
         }
         let guide = guide_table(&cdf);
+        let pmf = func
+            .iter()
+            .map(|&f| if sum > 0.0 { f / sum } else { 0.0 })
+            .collect();
+        let inv_width = cdf
+            .windows(2)
+            .map(|c| {
+                let inv = 1.0 / (c[1] - c[0]);
+                if inv.is_finite() && inv > 0.0 {
+                    inv
+                } else {
+                    0.0
+                }
+            })
+            .collect();
         Self {
             func,
             cdf,
             sum,
+            pmf,
+            inv_width,
             guide,
         }
     }
@@ -90,7 +116,13 @@ impl Distribution1D {
         let g = self.guide.len() - 1;
         let j = ((u * g as f64) as usize).min(g - 1);
         let (lo, hi) = (self.guide[j] as usize, self.guide[j + 1] as usize);
-        lo + self.cdf[lo..hi].partition_point(|&c| c <= u)
+        let range = &self.cdf[lo..hi];
+        if range.len() <= SHORT_RANGE {
+            // A count without branches on the data: the entries are sorted, so the number
+            // `≤ u` is where the binary search would stop.
+            return lo + range.iter().map(|&c| usize::from(c <= u)).sum::<usize>();
+        }
+        lo + range.partition_point(|&c| c <= u)
     }
 
     /// Number of cells.
@@ -131,13 +163,16 @@ impl Distribution1D {
         while self.func[i] <= 0.0 && i > 0 {
             i -= 1; // only reachable for u == 1
         }
+        let inv = self.inv_width[i];
         let width = self.cdf[i + 1] - self.cdf[i];
-        let rem = if width > 0.0 {
+        let rem = if inv > 0.0 {
+            ((u - self.cdf[i]) * inv).clamp(0.0, 1.0 - f64::EPSILON)
+        } else if width > 0.0 {
             ((u - self.cdf[i]) / width).clamp(0.0, 1.0 - f64::EPSILON)
         } else {
             0.5
         };
-        Some((i, self.func[i] / self.sum, rem))
+        Some((i, self.pmf[i], rem))
     }
 
     /// Probability of drawing cell `i`.

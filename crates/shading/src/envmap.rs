@@ -25,7 +25,7 @@
 
 use crate::{luminance, Distribution2D};
 use glam::{DVec3, Vec3};
-use prt_scene::envmap::angular_direction;
+use prt_scene::envmap::{angular_direction, LatLongGrid};
 use prt_scene::{Environment, Mapping};
 use std::f64::consts::{PI, TAU};
 
@@ -48,9 +48,9 @@ pub struct EnvSampler {
     dist: Option<Distribution2D>,
     /// Lat-long: solid angle of each row's texels. Angular: clipped `(a, b)` area of each texel.
     measure: Vec<f64>,
-    /// Lat-long: `cos θ` of the `h + 1` row edges (`θ = π r / h`), so a sample needs no
-    /// trigonometry in `θ`. Empty for angular maps.
-    row_cos: Vec<f64>,
+    /// Lat-long: the texel edges, for lookups without `atan2`/`acos` and samples without
+    /// trigonometry in `θ` and libm in `φ`. `None` for angular maps.
+    grid: Option<LatLongGrid>,
     total_power: f64,
 }
 
@@ -206,15 +206,15 @@ impl EnvSampler {
         } else {
             None
         };
-        let row_cos = match env.mapping {
-            Mapping::LatLong => (0..=h).map(|r| (PI * r as f64 / h as f64).cos()).collect(),
-            Mapping::Angular => Vec::new(),
+        let grid = match env.mapping {
+            Mapping::LatLong if w * h > 0 => Some(LatLongGrid::new(w, h)),
+            _ => None,
         };
         Self {
             env: env.clone(),
             dist,
             measure,
-            row_cos,
+            grid,
             total_power,
         }
     }
@@ -241,16 +241,10 @@ impl EnvSampler {
         let img = &self.env.image;
         match self.env.mapping {
             Mapping::LatLong => {
-                // Uniform in φ and in cos θ over the texel; sin θ from cos θ (θ ∈ [0, π], so
-                // sin θ ≥ 0), which spares the acos and the second sin_cos.
-                // φ's sine and cosine in f32: the direction is returned in f32 anyway.
-                let phi = TAU * (c as f64 + rem[0]) / w as f64;
-                let (c0, c1) = (self.row_cos[r], self.row_cos[r + 1]);
-                let cos_t = (c0 + rem[1] * (c1 - c0)).clamp(-1.0, 1.0);
-                let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-                let (sp, cp) = (phi as f32).sin_cos();
-                let (sp, cp) = (f64::from(sp), f64::from(cp));
-                let map_dir = DVec3::new(sp * sin_t, cos_t, -cp * sin_t);
+                // Uniform in φ and in cos θ over the texel (the grid's exact edges, φ's sine and
+                // cosine by rotating the column edge: no libm call).
+                let grid = self.grid.as_ref()?;
+                let map_dir = grid.direction(c, r, rem);
                 let dir = self.env.to_world(map_dir).as_vec3().normalize();
                 // The pdf and radiance of the texel the sample was drawn from: the same values
                 // a lookup of `dir` gives, except where f32 rounding of `dir` crosses a texel
@@ -312,10 +306,7 @@ impl EnvSampler {
     pub fn radiance_and_pdf(&self, dir: Vec3) -> (Vec3, f32) {
         let m = self.env.to_map_frame(dir.as_dvec3());
         let img = &self.env.image;
-        let (c, r) = match self.env.mapping {
-            Mapping::LatLong => img.latlong_texel(m),
-            Mapping::Angular => img.angular_texel(m),
-        };
+        let (c, r) = self.texel(m);
         let radiance = Vec3::from_array(img.texel(c, r));
         let Some(dist) = self.dist.as_ref() else {
             return (radiance, 0.0);
@@ -350,7 +341,19 @@ impl EnvSampler {
     /// Radiance arriving from world direction `dir` (the piecewise-constant texel value).
     #[must_use]
     pub fn radiance(&self, dir: Vec3) -> Vec3 {
-        Vec3::from_array(self.env.radiance(dir))
+        let (c, r) = self.texel(self.env.to_map_frame(dir.as_dvec3()));
+        Vec3::from_array(self.env.image.texel(c, r))
+    }
+
+    /// The texel `(col, row)` holding map-frame direction `m`: [`LatLongGrid::texel`] for a
+    /// lat-long map (the same texel as [`prt_scene::Environment::radiance`] looks up, except
+    /// within an f64 rounding of an edge), the angular mapping otherwise.
+    fn texel(&self, m: DVec3) -> (usize, usize) {
+        match (&self.grid, self.env.mapping) {
+            (Some(grid), Mapping::LatLong) => grid.texel(m),
+            (_, Mapping::LatLong) => self.env.image.latlong_texel(m),
+            (_, Mapping::Angular) => self.env.image.angular_texel(m),
+        }
     }
 
     /// `∫ luminance dω` over the sphere (exact for lat-long, by quadrature for angular probes).
