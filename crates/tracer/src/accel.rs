@@ -250,10 +250,17 @@ impl WorldRay {
     /// `[t0, t1]` of the ray inside the box, if it meets it (`t0 = 0` without any division
     /// when the origin is inside, the case of every secondary ray of a one-group scene).
     fn clip(&self, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
+        self.clip_with(|| DVec3::ONE / self.dir, lo, hi)
+    }
+
+    /// [`WorldRay::clip`] with the reciprocal direction from `inv` (called only when the
+    /// origin is outside the box), so a ray clipped against several boxes divides once.
+    #[inline]
+    fn clip_with(&self, inv: impl FnOnce() -> DVec3, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
         if self.origin.cmpge(lo).all() && self.origin.cmple(hi).all() {
             return Some((0.0, f64::INFINITY));
         }
-        let inv = DVec3::ONE / self.dir;
+        let inv = inv();
         let a = (lo - self.origin) * inv;
         let b = (hi - self.origin) * inv;
         // `min`/`max` drop a NaN (0 · ∞ when the origin lies on a slab plane of a zero
@@ -485,8 +492,10 @@ impl Group {
     }
 
     /// Where the ray enters the group's box (`0` when it starts inside), if it does by `tmax`.
-    fn entry(&self, ray: &WorldRay, tmax: f64) -> Option<f64> {
-        let (t0, _) = ray.clip(self.lo, self.hi)?;
+    /// `inv` is the ray's reciprocal direction, computed once for all the groups.
+    #[inline]
+    fn entry(&self, ray: &WorldRay, inv: DVec3, tmax: f64) -> Option<f64> {
+        let (t0, _) = ray.clip_with(|| inv, self.lo, self.hi)?;
         (t0 <= tmax).then_some(t0.max(0.0))
     }
 
@@ -875,11 +884,12 @@ impl Accel {
     /// The groups the ray's box test passes, with the entry `t`, nearest first (on the stack
     /// for up to [`INLINE_GROUPS`] groups: this runs once per ray).
     fn groups_on(&self, ray: &WorldRay, tmax: f64) -> impl Iterator<Item = (usize, f64)> {
+        let inv = DVec3::ONE / ray.dir;
         let mut on: SmallVec<[(usize, f64); INLINE_GROUPS]> = self
             .groups
             .iter()
             .enumerate()
-            .filter_map(|(i, g)| g.entry(ray, tmax).map(|t0| (i, t0)))
+            .filter_map(|(i, g)| g.entry(ray, inv, tmax).map(|t0| (i, t0)))
             .collect();
         if on.len() > 1 {
             on.sort_by(|a, b| a.1.total_cmp(&b.1));
@@ -922,7 +932,10 @@ impl Accel {
     /// `tmax`: the same hits, bit for bit. Rays are traced in packets of
     /// [`traverse::PACKET`] in the order given, so rays that leave from nearby points in nearby
     /// directions should come next to each other (a pixel's camera rays, a point's sorted
-    /// bake rays); scenes of several scale groups trace one ray at a time.
+    /// bake rays). In scenes of several scale groups a packet visits the groups its rays'
+    /// boxes reach, nearest first, each with the rays that enter it before their closest hit
+    /// so far (the closest-hit rule does not depend on the order, so this is the single
+    /// ray's answer too).
     ///
     /// # Panics
     /// If the three slices differ in length.
@@ -940,55 +953,87 @@ impl Accel {
             dirs.len(),
             out.len()
         );
-        let [g] = self.groups.as_slice() else {
-            for ((o, d), h) in origins.iter().zip(dirs).zip(out.iter_mut()) {
-                *h = self.closest_hit(*o, *d, tmax);
-            }
-            return;
-        };
         for ((o, d), h) in origins
             .chunks(traverse::PACKET)
             .zip(dirs.chunks(traverse::PACKET))
             .zip(out.chunks_mut(traverse::PACKET))
         {
-            self.closest_packet(g, o, d, tmax, h);
+            self.closest_packet(o, d, tmax, h);
         }
     }
 
-    /// Up to [`traverse::PACKET`] rays of [`Accel::closest_hits`] through the only group.
-    fn closest_packet(
-        &self,
-        g: &Group,
-        origins: &[Vec3],
-        dirs: &[Vec3],
-        tmax: f32,
-        out: &mut [Option<Hit>],
-    ) {
-        let idle = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
-        let mut local = [idle; PACKET];
+    /// Up to [`traverse::PACKET`] rays of [`Accel::closest_hits`].
+    fn closest_packet(&self, origins: &[Vec3], dirs: &[Vec3], tmax: f32, out: &mut [Option<Hit>]) {
         let mut world = [WorldRay::new(Vec3::ZERO, Vec3::X); PACKET];
-        let mut start = [0.0f64; PACKET];
         let mut best: [Best; PACKET] = std::array::from_fn(|_| Best { t: 0.0, slot: None });
-        let mut active = 0u8;
+        let mut valid = 0u8;
         for (lane, (&o, &d)) in origins.iter().zip(dirs).enumerate() {
-            let Some(t) = Self::checked(o, d, tmax) else {
-                continue;
-            };
-            let ray = WorldRay::new(o, d);
-            let Some((t0, _)) = ray.clip(g.lo, g.hi) else {
-                continue;
-            };
-            best[lane].t = t;
-            (local[lane], start[lane]) = g.local_ray(&ray, t0.max(0.0), t);
-            world[lane] = ray;
-            active |= 1 << lane;
+            if let Some(t) = Self::checked(o, d, tmax) {
+                world[lane] = WorldRay::new(o, d);
+                best[lane].t = t;
+                valid |= 1 << lane;
+            }
         }
         let lanes = PacketRays::new(&world);
+        let inv: [DVec3; PACKET] = std::array::from_fn(|lane| DVec3::ONE / world[lane].dir);
+        // Each group's entry distance per lane (`None`: the ray misses its box or is not
+        // traced), and the groups in the order of their nearest entry.
+        let mut entries: SmallVec<[(f64, usize, [Option<f64>; PACKET]); INLINE_GROUPS]> = self
+            .groups
+            .iter()
+            .enumerate()
+            .filter_map(|(gi, g)| {
+                let t0: [Option<f64>; PACKET] = std::array::from_fn(|lane| {
+                    (valid & (1 << lane) != 0)
+                        .then(|| g.entry(&world[lane], inv[lane], best[lane].t))
+                        .flatten()
+                });
+                let nearest = t0.iter().flatten().copied().reduce(f64::min)?;
+                Some((nearest, gi, t0))
+            })
+            .collect();
+        if entries.len() > 1 {
+            entries.sort_by(|a, b| a.0.total_cmp(&b.0));
+        }
+        for (_, gi, t0) in entries {
+            self.group_packet(gi, &world, &lanes, &t0, &mut best);
+        }
+        for (lane, h) in out.iter_mut().enumerate() {
+            *h = best[lane]
+                .slot
+                .map(|(gi, slot)| self.hit_record(gi, slot, &world[lane], best[lane].t));
+        }
+    }
+
+    /// The packet's rays through group `gi`: the lanes with an entry `t0` no farther than
+    /// their closest hit so far, each updating its `best`.
+    fn group_packet(
+        &self,
+        gi: usize,
+        world: &[WorldRay; PACKET],
+        lanes: &PacketRays,
+        t0: &[Option<f64>; PACKET],
+        best: &mut [Best; PACKET],
+    ) {
+        let g = &self.groups[gi];
+        let idle = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
+        let mut local = [idle; PACKET];
+        let mut start = [0.0f64; PACKET];
+        let mut active = 0u8;
+        for lane in 0..PACKET {
+            match t0[lane] {
+                Some(t) if t <= best[lane].t => {
+                    (local[lane], start[lane]) = g.local_ray(&world[lane], t, best[lane].t);
+                    active |= 1 << lane;
+                }
+                _ => {}
+            }
+        }
         traverse::closest_packet(&g.bvh, &local, active, |todo, slot, tmax| {
             if g.masked || todo.count_ones() < VECTOR_TESTS {
                 for lane in lanes_of(todo) {
                     let t = g.consider(
-                        0,
+                        gi,
                         slot,
                         &world[lane],
                         start[lane],
@@ -999,17 +1044,12 @@ impl Accel {
                 }
                 return;
             }
-            let (hit, t) = lanes.hits(&g.world[slot], &best);
+            let (hit, t) = lanes.hits(&g.world[slot], best);
             for lane in lanes_of(todo & hit) {
-                let t = g.accept(0, slot, t[lane], start[lane], &mut best[lane]);
+                let t = g.accept(gi, slot, t[lane], start[lane], &mut best[lane]);
                 tmax[lane] = tmax[lane].min(t);
             }
         });
-        for (lane, h) in out.iter_mut().enumerate() {
-            *h = best[lane]
-                .slot
-                .map(|(gi, slot)| self.hit_record(gi, slot, &world[lane], best[lane].t));
-        }
     }
 
     /// Whether anything is hit with `t ∈ [0, tmax]` along the unit direction `dir`.
@@ -1025,8 +1065,9 @@ impl Accel {
             });
         }
         // Any order gives the same answer: no sorting.
+        let inv = DVec3::ONE / ray.dir;
         self.groups.iter().any(|g| {
-            g.entry(&ray, tmax)
+            g.entry(&ray, inv, tmax)
                 .is_some_and(|t0| g.occluded(&ray, t0, tmax, &self.masks))
         })
     }

@@ -503,39 +503,7 @@ fn test11_packets_match_single_rays() {
     let meshes = spheres_in_a_box((24, 48), (12, 24));
     let a = accel(&meshes);
     let mut rng = Pcg64::seed_from_u64(11);
-    let mut hits = 0;
-    for case in 0..3000 {
-        let n = [PACKET, 3, 11, 64][case % 4];
-        let (mut origins, mut dirs) = (Vec::new(), Vec::new());
-        let centre = unit_dir(&mut rng) * rng.random_range(0.0f32..3.0);
-        let axis = unit_dir(&mut rng);
-        for _ in 0..n {
-            let (o, d) = match case % 3 {
-                // A bake point: one origin, directions in a narrow cone.
-                0 => (centre, (axis + unit_dir(&mut rng) * 0.15).normalize()),
-                // Camera rays: one origin, aimed at the objects.
-                1 => {
-                    let target = unit_dir(&mut rng) * rng.random_range(0.0f32..1.2);
-                    (axis * 4.0, (target - axis * 4.0).normalize())
-                }
-                // Incoherent.
-                _ => (
-                    unit_dir(&mut rng) * rng.random_range(0.0f32..3.0),
-                    unit_dir(&mut rng),
-                ),
-            };
-            origins.push(o);
-            dirs.push(d);
-        }
-        let tmax = [f32::INFINITY, 0.5, 2.0][case / 4 % 3];
-        let mut got = vec![None; n];
-        a.closest_hits(&origins, &dirs, tmax, &mut got);
-        for i in 0..n {
-            let want = a.closest_hit(origins[i], dirs[i], tmax);
-            assert_eq!(got[i], want, "case {case}, ray {i} of {n}");
-            hits += usize::from(want.is_some());
-        }
-    }
+    let hits = packets_against_single_rays(&a, &mut rng, Vec3::ZERO, 1.2);
     assert!(hits > 20_000, "{hits} hits");
 
     // The node tests: candidates per lane without shortening.
@@ -581,4 +549,70 @@ fn test11_packets_match_single_rays() {
         }
     }
     assert!(candidates > 20_000, "{candidates} candidates");
+}
+
+/// `Accel::closest_hits` against `Accel::closest_hit` ray by ray (the same `Hit`, bit for
+/// bit) on 3000 packets around `centre` (bake-point cones, camera rays aimed within `reach`
+/// of it, incoherent rays; full and partial packets; finite and infinite `tmax`). Returns the
+/// number of hits.
+fn packets_against_single_rays(a: &Accel, rng: &mut Pcg64, centre: Vec3, reach: f32) -> usize {
+    use prt_tracer::traverse::PACKET;
+    let mut hits = 0;
+    for case in 0..3000 {
+        let n = [PACKET, 3, 11, 64][case % 4];
+        let (mut origins, mut dirs) = (Vec::new(), Vec::new());
+        let from = centre + unit_dir(rng) * rng.random_range(0.0f32..2.5 * reach);
+        let axis = unit_dir(rng);
+        for _ in 0..n {
+            let (o, d) = match case % 3 {
+                // A bake point: one origin, directions in a narrow cone.
+                0 => (from, (axis + unit_dir(rng) * 0.15).normalize()),
+                // Camera rays: one origin, aimed at the objects.
+                1 => {
+                    let eye = centre + axis * 3.3 * reach;
+                    let target = centre + unit_dir(rng) * rng.random_range(0.0f32..reach);
+                    (eye, (target - eye).normalize())
+                }
+                // Incoherent.
+                _ => (
+                    centre + unit_dir(rng) * rng.random_range(0.0f32..2.5 * reach),
+                    unit_dir(rng),
+                ),
+            };
+            origins.push(o);
+            dirs.push(d);
+        }
+        let tmax = [f32::INFINITY, 0.4 * reach, 1.6 * reach][case / 4 % 3];
+        let mut got = vec![None; n];
+        a.closest_hits(&origins, &dirs, tmax, &mut got);
+        for i in 0..n {
+            let want = a.closest_hit(origins[i], dirs[i], tmax);
+            assert_eq!(got[i], want, "case {case}, ray {i} of {n}");
+            hits += usize::from(want.is_some());
+        }
+    }
+    hits
+}
+
+/// Packets in a scene of three scale groups (a 2 mm sphere and a 2 km floor beside the unit
+/// scene of test 11): each packet visits the groups its rays reach, nearest first, and every
+/// lane's hit is still the single ray's, bit for bit, around the unit scene and around the
+/// tiny sphere.
+#[test]
+fn test12_packets_across_scale_groups() {
+    let tiny = Vec3::new(1.3, 0.2, 0.1);
+    let mut meshes = spheres_in_a_box((24, 48), (12, 24));
+    meshes.push(test_util::uv_sphere(tiny, 1.0e-3, 12, 24, true));
+    meshes.push(test_util::quad(
+        Vec3::new(-1000.0, -1.6, -1000.0),
+        Vec3::new(0.0, 0.0, 2000.0),
+        Vec3::new(2000.0, 0.0, 0.0),
+    ));
+    let a = accel(&meshes);
+    assert_eq!(a.group_count(), 3);
+    let mut rng = Pcg64::seed_from_u64(12);
+    let hits = packets_against_single_rays(&a, &mut rng, Vec3::ZERO, 1.2);
+    assert!(hits > 20_000, "{hits} hits around the unit scene");
+    let hits = packets_against_single_rays(&a, &mut rng, tiny, 2.0e-3);
+    assert!(hits > 5_000, "{hits} hits around the tiny sphere");
 }
