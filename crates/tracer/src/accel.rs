@@ -570,6 +570,10 @@ impl Group {
     }
 }
 
+/// A group a packet reaches: its nearest entry distance over the lanes, its index, and each
+/// lane's entry distance (`None`: that ray misses the group's box).
+type GroupEntries = (f64, usize, [Option<f64>; PACKET]);
+
 /// The closest hit found so far: world `t` and `(group, slot)`.
 struct Best {
     t: f64,
@@ -978,7 +982,7 @@ impl Accel {
         let inv: [DVec3; PACKET] = std::array::from_fn(|lane| DVec3::ONE / world[lane].dir);
         // Each group's entry distance per lane (`None`: the ray misses its box or is not
         // traced), and the groups in the order of their nearest entry.
-        let mut entries: SmallVec<[(f64, usize, [Option<f64>; PACKET]); INLINE_GROUPS]> = self
+        let mut entries: SmallVec<[GroupEntries; INLINE_GROUPS]> = self
             .groups
             .iter()
             .enumerate()
