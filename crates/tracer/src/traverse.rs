@@ -52,6 +52,27 @@ pub fn closest<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, mut hit: F) {
     bvh.ray_traverse(ray, &mut RayHit::none(), |_, slot| hit(slot));
 }
 
+/// Closest-hit traversal, nearest box first: like [`closest`] (the same node test, so the
+/// same boxes accepted at a given `tmax`), but every accepted child goes on the stack with
+/// its entry distance, children are visited in order of that distance, and an entry whose
+/// distance is beyond the ray's current `tmax` when it comes off the stack is dropped
+/// without loading its node (Embree-style, where obvhs keeps groups of children without
+/// distances and approximates the order by the ray's octant). The candidates differ from
+/// [`closest`]'s only by the ones this never needs to test: every box that can hold a hit
+/// closer than the closest found so far is still visited, so with an order-independent
+/// rule for ties the closest hit is the same.
+pub fn closest_sorted<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, hit: F) {
+    // A leaf's first slot is kept in 27 bits of a stack entry.
+    #[cfg(target_arch = "x86_64")]
+    if wide_node_test() && bvh.primitive_indices.len() < 1 << 27 {
+        #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
+        unsafe {
+            return avx2::closest_sorted(bvh, ray, hit);
+        }
+    }
+    closest(bvh, ray, hit);
+}
+
 /// Any-hit traversal: whether `hit` returns a distance below the ray's `tmax` for a candidate
 /// slot (traversal stops at the first).
 pub fn any<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, mut hit: F) -> bool {
@@ -170,6 +191,116 @@ mod avx2 {
             });
         }
         found
+    }
+
+    /// A stack entry of [`closest_sorted`]: a child's entry distance and what it is (bit 31
+    /// set: a leaf, with its first primitive slot in bits 0..27 and its count in bits 27..30;
+    /// clear: an inner node's index).
+    #[derive(Clone, Copy)]
+    struct Entry {
+        t: f32,
+        what: u32,
+    }
+
+    /// Bit 31 of [`Entry::what`]: a leaf.
+    const LEAF: u32 = 1 << 31;
+
+    /// [`super::closest_sorted`] with the AVX2 node test.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn closest_sorted<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, mut hit: F) {
+        if bvh.nodes.is_empty() {
+            return;
+        }
+        let mut ray = ray;
+        let mut stack: SmallVec<[Entry; 128]> = SmallVec::new();
+        // The root is entered unconditionally, as in obvhs.
+        stack.push(Entry { t: 0.0, what: 0 });
+        while let Some(e) = stack.pop() {
+            if e.t > ray.tmax {
+                continue;
+            }
+            if e.what & LEAF != 0 {
+                let first = (e.what & ((1 << 27) - 1)) as usize;
+                let count = ((e.what >> 27) & 0b111) as usize;
+                for slot in first..first + count {
+                    let t = hit(slot);
+                    if t < ray.tmax {
+                        ray.tmax = t;
+                    }
+                }
+                continue;
+            }
+            let node = &bvh.nodes[e.what as usize];
+            let (mut mask, tmin) = slot_hits_t(node, &ray, ray.tmax);
+            // The accepted children, farthest first, so the nearest comes off the stack next.
+            let base = stack.len();
+            while mask != 0 {
+                let child = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if node.is_child_empty(child) {
+                    continue;
+                }
+                let what = if node.is_leaf(child) {
+                    let (first, count) = node.child_primitives(child);
+                    LEAF | (count << 27) | first
+                } else {
+                    node.child_node_index(child)
+                };
+                let entry = Entry {
+                    t: tmin[child],
+                    what,
+                };
+                // Insertion into the node's run of the stack, descending distance.
+                let mut i = stack.len();
+                stack.push(entry);
+                while i > base && stack[i - 1].t < entry.t {
+                    stack[i] = stack[i - 1];
+                    i -= 1;
+                }
+                stack[i] = entry;
+            }
+        }
+    }
+
+    /// [`slot_hits`] and the entry distance of every child (meaningful where accepted).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn slot_hits_t(node: &CwBvhNode, ray: &Ray, tmax_ray: f32) -> (u32, [f32; 8]) {
+        let scale = node.compute_extent() * ray.inv_direction;
+        let offset = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
+        let d = ray.direction;
+        let (tmin_x, tmax_x) = slabs(
+            &node.child_min_x,
+            &node.child_max_x,
+            d.x < 0.0,
+            scale.x,
+            offset.x,
+        );
+        let (tmin_y, tmax_y) = slabs(
+            &node.child_min_y,
+            &node.child_max_y,
+            d.y < 0.0,
+            scale.y,
+            offset.y,
+        );
+        let (tmin_z, tmax_z) = slabs(
+            &node.child_min_z,
+            &node.child_max_z,
+            d.z < 0.0,
+            scale.z,
+            offset.z,
+        );
+        let tmin = _mm256_max_ps(tmin_x, _mm256_max_ps(tmin_y, tmin_z));
+        let tmax = _mm256_min_ps(tmax_x, _mm256_min_ps(tmax_y, tmax_z));
+        let tmin = _mm256_max_ps(tmin, _mm256_set1_ps(NODE_TMIN));
+        let tmax = _mm256_min_ps(tmax, _mm256_set1_ps(tmax_ray));
+        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32;
+        let mut t = [0.0f32; 8];
+        _mm256_storeu_ps(t.as_mut_ptr(), tmin);
+        (mask, t)
     }
 
     /// The eight quantised planes `q` of one axis as floats (exact: bytes).

@@ -616,3 +616,63 @@ fn test12_packets_across_scale_groups() {
     let hits = packets_against_single_rays(&a, &mut rng, tiny, 2.0e-3);
     assert!(hits > 5_000, "{hits} hits around the tiny sphere");
 }
+
+/// The nearest-first traversal (`traverse::closest_sorted`, which `Accel` uses for single
+/// closest-hit rays) against obvhs' order (`traverse::closest`): the same closest hit, `t` and
+/// slot, with ties broken by the smaller slot, on rays from outside, from surface points
+/// (where a ray passes many boxes near its origin) and with finite `tmax`; and it tests fewer
+/// candidates in all (the point of it).
+#[test]
+fn test13_nearest_first_traversal_finds_the_same_hits() {
+    use prt_tracer::traverse;
+    let (tris, bvh) = plain_bvh(&[
+        test_util::uv_sphere(Vec3::ZERO, 1.0, 24, 48, true),
+        test_util::uv_sphere(Vec3::new(0.5, 0.3, 0.2), 0.7, 12, 24, true),
+        test_util::open_box(Vec3::new(0.0, -0.5, 0.0), 2.0),
+    ]);
+    let closest = |ray: Ray, sorted: bool| {
+        let (mut best, mut tested) = ((f32::INFINITY, usize::MAX), 0usize);
+        let test = |slot: usize| {
+            tested += 1;
+            let t = tris[bvh.primitive_indices[slot] as usize].intersect(&ray);
+            if t < best.0 || (t == best.0 && t.is_finite() && slot < best.1) {
+                best = (t, slot);
+            }
+            t
+        };
+        if sorted {
+            traverse::closest_sorted(&bvh, ray, test);
+        } else {
+            traverse::closest(&bvh, ray, test);
+        }
+        (best, tested)
+    };
+    let mut rng = Pcg64::seed_from_u64(13);
+    let (mut hits, mut tested_obvhs, mut tested_sorted) = (0, 0, 0);
+    for i in 0..20_000 {
+        let (o, d) = if i % 2 == 0 {
+            (unit_dir(&mut rng) * 3.0, unit_dir(&mut rng))
+        } else {
+            // From a point just off a random triangle, into its front hemisphere.
+            let t = &tris[rng.random_range(0..tris.len())];
+            let n = Vec3::from((t.v1 - t.v0).cross(t.v2 - t.v0)).normalize_or(Vec3::Y);
+            let c = Vec3::from(t.v0 + t.v1 + t.v2) / 3.0;
+            let mut d = unit_dir(&mut rng);
+            if d.dot(n) < 0.0 {
+                d = -d;
+            }
+            (c + n * 1e-3, d)
+        };
+        let tmax = [f32::INFINITY, 0.3, 2.0][i % 3];
+        let ray = Ray::new(Vec3A::from(o), Vec3A::from(d + Vec3::ZERO), 0.0, tmax);
+        let (want, n_obvhs) = closest(ray, false);
+        let (got, n_sorted) = closest(ray, true);
+        assert_eq!(got, want, "ray {i}");
+        hits += usize::from(want.0.is_finite());
+        tested_obvhs += n_obvhs;
+        tested_sorted += n_sorted;
+    }
+    assert!(hits > 5_000, "{hits} hits");
+    eprintln!("candidates tested: obvhs order {tested_obvhs}, nearest first {tested_sorted}");
+    assert!(tested_sorted < tested_obvhs, "{tested_sorted} vs {tested_obvhs}");
+}
