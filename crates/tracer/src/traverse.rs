@@ -265,44 +265,6 @@ mod avx2 {
         }
     }
 
-    /// [`slot_hits`] and the entry distance of every child (meaningful where accepted).
-    #[inline]
-    #[target_feature(enable = "avx2")]
-    unsafe fn slot_hits_t(node: &CwBvhNode, ray: &Ray, tmax_ray: f32) -> (u32, [f32; 8]) {
-        let scale = node.compute_extent() * ray.inv_direction;
-        let offset = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-        let d = ray.direction;
-        let (tmin_x, tmax_x) = slabs(
-            &node.child_min_x,
-            &node.child_max_x,
-            d.x < 0.0,
-            scale.x,
-            offset.x,
-        );
-        let (tmin_y, tmax_y) = slabs(
-            &node.child_min_y,
-            &node.child_max_y,
-            d.y < 0.0,
-            scale.y,
-            offset.y,
-        );
-        let (tmin_z, tmax_z) = slabs(
-            &node.child_min_z,
-            &node.child_max_z,
-            d.z < 0.0,
-            scale.z,
-            offset.z,
-        );
-        let tmin = _mm256_max_ps(tmin_x, _mm256_max_ps(tmin_y, tmin_z));
-        let tmax = _mm256_min_ps(tmax_x, _mm256_min_ps(tmax_y, tmax_z));
-        let tmin = _mm256_max_ps(tmin, _mm256_set1_ps(NODE_TMIN));
-        let tmax = _mm256_min_ps(tmax, _mm256_set1_ps(tmax_ray));
-        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32;
-        let mut t = [0.0f32; 8];
-        _mm256_storeu_ps(t.as_mut_ptr(), tmin);
-        (mask, t)
-    }
-
     /// The eight quantised planes `q` of one axis as floats (exact: bytes).
     #[inline]
     #[target_feature(enable = "avx2")]
@@ -358,6 +320,27 @@ mod avx2 {
     #[inline]
     #[target_feature(enable = "avx2")]
     unsafe fn slot_hits(node: &CwBvhNode, ray: &Ray, tmax_ray: f32) -> u32 {
+        let (tmin, tmax) = slab_test(node, ray, tmax_ray);
+        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32
+    }
+
+    /// [`slot_hits`] and the entry distance of every child (meaningful where accepted).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn slot_hits_t(node: &CwBvhNode, ray: &Ray, tmax_ray: f32) -> (u32, [f32; 8]) {
+        let (tmin, tmax) = slab_test(node, ray, tmax_ray);
+        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32;
+        let mut t = [0.0f32; 8];
+        _mm256_storeu_ps(t.as_mut_ptr(), tmin);
+        (mask, t)
+    }
+
+    /// The entry and exit distances of the ray in each of the eight child boxes, the entry
+    /// clamped below by obvhs' node `tmin` and the exit above by `tmax_ray` (a child is hit
+    /// where entry ≤ exit).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn slab_test(node: &CwBvhNode, ray: &Ray, tmax_ray: f32) -> (__m256, __m256) {
         let scale = node.compute_extent() * ray.inv_direction;
         let offset = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
         let d = ray.direction;
@@ -386,7 +369,7 @@ mod avx2 {
         let tmax = _mm256_min_ps(tmax_x, _mm256_min_ps(tmax_y, tmax_z));
         let tmin = _mm256_max_ps(tmin, _mm256_set1_ps(NODE_TMIN));
         let tmax = _mm256_min_ps(tmax, _mm256_set1_ps(tmax_ray));
-        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tmin, tmax)) as u32
+        (tmin, tmax)
     }
 
     /// A packet's rays with one component per register (lane `i`: ray `i`).
