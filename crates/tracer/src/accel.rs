@@ -552,7 +552,7 @@ impl Group {
         let (local, start) = self.local_ray(ray, t0, tmax);
         let scale = self.scale;
         if self.masked {
-            return traverse::any(&self.bvh, local, |slot| {
+            return traverse::any_leaves_first(&self.bvh, local, |slot| {
                 match ray.intersect_uv(&self.world[slot], tmax) {
                     Some((t, u, v)) if self.covers(slot, u, v, masks) => {
                         (((t - start) * scale) as f32).max(0.0)
@@ -561,7 +561,7 @@ impl Group {
                 }
             });
         }
-        traverse::any(&self.bvh, local, |slot| {
+        traverse::any_leaves_first(&self.bvh, local, |slot| {
             match ray.intersect(&self.world[slot], tmax) {
                 Some(t) => (((t - start) * scale) as f32).max(0.0),
                 None => f32::INFINITY,

@@ -86,6 +86,21 @@ pub fn any<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, mut hit: F) -> bool {
     !bvh.ray_traverse_miss(ray, |_, slot| hit(slot))
 }
 
+/// Any-hit traversal without obvhs' child groups: a node's accepted leaf children are tested
+/// at once (the first hit below `tmax` ends it) and its inner children go on a stack of node
+/// indices in obvhs' octant order. With `tmax` fixed, every box accepted on the way is the
+/// same as in [`any`], so the answer is the same; only the order of the candidates differs.
+pub fn any_leaves_first<F: FnMut(usize) -> f32>(bvh: &CwBvh, ray: Ray, hit: F) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if wide_node_test() {
+        #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
+        unsafe {
+            return avx2::any_leaves_first(bvh, ray, hit);
+        }
+    }
+    any(bvh, ray, hit)
+}
+
 /// Closest-hit traversal of up to [`PACKET`] rays together: the rays whose bit is set in
 /// `active`. `hit(lanes, slot, tmax)` is called for every candidate primitive slot with the
 /// lanes (bit `i`: ray `i`) whose boxes reach it; it tests the slot against each of those rays
@@ -263,6 +278,51 @@ mod avx2 {
                 stack[i] = entry;
             }
         }
+    }
+
+    /// [`super::any_leaves_first`] with the AVX2 node test.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn any_leaves_first<F: FnMut(usize) -> f32>(
+        bvh: &CwBvh,
+        ray: Ray,
+        mut hit: F,
+    ) -> bool {
+        if bvh.nodes.is_empty() {
+            return false;
+        }
+        let oct_inv = octant_inverse(ray.direction);
+        let mut stack: SmallVec<[u32; 64]> = SmallVec::new();
+        stack.push(0);
+        while let Some(index) = stack.pop() {
+            let node = &bvh.nodes[index as usize];
+            let accepted = slot_hits(node, &ray, ray.tmax);
+            let inner = u32::from(node.imask);
+            let mut leaves = accepted & !inner;
+            while leaves != 0 {
+                let child = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let (first, count) = node.child_primitives(child);
+                for slot in first..first + count {
+                    if hit(slot as usize) < ray.tmax {
+                        return true;
+                    }
+                }
+            }
+            let going = accepted & inner;
+            if going != 0 {
+                // Farthest (by octant) pushed first, so the nearest comes off next.
+                for priority in 0..8 {
+                    let child = priority ^ oct_inv;
+                    if going & (1 << child) != 0 {
+                        stack.push(node.child_node_index(child));
+                    }
+                }
+            }
+        }
+        false
     }
 
     /// The eight quantised planes `q` of one axis as floats (exact: bytes).

@@ -621,9 +621,10 @@ fn test12_packets_across_scale_groups() {
 /// closest-hit rays) against obvhs' order (`traverse::closest`): the same closest hit, `t` and
 /// slot, with ties broken by the smaller slot, on rays from outside, from surface points
 /// (where a ray passes many boxes near its origin) and with finite `tmax`; and it tests fewer
-/// candidates in all (the point of it).
+/// candidates in all (the point of it). The leaves-first any-hit traversal (which `Accel`
+/// uses for occlusion) gives `traverse::any`'s answer on the same rays.
 #[test]
-fn test13_nearest_first_traversal_finds_the_same_hits() {
+fn test13_own_traversals_find_the_same_hits() {
     use prt_tracer::traverse;
     let (tris, bvh) = plain_bvh(&[
         test_util::uv_sphere(Vec3::ZERO, 1.0, 24, 48, true),
@@ -668,11 +669,20 @@ fn test13_nearest_first_traversal_finds_the_same_hits() {
         let (want, n_obvhs) = closest(ray, false);
         let (got, n_sorted) = closest(ray, true);
         assert_eq!(got, want, "ray {i}");
+        let test = |slot: usize| tris[bvh.primitive_indices[slot] as usize].intersect(&ray);
+        assert_eq!(
+            traverse::any_leaves_first(&bvh, ray, test),
+            traverse::any(&bvh, ray, test),
+            "any-hit of ray {i}"
+        );
         hits += usize::from(want.0.is_finite());
         tested_obvhs += n_obvhs;
         tested_sorted += n_sorted;
     }
     assert!(hits > 5_000, "{hits} hits");
     eprintln!("candidates tested: obvhs order {tested_obvhs}, nearest first {tested_sorted}");
-    assert!(tested_sorted < tested_obvhs, "{tested_sorted} vs {tested_obvhs}");
+    assert!(
+        tested_sorted < tested_obvhs,
+        "{tested_sorted} vs {tested_obvhs}"
+    );
 }
