@@ -19,6 +19,16 @@
 //! with and without AVX2 (`tests/accel.rs` compares the node masks on random nodes and rays,
 //! and whole traversals against obvhs' own).
 //!
+//! **Own traversals of the same tree.** Two traversals here do not follow obvhs' loop, where
+//! its order costs time on a CPU: [`closest_sorted`] (single closest-hit rays) keeps every
+//! accepted child on the stack with its entry distance and visits the nearest first,
+//! dropping entries beyond the hit found so far without loading their node (Embree-style;
+//! obvhs keeps groups of children without distances, ordered by the ray's octant, a GPU
+//! design), and [`any_leaves_first`] (occlusion rays) tests a node's accepted leaves at once
+//! and stacks plain node indices. Both use the same node test, so they accept the same boxes
+//! at a given `tmax`: the any-hit answer is the same, and so is the closest hit under a
+//! tie rule that does not depend on the order candidates come in.
+//!
 //! **Packets.** [`closest_packet`] traverses up to [`PACKET`] rays together (Wald, Slusallek,
 //! Benthin & Wagner 2001, "Interactive Rendering with Coherent Ray Tracing", with a mask of
 //! the rays still in each node): a node is fetched once for the packet, and its eight child
