@@ -18,11 +18,6 @@ pub struct Distribution1D {
     func: Vec<f64>,
     cdf: Vec<f64>,
     sum: f64,
-    /// `func[i] / sum` (0 when `sum` is 0), so a draw divides nothing.
-    pmf: Vec<f64>,
-    /// `1 / (cdf[i + 1] − cdf[i])` where that is finite and positive, else 0 (the remapped
-    /// `u` of a draw is then computed with a division, or is 0.5 for an empty cell).
-    inv_width: Vec<f64>,
     /// `guide[j]` = number of CDF entries `≤ j / G` for `j = 0 ..= G`, with `G =
     /// guide.len() − 1` a power of two; empty when the CDF is not finite (the whole CDF is
     /// searched then).
@@ -80,27 +75,10 @@ impl Distribution1D {
             }
         }
         let guide = guide_table(&cdf);
-        let pmf = func
-            .iter()
-            .map(|&f| if sum > 0.0 { f / sum } else { 0.0 })
-            .collect();
-        let inv_width = cdf
-            .windows(2)
-            .map(|c| {
-                let inv = 1.0 / (c[1] - c[0]);
-                if inv.is_finite() && inv > 0.0 {
-                    inv
-                } else {
-                    0.0
-                }
-            })
-            .collect();
         Self {
             func,
             cdf,
             sum,
-            pmf,
-            inv_width,
             guide,
         }
     }
@@ -163,16 +141,13 @@ impl Distribution1D {
         while self.func[i] <= 0.0 && i > 0 {
             i -= 1; // only reachable for u == 1
         }
-        let inv = self.inv_width[i];
         let width = self.cdf[i + 1] - self.cdf[i];
-        let rem = if inv > 0.0 {
-            ((u - self.cdf[i]) * inv).clamp(0.0, 1.0 - f64::EPSILON)
-        } else if width > 0.0 {
+        let rem = if width > 0.0 {
             ((u - self.cdf[i]) / width).clamp(0.0, 1.0 - f64::EPSILON)
         } else {
             0.5
         };
-        Some((i, self.pmf[i], rem))
+        Some((i, self.func[i] / self.sum, rem))
     }
 
     /// Probability of drawing cell `i`.
