@@ -542,9 +542,12 @@ impl Group {
     /// The closest hit closer than `best.t` in this group; updates `best`.
     fn closest(&self, group: usize, ray: &WorldRay, t0: f64, best: &mut Best, masks: &Masks) {
         let (local, start) = self.local_ray(ray, t0, best.t);
-        traverse::closest_sorted(&self.bvh, local, |slot| {
-            self.consider(group, slot, ray, start, best, masks)
-        });
+        traverse::closest_sorted(
+            &self.bvh,
+            local,
+            |slot| self.consider(group, slot, ray, start, best, masks),
+            |slot| traverse::prefetch(&self.world[slot]),
+        );
     }
 
     /// Whether anything in this group is hit with `t ≤ tmax`.

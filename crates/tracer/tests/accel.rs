@@ -642,7 +642,7 @@ fn test13_own_traversals_find_the_same_hits() {
             t
         };
         if sorted {
-            traverse::closest_sorted(&bvh, ray, test);
+            traverse::closest_sorted(&bvh, ray, test, |_| {});
         } else {
             traverse::closest(&bvh, ray, test);
         }
