@@ -304,7 +304,7 @@ mod avx2 {
                     LEAF | (count << 27) | first
                 } else {
                     let index = node.child_node_index(child);
-                    prefetch(bvh, index);
+                    prefetch_node(bvh, index);
                     index
                 };
                 let entry = Entry {
@@ -372,7 +372,7 @@ mod avx2 {
     /// children are fetched together instead of one after another as they come off the stack.
     #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn prefetch(bvh: &CwBvh, index: u32) {
+    unsafe fn prefetch_node(bvh: &CwBvh, index: u32) {
         if let Some(node) = bvh.nodes.get(index as usize) {
             let p = std::ptr::from_ref(node).cast::<i8>();
             _mm_prefetch::<_MM_HINT_T0>(p);
