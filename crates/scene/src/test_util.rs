@@ -21,19 +21,26 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 impl Environment {
-    /// A uniform environment: a 1×1 lat-long image of radiance `rgb` from every direction,
+    /// A `width × height` lat-long environment of the given texels (row-major, row 0 at +Y),
     /// no rotation.
     #[must_use]
-    pub fn uniform(rgb: Rgb) -> Self {
+    pub fn latlong(width: usize, height: usize, texels: Vec<Rgb>) -> Self {
         Self {
             image: EnvImage {
-                width: 1,
-                height: 1,
-                texels: vec![rgb],
+                width,
+                height,
+                texels,
             },
             mapping: Mapping::LatLong,
             rotation_y_deg: 0.0,
         }
+    }
+
+    /// A uniform environment: a 1×1 lat-long image of radiance `rgb` from every direction,
+    /// no rotation.
+    #[must_use]
+    pub fn uniform(rgb: Rgb) -> Self {
+        Self::latlong(1, 1, vec![rgb])
     }
 
     /// A `width × height` lat-long environment, no rotation, whose texel `(i, j)` holds
@@ -53,15 +60,7 @@ impl Environment {
                 radiance(crate::envmap::latlong_direction(phi, theta))
             })
             .collect();
-        Self {
-            image: EnvImage {
-                width,
-                height,
-                texels,
-            },
-            mapping: Mapping::LatLong,
-            rotation_y_deg: 0.0,
-        }
+        Self::latlong(width, height, texels)
     }
 }
 

@@ -22,8 +22,8 @@
 //! nanometres, not by a tenth of the part (the black ring such an offset leaves around the
 //! part's base is what the workspace's `tests/hard_cases.rs` pins).
 //!
-//! **Packets.** [`Accel::closest_hits`] traces rays eight at a time through a one-group scene
-//! (`traverse::closest_packet`; Wald et al. 2001), and tests a candidate triangle that two or
+//! **Packets.** [`Accel::closest_hits`] traces rays eight at a time through each group they
+//! reach, nearest group first (`traverse::closest_packet`; Wald et al. 2001), and tests a candidate triangle that two or
 //! more of them reach against all of them at once ([`PacketRays`]: the f64 Möller–Trumbore
 //! formulas lane by lane, with no fused multiply-add, so each lane gets what the scalar test
 //! gets). A closest hit takes the smaller `(group, slot)` on an exact tie in `t`, so it does

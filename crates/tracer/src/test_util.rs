@@ -1,9 +1,7 @@
 //! Tiny shapes and scenes with known answers, shared by tests, benchmarks and examples.
 
 use glam::{DVec3, Vec3};
-use prt_scene::{
-    Camera, EnvImage, Environment, Mapping, Material, Mesh, RenderSettings, Rgb, Scene,
-};
+use prt_scene::{Camera, Environment, Material, Mesh, RenderSettings, Rgb, Scene};
 use std::f32::consts::PI;
 
 /// A UV sphere (`rings ≥ 2` latitude bands, `segments ≥ 3` longitude bands), outward winding.
@@ -131,29 +129,13 @@ pub fn transformed(mesh: &Mesh, f: impl Fn(Vec3) -> Vec3) -> Mesh {
 /// A lat-long environment of constant radiance.
 #[must_use]
 pub fn constant_environment(radiance: Rgb) -> Environment {
-    Environment {
-        image: EnvImage {
-            width: 4,
-            height: 2,
-            texels: vec![radiance; 8],
-        },
-        mapping: Mapping::LatLong,
-        rotation_y_deg: 0.0,
-    }
+    Environment::latlong(4, 2, vec![radiance; 8])
 }
 
 /// A lat-long environment from texels (`width × height`, row 0 at +Y).
 #[must_use]
 pub fn latlong_environment(width: usize, height: usize, texels: Vec<Rgb>) -> Environment {
-    Environment {
-        image: EnvImage {
-            width,
-            height,
-            texels,
-        },
-        mapping: Mapping::LatLong,
-        rotation_y_deg: 0.0,
-    }
+    Environment::latlong(width, height, texels)
 }
 
 /// A camera at `eye` looking at `target`, +Y up.
