@@ -17,11 +17,62 @@
 use crate::rng::Sampler;
 use crate::settings::{MisHeuristic, Mode};
 use crate::vertex::Vertex;
-use crate::Renderer;
+use crate::{Hit, Renderer};
 use glam::Vec3;
 use prt_shading::{
     eval, is_pure_delta, luminance, pdf, sample, sample_cosine_hemisphere, BsdfSample, Frame,
 };
+
+/// A path of [`Mode::Path`] at a surface vertex: what it has gathered and what it carries.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PathState {
+    /// Radiance gathered so far (the first vertex's own emission excluded).
+    pub radiance: Vec3,
+    /// Throughput to the current vertex.
+    pub beta: Vec3,
+    /// Reflections so far (0 at the first vertex).
+    pub indirect: u32,
+    /// The current vertex.
+    pub v: Vertex,
+    /// Direction towards where the path came from.
+    pub wo: Vec3,
+    /// The vertex's geometric and shading normals turned towards `wo` ([`Vertex::oriented`]).
+    pub ng: Vec3,
+    /// See `ng`.
+    pub ns: Vec3,
+}
+
+impl PathState {
+    /// A path starting at `v`, seen from `wo`.
+    pub(crate) fn new(v: Vertex, wo: Vec3) -> Self {
+        let (ng, ns) = v.oriented(wo);
+        Self {
+            radiance: Vec3::ZERO,
+            beta: Vec3::ONE,
+            indirect: 0,
+            v,
+            wo,
+            ng,
+            ns,
+        }
+    }
+}
+
+/// An environment shadow ray of next-event estimation and the radiance it adds to its path
+/// if nothing blocks it.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ShadowRay {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub add: Vec3,
+}
+
+/// A BRDF-sampled ray that continues a path: its origin (spawned off the surface) and sample.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Scatter {
+    pub origin: Vec3,
+    pub bs: BsdfSample,
+}
 
 /// MIS weight of strategy `a` against `b` (pdfs in solid angle).
 pub(crate) fn mis_weight(h: MisHeuristic, a: f32, b: f32) -> f32 {
@@ -62,83 +113,129 @@ impl Renderer<'_> {
         }
     }
 
-    fn li_path(&self, mut v: Vertex, mut wo: Vec3, s: &mut Sampler) -> Vec3 {
-        let h = self.settings.mis;
-        let mut radiance = Vec3::ZERO;
-        let mut beta = Vec3::ONE;
-        let mut indirect = 0u32;
+    fn li_path(&self, v: Vertex, wo: Vec3, s: &mut Sampler) -> Vec3 {
+        let mut path = PathState::new(v, wo);
+        self.continue_path(&mut path, s);
+        path.radiance
+    }
+
+    /// Follows `path` from its current vertex to its end, one ray at a time.
+    pub(crate) fn continue_path(&self, path: &mut PathState, s: &mut Sampler) {
         loop {
-            let (ng, ns) = v.oriented(wo);
-            // Next-event estimation: one environment sample, shadow-tested. At a pure mirror
-            // it would always get a BRDF value of zero, so it is not drawn (its two numbers
-            // are still taken, so the sample mapping and the image stay the same).
-            let u_env = s.next_2d();
-            let nee = !is_pure_delta(&v.mat);
-            if let Some(es) = nee.then(|| self.env.sample(u_env)).flatten() {
-                let cos = ns.dot(es.dir);
-                if es.pdf > 0.0 && cos > 0.0 && ng.dot(es.dir) > 0.0 {
-                    let f = eval(&v.mat, ns, wo, es.dir);
-                    if f != Vec3::ZERO
-                        && !self
-                            .accel
-                            .occluded(v.spawn(ng, es.dir), es.dir, f32::INFINITY)
-                    {
-                        let w = mis_weight(h, es.pdf, pdf(&v.mat, ns, wo, es.dir));
-                        radiance += beta * f * es.radiance * (cos * w / es.pdf);
-                    }
+            if let Some(r) = self.next_event(path, s) {
+                if !self.accel.occluded(r.origin, r.dir, f32::INFINITY) {
+                    path.radiance += r.add;
                 }
             }
-            // BRDF sampling: continues the path and hits the environment with MIS.
-            let Some(bs) = sample(&v.mat, ns, wo, s.next_3d()) else {
-                break;
+            let Some(sc) = self.scatter(path, s) else {
+                return;
             };
-            if ng.dot(bs.wi) <= 0.0 {
-                break;
-            }
-            beta *= bs.weight;
-            if beta == Vec3::ZERO || !beta.is_finite() {
-                break;
-            }
-            let origin = v.spawn(ng, bs.wi);
-            if self.only_escape_matters(indirect) {
+            if self.only_escape_matters(path.indirect) {
                 // The path ends at this ray's hit whatever it hits, and no surface emits:
                 // only whether it escapes matters, which an occlusion query answers (it
                 // agrees with `closest_hit` on hit or miss for every ray of unbounded length,
                 // so the image is bit-identical).
-                if !self.accel.occluded(origin, bs.wi, f32::INFINITY) {
-                    radiance += self.escaped(beta, &bs);
+                if !self.accel.occluded(sc.origin, sc.bs.wi, f32::INFINITY) {
+                    self.escape(path, &sc);
                 }
-                break;
+                return;
             }
-            let Some(hit) = self.accel.closest_hit(origin, bs.wi, f32::INFINITY) else {
-                radiance += self.escaped(beta, &bs);
-                break;
-            };
-            // Emission at the hit: direct light from an emitter, counted before the bounce
-            // limit (like the environment seen by the same ray).
-            let le = self.emitted(&hit);
-            radiance += beta * le;
-            indirect += 1;
-            if self.settings.bounces >= 0 {
-                if indirect > self.settings.bounces as u32 {
-                    break;
+            match self.accel.closest_hit(sc.origin, sc.bs.wi, f32::INFINITY) {
+                None => {
+                    self.escape(path, &sc);
+                    return;
                 }
-            } else if indirect >= self.settings.rr_start_bounce {
-                let survive = luminance(beta).min(self.settings.rr_max_survival);
-                if survive.is_nan() || survive <= 0.0 || s.next_f32() >= survive {
-                    break;
+                Some(hit) => {
+                    if !self.arrive(path, &sc, &hit, s) {
+                        return;
+                    }
                 }
-                beta /= survive;
             }
-            v = self.vertex_emitting(&hit, le);
-            wo = -bs.wi;
         }
-        radiance
+    }
+
+    /// Next-event estimation at the path's vertex: one environment sample, and the shadow
+    /// ray that decides whether it counts (`None` when it cannot add light). At a pure mirror
+    /// it would always get a BRDF value of zero, so it is not drawn (its two numbers are
+    /// still taken, so the sample mapping and the image stay the same).
+    pub(crate) fn next_event(&self, path: &PathState, s: &mut Sampler) -> Option<ShadowRay> {
+        let u_env = s.next_2d();
+        let (v, ng, ns, wo) = (&path.v, path.ng, path.ns, path.wo);
+        if is_pure_delta(&v.mat) {
+            return None;
+        }
+        let es = self.env.sample(u_env)?;
+        let cos = ns.dot(es.dir);
+        if !(es.pdf > 0.0 && cos > 0.0 && ng.dot(es.dir) > 0.0) {
+            return None;
+        }
+        let f = eval(&v.mat, ns, wo, es.dir);
+        if f == Vec3::ZERO {
+            return None;
+        }
+        let w = mis_weight(self.settings.mis, es.pdf, pdf(&v.mat, ns, wo, es.dir));
+        Some(ShadowRay {
+            origin: v.spawn(ng, es.dir),
+            dir: es.dir,
+            add: path.beta * f * es.radiance * (cos * w / es.pdf),
+        })
+    }
+
+    /// BRDF sampling at the path's vertex: the ray that continues it (and hits the
+    /// environment with MIS), with the throughput updated; `None` ends the path.
+    pub(crate) fn scatter(&self, path: &mut PathState, s: &mut Sampler) -> Option<Scatter> {
+        let bs = sample(&path.v.mat, path.ns, path.wo, s.next_3d())?;
+        if path.ng.dot(bs.wi) <= 0.0 {
+            return None;
+        }
+        path.beta *= bs.weight;
+        if path.beta == Vec3::ZERO || !path.beta.is_finite() {
+            return None;
+        }
+        Some(Scatter {
+            origin: path.v.spawn(path.ng, bs.wi),
+            bs,
+        })
+    }
+
+    /// The path's BRDF ray `sc` left the scene: the environment's contribution.
+    pub(crate) fn escape(&self, path: &mut PathState, sc: &Scatter) {
+        path.radiance += self.escaped(path.beta, &sc.bs);
+    }
+
+    /// The path's BRDF ray `sc` hit `hit`: its emission (direct light from an emitter,
+    /// counted before the bounce limit, like the environment seen by the same ray), then the
+    /// bounce limit or Russian roulette. Returns whether the path goes on, from `hit`.
+    pub(crate) fn arrive(
+        &self,
+        path: &mut PathState,
+        sc: &Scatter,
+        hit: &Hit,
+        s: &mut Sampler,
+    ) -> bool {
+        let le = self.emitted(hit);
+        path.radiance += path.beta * le;
+        path.indirect += 1;
+        if self.settings.bounces >= 0 {
+            if path.indirect > self.settings.bounces as u32 {
+                return false;
+            }
+        } else if path.indirect >= self.settings.rr_start_bounce {
+            let survive = luminance(path.beta).min(self.settings.rr_max_survival);
+            if survive.is_nan() || survive <= 0.0 || s.next_f32() >= survive {
+                return false;
+            }
+            path.beta /= survive;
+        }
+        path.v = self.vertex_emitting(hit, le);
+        path.wo = -sc.bs.wi;
+        (path.ng, path.ns) = path.v.oriented(path.wo);
+        true
     }
 
     /// Whether a BRDF-sampled ray leaving the vertex after `indirect` reflections is the
     /// path's last one and what it hits cannot add light (no emissive surface in the scene).
-    fn only_escape_matters(&self, indirect: u32) -> bool {
+    pub(crate) fn only_escape_matters(&self, indirect: u32) -> bool {
         !self.emissive && self.settings.bounces >= 0 && indirect >= self.settings.bounces as u32
     }
 
