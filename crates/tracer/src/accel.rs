@@ -396,19 +396,19 @@ impl PacketRays {
         }
     }
 
-    /// [`WorldRay::intersect`] of `tri` for every ray at once, each up to its `tmax`: the
+    /// [`WorldRay::intersect`] of `tri` for every ray at once, each up to its `best.t`: the
     /// lanes that hit, and every lane's distance. The same operations in the same order as
     /// the scalar test, so the same lanes and the same distances.
     #[inline]
-    fn hits(&self, tri: &[Vec3; 3], tmax: &[f64; PACKET]) -> (u8, [f64; PACKET]) {
+    fn hits(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
         #[cfg(target_arch = "x86_64")]
         if traverse::wide_node_test() {
             #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
             unsafe {
-                return self.hits_avx2(tri, tmax);
+                return self.hits_avx2(tri, best);
             }
         }
-        self.hits_lanes(tri, tmax)
+        self.hits_lanes(tri, best)
     }
 
     /// [`PacketRays::hits`] compiled for AVX2: four lanes to an instruction.
@@ -418,13 +418,13 @@ impl PacketRays {
     #[cfg(target_arch = "x86_64")]
     #[allow(unsafe_code)] // `#[target_feature]`, called only after detection.
     #[target_feature(enable = "avx2")]
-    unsafe fn hits_avx2(&self, tri: &[Vec3; 3], tmax: &[f64; PACKET]) -> (u8, [f64; PACKET]) {
-        self.hits_lanes(tri, tmax)
+    unsafe fn hits_avx2(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
+        self.hits_lanes(tri, best)
     }
 
     /// The body of [`PacketRays::hits`].
     #[inline(always)]
-    fn hits_lanes(&self, tri: &[Vec3; 3], tmax: &[f64; PACKET]) -> (u8, [f64; PACKET]) {
+    fn hits_lanes(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
         let [a, b, c] = tri.map(Vec3::as_dvec3);
         let (e1, e2) = (b - a, c - a);
         let s = |v: DVec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
@@ -442,7 +442,7 @@ impl PacketRays {
         let v = dot(self.dir, q) * inv;
         let t = dot(e2, q) * inv;
         let uv = u + v;
-        let within = (0..PACKET).fold(0, |m, i| m | u8::from(t.0[i] <= tmax[i]) << i);
+        let within = (0..PACKET).fold(0, |m, i| m | u8::from(t.0[i] <= best[i].t) << i);
         let hit = det.mask(|d| d != 0.0)
             & u.mask(|u| (0.0..=1.0).contains(&u))
             & !(v.mask(|v| v < 0.0) | uv.mask(|s| s > 1.0))
@@ -553,66 +553,22 @@ impl Group {
     /// Whether anything in this group is hit with `t ≤ tmax`.
     fn occluded(&self, ray: &WorldRay, t0: f64, tmax: f64, masks: &Masks) -> bool {
         let (local, start) = self.local_ray(ray, t0, tmax);
-        traverse::any_leaves_first(&self.bvh, local, |slot| {
-            self.blocking(slot, ray, start, tmax, masks)
-        })
-    }
-
-    /// The exact test of candidate `slot` for an occlusion query up to world `tmax`: the
-    /// hit's ray-local distance (or `∞`), which blocks the ray if it is below the local ray's
-    /// `tmax`.
-    #[inline]
-    fn blocking(&self, slot: usize, ray: &WorldRay, start: f64, tmax: f64, masks: &Masks) -> f32 {
-        let found = if self.masked {
-            match ray.intersect_uv(&self.world[slot], tmax) {
-                Some((t, u, v)) if self.covers(slot, u, v, masks) => Some(t),
-                _ => None,
-            }
-        } else {
-            ray.intersect(&self.world[slot], tmax)
-        };
-        match found {
-            Some(t) => (((t - start) * self.scale) as f32).max(0.0),
-            None => f32::INFINITY,
-        }
-    }
-
-    /// [`Group::occluded`] for the lanes of a packet with an entry `t0`, each up to its own
-    /// `tmax`: the lanes blocked in this group. The same local rays and the same per-ray
-    /// tests as the single ray, so the same answers.
-    fn occluded_packet(
-        &self,
-        world: &[WorldRay; PACKET],
-        lanes: &PacketRays,
-        t0: &[Option<f64>; PACKET],
-        tmax: &[f64; PACKET],
-        masks: &Masks,
-    ) -> u8 {
-        let idle = Ray::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0);
-        let mut local = [idle; PACKET];
-        let mut start = [0.0f64; PACKET];
-        let mut active = 0u8;
-        for lane in 0..PACKET {
-            if let Some(t) = t0[lane] {
-                (local[lane], start[lane]) = self.local_ray(&world[lane], t, tmax[lane]);
-                active |= 1 << lane;
-            }
-        }
-        traverse::any_packet(&self.bvh, &local, active, |todo, slot| {
-            let mut blocked = 0u8;
-            if self.masked || todo.count_ones() < VECTOR_TESTS {
-                for lane in lanes_of(todo) {
-                    let t = self.blocking(slot, &world[lane], start[lane], tmax[lane], masks);
-                    blocked |= u8::from(t < local[lane].tmax) << lane;
+        let scale = self.scale;
+        if self.masked {
+            return traverse::any_leaves_first(&self.bvh, local, |slot| {
+                match ray.intersect_uv(&self.world[slot], tmax) {
+                    Some((t, u, v)) if self.covers(slot, u, v, masks) => {
+                        (((t - start) * scale) as f32).max(0.0)
+                    }
+                    _ => f32::INFINITY,
                 }
-                return blocked;
+            });
+        }
+        traverse::any_leaves_first(&self.bvh, local, |slot| {
+            match ray.intersect(&self.world[slot], tmax) {
+                Some(t) => (((t - start) * scale) as f32).max(0.0),
+                None => f32::INFINITY,
             }
-            let (hit, t) = lanes.hits(&self.world[slot], tmax);
-            for lane in lanes_of(todo & hit) {
-                let t = (((t[lane] - start[lane]) * self.scale) as f32).max(0.0);
-                blocked |= u8::from(t < local[lane].tmax) << lane;
-            }
-            blocked
         })
     }
 }
@@ -1095,7 +1051,7 @@ impl Accel {
                 }
                 return;
             }
-            let (hit, t) = lanes.hits(&g.world[slot], &best.each_ref().map(|b| b.t));
+            let (hit, t) = lanes.hits(&g.world[slot], best);
             for lane in lanes_of(todo & hit) {
                 let t = g.accept(gi, slot, t[lane], start[lane], &mut best[lane]);
                 tmax[lane] = tmax[lane].min(t);
@@ -1121,66 +1077,6 @@ impl Accel {
             g.entry(&ray, inv, tmax)
                 .is_some_and(|t0| g.occluded(&ray, t0, tmax, &self.masks))
         })
-    }
-
-    /// [`Accel::occluded`] of many rays, `out[i]` for `origins[i]`, `dirs[i]`, all with
-    /// `tmax`: the same answers. Rays are traced in packets of [`traverse::PACKET`] in the
-    /// order given (a packet's rays go through the nodes together and stop one by one as
-    /// they are blocked), so rays that leave from nearby points in nearby directions should
-    /// come next to each other.
-    ///
-    /// # Panics
-    /// If the three slices differ in length.
-    pub fn occluded_many(&self, origins: &[Vec3], dirs: &[Vec3], tmax: f32, out: &mut [bool]) {
-        assert!(
-            origins.len() == dirs.len() && dirs.len() == out.len(),
-            "occluded_many: {} origins, {} directions, {} outputs",
-            origins.len(),
-            dirs.len(),
-            out.len()
-        );
-        for ((o, d), b) in origins
-            .chunks(traverse::PACKET)
-            .zip(dirs.chunks(traverse::PACKET))
-            .zip(out.chunks_mut(traverse::PACKET))
-        {
-            let blocked = self.occluded_packet(o, d, tmax);
-            for (lane, b) in b.iter_mut().enumerate() {
-                *b = blocked & (1 << lane) != 0;
-            }
-        }
-    }
-
-    /// Up to [`traverse::PACKET`] rays of [`Accel::occluded_many`]: the blocked lanes.
-    fn occluded_packet(&self, origins: &[Vec3], dirs: &[Vec3], tmax: f32) -> u8 {
-        let mut world = [WorldRay::new(Vec3::ZERO, Vec3::X); PACKET];
-        let mut tmaxs = [0.0f64; PACKET];
-        let mut valid = 0u8;
-        for (lane, (&o, &d)) in origins.iter().zip(dirs).enumerate() {
-            if let Some(t) = Self::checked(o, d, tmax) {
-                world[lane] = WorldRay::new(o, d);
-                tmaxs[lane] = t;
-                valid |= 1 << lane;
-            }
-        }
-        let lanes = PacketRays::new(&world);
-        let inv: [DVec3; PACKET] = std::array::from_fn(|lane| DVec3::ONE / world[lane].dir);
-        // Any order of the groups gives the same answers: no sorting.
-        let mut blocked = 0u8;
-        for g in &self.groups {
-            let t0: [Option<f64>; PACKET] = std::array::from_fn(|lane| {
-                (valid & !blocked & (1 << lane) != 0)
-                    .then(|| g.entry(&world[lane], inv[lane], tmaxs[lane]))
-                    .flatten()
-            });
-            if t0.iter().any(Option::is_some) {
-                blocked |= g.occluded_packet(&world, &lanes, &t0, &tmaxs, &self.masks);
-            }
-            if blocked == valid {
-                break;
-            }
-        }
-        blocked
     }
 
     /// Whether the segment from `from` to `to` is blocked, stopping `SHADOW_RAY_SHORTEN` short

@@ -25,26 +25,26 @@ use prt_shading::{
 
 /// A path of [`Mode::Path`] at a surface vertex: what it has gathered and what it carries.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct PathState {
+struct PathState {
     /// Radiance gathered so far (the first vertex's own emission excluded).
-    pub radiance: Vec3,
+    radiance: Vec3,
     /// Throughput to the current vertex.
-    pub beta: Vec3,
+    beta: Vec3,
     /// Reflections so far (0 at the first vertex).
-    pub indirect: u32,
+    indirect: u32,
     /// The current vertex.
-    pub v: Vertex,
+    v: Vertex,
     /// Direction towards where the path came from.
-    pub wo: Vec3,
+    wo: Vec3,
     /// The vertex's geometric and shading normals turned towards `wo` ([`Vertex::oriented`]).
-    pub ng: Vec3,
+    ng: Vec3,
     /// See `ng`.
-    pub ns: Vec3,
+    ns: Vec3,
 }
 
 impl PathState {
     /// A path starting at `v`, seen from `wo`.
-    pub(crate) fn new(v: Vertex, wo: Vec3) -> Self {
+    fn new(v: Vertex, wo: Vec3) -> Self {
         let (ng, ns) = v.oriented(wo);
         Self {
             radiance: Vec3::ZERO,
@@ -61,17 +61,17 @@ impl PathState {
 /// An environment shadow ray of next-event estimation and the radiance it adds to its path
 /// if nothing blocks it.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct ShadowRay {
-    pub origin: Vec3,
-    pub dir: Vec3,
-    pub add: Vec3,
+struct ShadowRay {
+    origin: Vec3,
+    dir: Vec3,
+    add: Vec3,
 }
 
 /// A BRDF-sampled ray that continues a path: its origin (spawned off the surface) and sample.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct Scatter {
-    pub origin: Vec3,
-    pub bs: BsdfSample,
+struct Scatter {
+    origin: Vec3,
+    bs: BsdfSample,
 }
 
 /// MIS weight of strategy `a` against `b` (pdfs in solid angle).
@@ -120,7 +120,7 @@ impl Renderer<'_> {
     }
 
     /// Follows `path` from its current vertex to its end, one ray at a time.
-    pub(crate) fn continue_path(&self, path: &mut PathState, s: &mut Sampler) {
+    fn continue_path(&self, path: &mut PathState, s: &mut Sampler) {
         loop {
             if let Some(r) = self.next_event(path, s) {
                 if !self.accel.occluded(r.origin, r.dir, f32::INFINITY) {
@@ -158,7 +158,7 @@ impl Renderer<'_> {
     /// ray that decides whether it counts (`None` when it cannot add light). At a pure mirror
     /// it would always get a BRDF value of zero, so it is not drawn (its two numbers are
     /// still taken, so the sample mapping and the image stay the same).
-    pub(crate) fn next_event(&self, path: &PathState, s: &mut Sampler) -> Option<ShadowRay> {
+    fn next_event(&self, path: &PathState, s: &mut Sampler) -> Option<ShadowRay> {
         let u_env = s.next_2d();
         let (v, ng, ns, wo) = (&path.v, path.ng, path.ns, path.wo);
         if is_pure_delta(&v.mat) {
@@ -183,7 +183,7 @@ impl Renderer<'_> {
 
     /// BRDF sampling at the path's vertex: the ray that continues it (and hits the
     /// environment with MIS), with the throughput updated; `None` ends the path.
-    pub(crate) fn scatter(&self, path: &mut PathState, s: &mut Sampler) -> Option<Scatter> {
+    fn scatter(&self, path: &mut PathState, s: &mut Sampler) -> Option<Scatter> {
         let bs = sample(&path.v.mat, path.ns, path.wo, s.next_3d())?;
         if path.ng.dot(bs.wi) <= 0.0 {
             return None;
@@ -199,20 +199,14 @@ impl Renderer<'_> {
     }
 
     /// The path's BRDF ray `sc` left the scene: the environment's contribution.
-    pub(crate) fn escape(&self, path: &mut PathState, sc: &Scatter) {
+    fn escape(&self, path: &mut PathState, sc: &Scatter) {
         path.radiance += self.escaped(path.beta, &sc.bs);
     }
 
     /// The path's BRDF ray `sc` hit `hit`: its emission (direct light from an emitter,
     /// counted before the bounce limit, like the environment seen by the same ray), then the
     /// bounce limit or Russian roulette. Returns whether the path goes on, from `hit`.
-    pub(crate) fn arrive(
-        &self,
-        path: &mut PathState,
-        sc: &Scatter,
-        hit: &Hit,
-        s: &mut Sampler,
-    ) -> bool {
+    fn arrive(&self, path: &mut PathState, sc: &Scatter, hit: &Hit, s: &mut Sampler) -> bool {
         let le = self.emitted(hit);
         path.radiance += path.beta * le;
         path.indirect += 1;

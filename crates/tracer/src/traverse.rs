@@ -163,44 +163,6 @@ pub fn closest_packet<F: FnMut(u8, usize, &mut [f32; PACKET])>(
     }
 }
 
-/// Any-hit traversal of up to [`PACKET`] rays together: the rays whose bit is set in
-/// `active`, each with its own fixed `tmax`. `hit(lanes, slot)` is called for every candidate
-/// primitive slot with the lanes (bit `i`: ray `i`) whose boxes reach it and that are not
-/// blocked yet; it returns the lanes for which the slot blocks the ray. Returns the blocked
-/// lanes. With `tmax` fixed every (ray, box) test is the single-ray test, so a ray reaches
-/// the same candidates as in [`any`] and gets the same answer; only the order differs.
-/// Without AVX2 each ray runs [`any`] in turn.
-pub fn any_packet<F: FnMut(u8, usize) -> u8>(
-    bvh: &CwBvh,
-    rays: &[Ray; PACKET],
-    active: u8,
-    mut hit: F,
-) -> u8 {
-    #[cfg(target_arch = "x86_64")]
-    if wide_node_test() {
-        #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
-        unsafe {
-            return avx2::any_packet(bvh, rays, active, hit);
-        }
-    }
-    let mut blocked = 0u8;
-    for (lane, ray) in rays.iter().enumerate() {
-        let bit = 1u8 << lane;
-        if active & bit != 0
-            && any(bvh, *ray, |slot| {
-                if hit(bit, slot) & bit != 0 {
-                    0.0
-                } else {
-                    f32::INFINITY
-                }
-            })
-        {
-            blocked |= bit;
-        }
-    }
-    blocked
-}
-
 /// Whether [`closest`], [`any`] and [`node_hits`] run the AVX2 node test on this CPU.
 #[must_use]
 pub fn wide_node_test() -> bool {
@@ -702,68 +664,5 @@ mod avx2 {
                 }
             }
         }
-    }
-
-    /// [`super::any_packet`] with the AVX2 packet node test.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn any_packet<F: FnMut(u8, usize) -> u8>(
-        bvh: &CwBvh,
-        rays: &[Ray; PACKET],
-        active: u8,
-        mut hit: F,
-    ) -> u8 {
-        if bvh.nodes.is_empty() || active == 0 {
-            return 0;
-        }
-        let lanes = Lanes::new(rays);
-        let tmax: [f32; PACKET] = std::array::from_fn(|i| rays[i].tmax);
-        let octants: [usize; PACKET] = std::array::from_fn(|i| octant_inverse(rays[i].direction));
-        let mut blocked = 0u8;
-        let mut stack: SmallVec<[(u32, u8); 64]> = SmallVec::new();
-        stack.push((0, active));
-        while let Some((index, arriving)) = stack.pop() {
-            let arriving = arriving & !blocked;
-            if arriving == 0 {
-                continue;
-            }
-            let node = &bvh.nodes[index as usize];
-            let hits = packet_node_hits(node, &lanes, rays, &tmax, arriving);
-            let mut leaves = node_leaves(node, &hits, arriving);
-            while leaves != 0 {
-                let child = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let (first, count) = node.child_primitives(child);
-                for slot in first..first + count {
-                    let todo = hits[child] & arriving & !blocked;
-                    if todo == 0 {
-                        break;
-                    }
-                    blocked |= hit(todo, slot as usize) & todo;
-                }
-                if blocked == active {
-                    return blocked;
-                }
-            }
-            let oct_inv = octants[arriving.trailing_zeros() as usize];
-            for priority in 0..8 {
-                let child = priority ^ oct_inv;
-                let going = hits[child] & arriving & !blocked;
-                if going != 0 && !node.is_leaf(child) {
-                    stack.push((node.child_node_index(child), going));
-                }
-            }
-        }
-        blocked
-    }
-
-    /// The leaf children of `node` that some lane of `arriving` reaches (bit = child).
-    #[inline]
-    fn node_leaves(node: &CwBvhNode, hits: &[u8; 8], arriving: u8) -> u8 {
-        (0..8).fold(0, |m, child| {
-            m | u8::from(hits[child] & arriving != 0 && node.is_leaf(child)) << child
-        })
     }
 }

@@ -552,7 +552,7 @@ fn test11_packets_match_single_rays() {
 }
 
 /// `Accel::closest_hits` against `Accel::closest_hit` ray by ray (the same `Hit`, bit for
-/// bit), and `Accel::occluded_many` against `Accel::occluded` (the same answer), on 3000 packets around `centre` (bake-point cones, camera rays aimed within `reach`
+/// bit) on 3000 packets around `centre` (bake-point cones, camera rays aimed within `reach`
 /// of it, incoherent rays; full and partial packets; finite and infinite `tmax`). Returns the
 /// number of hits.
 fn packets_against_single_rays(a: &Accel, rng: &mut Pcg64, centre: Vec3, reach: f32) -> usize {
@@ -585,14 +585,10 @@ fn packets_against_single_rays(a: &Accel, rng: &mut Pcg64, centre: Vec3, reach: 
         let tmax = [f32::INFINITY, 0.4 * reach, 1.6 * reach][case / 4 % 3];
         let mut got = vec![None; n];
         a.closest_hits(&origins, &dirs, tmax, &mut got);
-        let mut blocked = vec![false; n];
-        a.occluded_many(&origins, &dirs, tmax, &mut blocked);
         for i in 0..n {
             let want = a.closest_hit(origins[i], dirs[i], tmax);
             assert_eq!(got[i], want, "case {case}, ray {i} of {n}");
             hits += usize::from(want.is_some());
-            let want = a.occluded(origins[i], dirs[i], tmax);
-            assert_eq!(blocked[i], want, "occlusion: case {case}, ray {i} of {n}");
         }
     }
     hits

@@ -296,18 +296,6 @@ fn mask_cutouts_pass_camera_and_shadow_rays() {
             blocked
         );
     }
-    // A packet of shadow rays across both halves: each lane gets its single ray's answer.
-    let origins: Vec<Vec3> = (0..8)
-        .map(|i| Vec3::new(-0.875 + 0.25 * i as f32, 0.1, -1.0))
-        .collect();
-    let mut packet = [false; 8];
-    accel.occluded_many(&origins, &[up; 8], f32::INFINITY, &mut packet);
-    let single: Vec<bool> = origins
-        .iter()
-        .map(|&o| accel.occluded(o, up, f32::INFINITY))
-        .collect();
-    assert_eq!(packet.to_vec(), single);
-    assert_eq!(single, [true, true, true, true, false, false, false, false]);
     // Without the scene's materials (`from_meshes`) the quad is opaque everywhere.
     let opaque = Accel::from_meshes(&scene.meshes, prt_tracer::AccelOptions::default()).unwrap();
     assert!(opaque.occluded(Vec3::new(0.5, 0.1, -1.0), up, f32::INFINITY));
