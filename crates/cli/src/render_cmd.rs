@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use prt_tracer::{output, MisHeuristic, Mode, RenderSettings, Renderer};
+use prt_tracer::{output, MisHeuristic, Mode, RenderSettings, Renderer, SamplerKind};
 use std::path::PathBuf;
 
 /// MIS heuristic names on the command line.
@@ -12,6 +12,17 @@ pub enum MisArg {
     Power,
     /// Veach's balance heuristic.
     Balance,
+}
+
+/// Pixel sampler names on the command line.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum SamplerArg {
+    /// Two independent scrambled Sobol sequences (even and odd samples): the image's own
+    /// unbiased noise estimate, needed by --target-noise and --target-psnr-ldr.
+    Replicas,
+    /// One scrambled Sobol sequence of all the samples: lower variance at the same sample
+    /// count (up to 1/√2 of the error where the image is smooth), no noise estimate.
+    Single,
 }
 
 /// Options of `prt render`.
@@ -71,6 +82,10 @@ pub struct RenderArgs {
     /// MIS heuristic between environment and BRDF sampling.
     #[arg(long, value_enum, default_value_t = MisArg::Power)]
     pub mis: MisArg,
+    /// Pixel sampler: `replicas` keeps the image's own noise estimate, `single` gives the
+    /// lower error per sample.
+    #[arg(long, value_enum, default_value_t = SamplerArg::Replicas)]
+    pub sampler: SamplerArg,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -109,6 +124,10 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     settings.mis = match args.mis {
         MisArg::Power => MisHeuristic::Power,
         MisArg::Balance => MisHeuristic::Balance,
+    };
+    settings.sampler = match args.sampler {
+        SamplerArg::Replicas => SamplerKind::Replicas,
+        SamplerArg::Single => SamplerKind::Single,
     };
     settings.mode = if args.ao {
         Mode::AmbientOcclusion {

@@ -3,7 +3,7 @@
 use crate::accel::{point_offset, Accel, Hit};
 use crate::camera::PinholeCamera;
 use crate::rng::{stream, PixelKeys, Purpose, Sampler};
-use crate::settings::{Mode, RenderSettings};
+use crate::settings::{Mode, RenderSettings, SamplerKind};
 use crate::traverse;
 use crate::vertex::Vertex;
 use crate::TracerError;
@@ -78,8 +78,9 @@ pub struct RenderOutput {
     pub invalid_samples: u64,
     /// The image's own estimate of its relative noise on object pixels (pixels whose camera
     /// rays hit a surface at least half the time): `‖error‖ / ‖image‖` estimated from its
-    /// two half images (even and odd samples). `None` with an odd sample count or no object
-    /// pixel.
+    /// two half images (even and odd samples). `None` with an odd sample count, no object
+    /// pixel, or the single-sequence sampler ([`crate::SamplerKind::Single`], whose half
+    /// images are not independent).
     pub noise: Option<f64>,
     /// The image's own estimate of its noise ceiling on the 8-bit view: the PSNR (dB, peak
     /// 255) of its sRGB view at exposure 0 against that of its expectation, over the same
@@ -367,7 +368,9 @@ impl<'s> Renderer<'s> {
                 previous = Some((done, noise));
             }
             done = to;
-            noise = noise_estimate(&tiles, done);
+            if self.settings.sampler == SamplerKind::Replicas {
+                noise = noise_estimate(&tiles, done);
+            }
             let elapsed = start.elapsed().as_secs_f64();
             if !progressive || done >= max_spp {
                 break;
@@ -519,7 +522,10 @@ impl<'s> Renderer<'s> {
                 while first < to {
                     let n = (to - first).min(traverse::PACKET as u32) as usize;
                     let mut samplers: [Sampler; traverse::PACKET] = std::array::from_fn(|i| {
-                        keys.sampler(u64::from(first) + (i as u64).min(n as u64 - 1))
+                        keys.sampler_of(
+                            self.settings.sampler,
+                            u64::from(first) + (i as u64).min(n as u64 - 1),
+                        )
                     });
                     for (s, d) in samplers.iter_mut().zip(&mut dirs).take(n) {
                         let [jx, jy] = s.next_2d();

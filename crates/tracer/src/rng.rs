@@ -7,6 +7,7 @@
 //! `mix(h ^ 0x9E37_79B9_7F4A_7C15)`. Because a stream depends only on these four numbers,
 //! an image or a set of point estimates is bit-identical for any thread count or tile order.
 
+use crate::settings::SamplerKind;
 use rand::Rng;
 use rand_pcg::Pcg32;
 
@@ -78,6 +79,8 @@ pub const QMC_DIMENSIONS: u32 = 24;
 /// in every 2D projection of a pair, and the two replicas are independent, so the half images
 /// of even and odd samples give an unbiased estimate of the error
 /// ([`crate::RenderOutput::noise`]). Dimensions past [`QMC_DIMENSIONS`] are PCG numbers.
+/// [`PixelKeys::sampler_of`] also gives the single-sequence sampler
+/// ([`SamplerKind::Single`]).
 #[must_use]
 pub fn pixel_sampler(seed: u64, pixel: u64, sample: u64) -> Sampler {
     PixelKeys::new(seed, pixel).sampler(sample)
@@ -108,10 +111,23 @@ impl PixelKeys {
     /// The sampler of sample `sample` of this pixel.
     #[must_use]
     pub fn sampler(&self, sample: u64) -> Sampler {
+        self.sampler_of(SamplerKind::Replicas, sample)
+    }
+
+    /// The sampler of sample `sample` of this pixel for the sequences of `kind`: with
+    /// [`SamplerKind::Replicas`], [`PixelKeys::sampler`]; with [`SamplerKind::Single`],
+    /// point `sample` of the one sequence of replica 0's keys (so all of a pixel's samples
+    /// are stratified together, and its PCG dimensions are those of the same sample).
+    #[must_use]
+    pub fn sampler_of(&self, kind: SamplerKind, sample: u64) -> Sampler {
+        let (key, index) = match kind {
+            SamplerKind::Replicas => (self.qmc[(sample & 1) as usize], sample >> 1),
+            SamplerKind::Single => (self.qmc[0], sample),
+        };
         let mut s = stream_from_pixel_hash(self.stream, sample);
         s.qmc = Some(Qmc {
-            key: self.qmc[(sample & 1) as usize],
-            index: (sample >> 1) as u32,
+            key,
+            index: index as u32,
             dim: 0,
             pending: 0,
         });

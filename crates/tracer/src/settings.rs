@@ -30,6 +30,22 @@ pub enum MisHeuristic {
     Balance,
 }
 
+/// How a pixel's samples take their quasi-random points ([`crate::rng::PixelKeys`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SamplerKind {
+    /// Two independent scrambled Sobol sequences, even samples from one and odd samples from
+    /// the other (the default): the two half images are independent, so the image carries an
+    /// unbiased estimate of its own noise ([`crate::RenderOutput::noise`]), which noise and
+    /// PSNR targets need. Each half is stratified on its own, so where the integrand is
+    /// smooth the variance is up to `√2` times that of one sequence of all the samples.
+    Replicas,
+    /// One scrambled Sobol sequence: sample `j` is point `j`, so all of a pixel's samples
+    /// are stratified together (the lowest variance at a given sample count; the sampler of
+    /// Cycles and pbrt-v4). Still unbiased; but its error cannot be estimated from the
+    /// image itself, so the image has no noise estimate.
+    Single,
+}
+
 /// Everything a render depends on besides the scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -45,6 +61,8 @@ pub struct RenderSettings {
     pub mode: Mode,
     /// MIS heuristic (default [`MisHeuristic::Power`]).
     pub mis: MisHeuristic,
+    /// The pixel sampler's sequences (default [`SamplerKind::Replicas`]).
+    pub sampler: SamplerKind,
     /// With `bounces = -1`: Russian roulette starts at this many indirect bounces (default 3).
     pub rr_start_bounce: u32,
     /// With `bounces = -1`: survival probability is `min(luminance(throughput), this)`
@@ -82,6 +100,7 @@ impl Default for RenderSettings {
             seed: 0,
             mode: Mode::Path,
             mis: MisHeuristic::Power,
+            sampler: SamplerKind::Replicas,
             rr_start_bounce: 3,
             rr_max_survival: 0.95,
             tile_size: 16,
@@ -132,7 +151,8 @@ impl RenderSettings {
     ///
     /// # Errors
     /// When `spp` or `tile_size` is 0, `bounces < -1`, `rr_max_survival ∉ (0, 1]`,
-    /// `threads = Some(0)` or an AO distance is not positive.
+    /// `threads = Some(0)`, an AO distance is not positive, or a noise or PSNR target is set
+    /// with [`SamplerKind::Single`].
     pub fn validate(&self) -> Result<(), TracerError> {
         let bad = |s: String| Err(TracerError::InvalidSettings(s));
         if self.spp == 0 {
@@ -166,6 +186,15 @@ impl RenderSettings {
                     "target PSNR {p} must be a positive, finite number of dB"
                 ));
             }
+        }
+        if self.sampler == SamplerKind::Single
+            && (self.target_noise.is_some() || self.target_psnr_ldr.is_some())
+        {
+            return bad(
+                "a noise or PSNR target needs the image's own noise estimate, which only the \
+                 replicas sampler gives (not the single-sequence sampler)"
+                    .into(),
+            );
         }
         if let Some(b) = self.time_budget {
             if !(b > 0.0 && b.is_finite()) {

@@ -3,7 +3,7 @@
 
 use glam::Vec3;
 use prt_scene::{Material, Scene};
-use prt_tracer::{test_util, Mode, RenderSettings, Renderer};
+use prt_tracer::{test_util, Mode, RenderSettings, Renderer, SamplerKind};
 
 fn quiet(spp: u32, bounces: i32, seed: u64) -> RenderSettings {
     RenderSettings {
@@ -447,5 +447,97 @@ fn test07_target_psnr_ldr_reaches_the_requested_ceiling() {
             (rmse / want - 1.0).abs() <= 0.2,
             "target {target} dB: measured RMS {rmse} vs {want}"
         );
+    }
+}
+
+/// Per pixel and channel, the mean and the sample variance over `seeds` renders of `kind`.
+fn seed_moments(scene: &Scene, kind: SamplerKind, spp: u32, seeds: u64) -> (Vec<f64>, Vec<f64>) {
+    let images: Vec<Vec<f64>> = (0..seeds)
+        .map(|seed| {
+            let s = RenderSettings {
+                sampler: kind,
+                ..quiet(spp, 1, 100 + seed)
+            };
+            let out = Renderer::new(scene, s).unwrap().render().unwrap();
+            out.radiance
+                .iter()
+                .flat_map(|l| l.to_array())
+                .map(f64::from)
+                .collect()
+        })
+        .collect();
+    let k = seeds as f64;
+    let n = images[0].len();
+    let mean: Vec<f64> = (0..n)
+        .map(|i| images.iter().map(|im| im[i]).sum::<f64>() / k)
+        .collect();
+    let var = (0..n)
+        .map(|i| {
+            images
+                .iter()
+                .map(|im| (im[i] - mean[i]).powi(2))
+                .sum::<f64>()
+                / (k - 1.0)
+        })
+        .collect();
+    (mean, var)
+}
+
+/// The single-sequence sampler is unbiased and less noisy than the replicas: 48 seeds of
+/// each at 64 spp on 32×24 pixels (one bounce; mirror, Phong and Lambert surfaces). Pixels
+/// have independent scrambles, so the mean difference of the two images over all pixel
+/// channels has the variance `Σ (v_single + v_replicas) / 48 / n²` from the seeds' own
+/// spread; it must be within 5 of its standard deviations of 0. The single sequence
+/// stratifies all 64 samples together where the replicas stratify two halves of 32, so its
+/// variance must be lower: the mean over the 768 pixels of the paired difference of the two
+/// seed variances, plus 5 of its standard errors (from the spread of the differences), below 0.
+#[test]
+fn test08_single_sequence_sampler_is_unbiased_and_less_noisy() {
+    let scene = test_scene(32, 24);
+    let (m1, v1) = seed_moments(&scene, SamplerKind::Single, 64, 48);
+    let (m2, v2) = seed_moments(&scene, SamplerKind::Replicas, 64, 48);
+    let n = m1.len() as f64;
+    let d = m1.iter().zip(&m2).map(|(a, b)| a - b).sum::<f64>() / n;
+    let sd = (v1.iter().zip(&v2).map(|(a, b)| a + b).sum::<f64>() / 48.0).sqrt() / n;
+    assert!((d / sd).abs() < 5.0, "bias: {d} with sd {sd}");
+    // Per pixel (RGB summed: a pixel's channels are correlated), the single sequence's
+    // variance minus the replicas': pixels differ by orders of magnitude in variance, and the
+    // paired difference takes that out of the standard error.
+    let pixels = |v: &[f64]| -> Vec<f64> { v.chunks(3).map(|c| c.iter().sum()).collect() };
+    let (p1, p2) = (pixels(&v1), pixels(&v2));
+    let k = p1.len() as f64;
+    let diff: Vec<f64> = p1.iter().zip(&p2).map(|(a, b)| a - b).collect();
+    let mean = diff.iter().sum::<f64>() / k;
+    let se = (diff.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (k - 1.0) / k).sqrt();
+    let ratio = p1.iter().sum::<f64>() / p2.iter().sum::<f64>();
+    eprintln!(
+        "mean difference {d:.3e} ({:.2} sd); variance single/replicas {ratio:.3}, paired \
+         difference {:.2} standard errors",
+        d / sd,
+        mean / se
+    );
+    assert!(mean + 5.0 * se < 0.0, "variance difference {mean} ± {se}");
+    // Without an independent second half there is no noise estimate, and a noise target
+    // is refused rather than met with a wrong estimate.
+    let single = |s: RenderSettings| RenderSettings {
+        sampler: SamplerKind::Single,
+        ..s
+    };
+    let out = Renderer::new(&scene, single(quiet(8, 0, 1)))
+        .unwrap()
+        .render()
+        .unwrap();
+    assert_eq!(out.noise, None);
+    for s in [
+        RenderSettings {
+            target_noise: Some(0.05),
+            ..quiet(64, 0, 1)
+        },
+        RenderSettings {
+            target_psnr_ldr: Some(30.0),
+            ..quiet(64, 0, 1)
+        },
+    ] {
+        assert!(Renderer::new(&scene, single(s)).is_err());
     }
 }

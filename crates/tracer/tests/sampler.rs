@@ -1,9 +1,10 @@
 //! The pixel sampler (`rng::pixel_sampler`): scrambled Sobol points must be a (0, m, 2)-net in
 //! every pair of dimensions of a replica (the stratification that lowers the variance), uniform
 //! across pixels (chi-square), and the two replicas independent (what keeps the half-image noise
-//! estimate unbiased).
+//! estimate unbiased); the single-sequence sampler a net of all of a pixel's samples.
 
-use prt_tracer::rng::{pixel_sampler, QMC_DIMENSIONS};
+use prt_tracer::rng::{pixel_sampler, PixelKeys, QMC_DIMENSIONS};
+use prt_tracer::SamplerKind;
 
 /// The first `2^m` samples of replica `replica` of a pixel, all QMC dimensions.
 fn points(seed: u64, pixel: u64, replica: u64, m: u32) -> Vec<Vec<f32>> {
@@ -15,6 +16,64 @@ fn points(seed: u64, pixel: u64, replica: u64, m: u32) -> Vec<Vec<f32>> {
         .collect()
 }
 
+/// Where the (0, m, 2)-net property of `pts` (2^m points) fails in some dimension pair: for
+/// every split a + b = m, each of the 2^a × 2^b elementary boxes must hold exactly one point.
+fn net_violation(pts: &[Vec<f32>], m: u32) -> Option<String> {
+    for pair in 0..(QMC_DIMENSIONS / 2) as usize {
+        for a in 0..=m {
+            let b = m - a;
+            let mut seen = vec![false; 1 << m];
+            for p in pts {
+                let (x, y) = (p[2 * pair], p[2 * pair + 1]);
+                let cx = (x * (1u32 << a) as f32) as usize;
+                let cy = (y * (1u32 << b) as f32) as usize;
+                let cell = (cx << b) | cy;
+                if seen[cell] {
+                    return Some(format!("pair {pair}, split {a}+{b}: two points in one box"));
+                }
+                seen[cell] = true;
+            }
+        }
+    }
+    None
+}
+
+/// The single-sequence sampler (`SamplerKind::Single`): the first 2^m samples of a pixel, all
+/// of them together, are a (0, m, 2)-net in every dimension pair (with the replicas sampler
+/// only each replica's half is), and the replicas sampler of `PixelKeys` is `pixel_sampler`.
+#[test]
+fn test03_single_sequence_stratifies_all_samples_together() {
+    let m = 8;
+    for (seed, pixel) in [(0u64, 0u64), (7, 12_345), (u64::MAX, 3)] {
+        let keys = PixelKeys::new(seed, pixel);
+        let pts: Vec<Vec<f32>> = (0..1u64 << m)
+            .map(|j| {
+                let mut s = keys.sampler_of(SamplerKind::Single, j);
+                (0..QMC_DIMENSIONS).map(|_| s.next_f32()).collect()
+            })
+            .collect();
+        let bad = net_violation(&pts, m);
+        assert!(bad.is_none(), "single, seed {seed}, pixel {pixel}: {bad:?}");
+        // The replicas' 2^m samples are two nets of 2^(m-1) points, not one of 2^m: some
+        // elementary box of the finest split holds two (or the test above would not tell
+        // the two samplers apart).
+        let both: Vec<Vec<f32>> = (0..1u64 << m)
+            .map(|j| {
+                let mut s = keys.sampler_of(SamplerKind::Replicas, j);
+                let mut r = pixel_sampler(seed, pixel, j);
+                let p: Vec<f32> = (0..QMC_DIMENSIONS).map(|_| s.next_f32()).collect();
+                let q: Vec<f32> = (0..QMC_DIMENSIONS).map(|_| r.next_f32()).collect();
+                assert_eq!(p, q);
+                p
+            })
+            .collect();
+        assert!(
+            net_violation(&both, m).is_some(),
+            "replicas: one net of all samples?"
+        );
+    }
+}
+
 #[test]
 fn test01_every_dimension_pair_is_a_0_m_2_net() {
     // Owen scrambling and the scrambled point order keep the net property of the 2D Sobol
@@ -23,24 +82,11 @@ fn test01_every_dimension_pair_is_a_0_m_2_net() {
     // nested breaks it at once).
     let m = 8;
     for (seed, pixel, replica) in [(0, 0, 0), (7, 12_345, 1), (u64::MAX, 3, 0)] {
-        let pts = points(seed, pixel, replica, m);
-        for pair in 0..(QMC_DIMENSIONS / 2) as usize {
-            for a in 0..=m {
-                let b = m - a;
-                let mut seen = vec![false; 1 << m];
-                for p in &pts {
-                    let (x, y) = (p[2 * pair], p[2 * pair + 1]);
-                    let cx = (x * (1u32 << a) as f32) as usize;
-                    let cy = (y * (1u32 << b) as f32) as usize;
-                    let cell = (cx << b) | cy;
-                    assert!(
-                        !seen[cell],
-                        "pair {pair}, split {a}+{b}: two points in one box (seed {seed}, pixel {pixel})"
-                    );
-                    seen[cell] = true;
-                }
-            }
-        }
+        let bad = net_violation(&points(seed, pixel, replica, m), m);
+        assert!(
+            bad.is_none(),
+            "seed {seed}, pixel {pixel}, replica {replica}: {bad:?}"
+        );
     }
 }
 
