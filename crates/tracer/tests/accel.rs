@@ -686,3 +686,67 @@ fn test13_own_traversals_find_the_same_hits() {
         "{tested_sorted} vs {tested_obvhs}"
     );
 }
+
+/// Groups of a few triangles are tested triangle by triangle (`AccelOptions::direct_triangles`)
+/// instead of through their BVH: the same answers, bit for bit, as the BVH gives, in the
+/// three-group scene of test12 (whose 2 km floor quad is such a group): closest hits, packets
+/// and occlusion, with infinite and finite `tmax`, from random points and from points spawned
+/// off the floor and the spheres (where a wrong rule would show as self-hits).
+#[test]
+fn test14_small_groups_tested_directly_give_the_bvh_answers() {
+    let tiny = Vec3::new(1.3, 0.2, 0.1);
+    let mut meshes = spheres_in_a_box((24, 48), (12, 24));
+    meshes.push(test_util::uv_sphere(tiny, 1.0e-3, 12, 24, true));
+    meshes.push(test_util::quad(
+        Vec3::new(-1000.0, -1.6, -1000.0),
+        Vec3::new(0.0, 0.0, 2000.0),
+        Vec3::new(2000.0, 0.0, 0.0),
+    ));
+    let direct = accel(&meshes);
+    let bvh = Accel::from_meshes(
+        &meshes,
+        AccelOptions {
+            direct_triangles: 0,
+            ..AccelOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(direct.group_count(), 3);
+    let mut rng = Pcg64::seed_from_u64(14);
+    let (mut floor_hits, mut blocked) = (0, 0);
+    for case in 0..20_000 {
+        let mut o = unit_dir(&mut rng) * rng.random_range(0.0f32..3.0);
+        let d = unit_dir(&mut rng);
+        if case % 2 == 1 {
+            // From a surface point: the hit of a ray towards the floor or the spheres.
+            let towards = Vec3::new(d.x, -d.y.abs(), d.z);
+            if let Some(h) = bvh.closest_hit(o, towards, f32::INFINITY) {
+                floor_hits += usize::from(h.mesh == 4);
+                o = h.spawn_origin(d);
+            }
+        }
+        let tmax = [f32::INFINITY, 0.5, 5.0][case % 3];
+        assert_eq!(
+            direct.closest_hit(o, d, tmax),
+            bvh.closest_hit(o, d, tmax),
+            "case {case}"
+        );
+        let b = bvh.occluded(o, d, tmax);
+        assert_eq!(direct.occluded(o, d, tmax), b, "case {case}");
+        blocked += usize::from(b);
+    }
+    // Packets of camera-like rays towards the floor.
+    for case in 0..500 {
+        let eye = Vec3::new(0.0, 1.0, 4.0) + unit_dir(&mut rng);
+        let dirs: Vec<Vec3> = (0..8)
+            .map(|_| (Vec3::new(0.0, -1.6, 0.0) + unit_dir(&mut rng) * 3.0 - eye).normalize())
+            .collect();
+        let (mut a, mut b) = (vec![None; 8], vec![None; 8]);
+        direct.closest_hits(&[eye; 8], &dirs, f32::INFINITY, &mut a);
+        bvh.closest_hits(&[eye; 8], &dirs, f32::INFINITY, &mut b);
+        assert_eq!(a, b, "packet {case}");
+    }
+    eprintln!("{floor_hits} rays from the floor, {blocked} blocked");
+    assert!(floor_hits > 2_000, "{floor_hits} rays from the floor");
+    assert!(blocked > 2_000 && blocked < 18_000, "{blocked} blocked");
+}
