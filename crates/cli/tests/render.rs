@@ -74,6 +74,60 @@ fn test01_renders_default_scene_to_exr_and_png() {
         (layer.size.0, layer.size.1)
     );
 
+    // The single-sequence sampler: an image without a noise estimate (NaN in the EXR), not
+    // the replicas' image.
+    let single_path = dir.path().join("single.exr");
+    let out = prt()
+        .arg("render")
+        .arg(scene("default.toml"))
+        .args([
+            "--spp",
+            "2",
+            "--bounces",
+            "0",
+            "--seed",
+            "7",
+            "--quiet",
+            "--sampler",
+            "single",
+        ])
+        .arg("--out")
+        .arg(&single_path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let single = exr::prelude::read_all_flat_layers_from_file(&single_path).unwrap();
+    let noise = single.layer_data[0]
+        .attributes
+        .other
+        .get(&exr::prelude::Text::from("prt.noise_estimate"))
+        .cloned();
+    assert!(
+        matches!(noise, Some(exr::prelude::AttributeValue::F64(x)) if x.is_nan()),
+        "{noise:?}"
+    );
+    assert!(matches!(
+        attr("prt.noise_estimate"),
+        Some(exr::prelude::AttributeValue::F64(x)) if x.is_finite()
+    ));
+    let red = |img: &exr::prelude::FlatImage| {
+        let c = img.layer_data[0]
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == "R")
+            .expect("an R channel");
+        match &c.sample_data {
+            exr::prelude::FlatSamples::F32(v) => v.clone(),
+            other => panic!("{other:?}"),
+        }
+    };
+    assert_ne!(red(&single), red(&image));
+
     // AO and unshadowed modes run too.
     for mode in [
         ["--ao", "--ao-distance=0.5"],
@@ -126,6 +180,19 @@ fn test02_bad_input_fails_with_a_message() {
             scene("default.toml").display().to_string(),
             "--spp".into(),
             "many".into(),
+        ],
+        vec![
+            scene("default.toml").display().to_string(),
+            "--sampler".into(),
+            "stratified".into(),
+        ],
+        // The single sequence has no noise estimate to stop on.
+        vec![
+            scene("default.toml").display().to_string(),
+            "--sampler".into(),
+            "single".into(),
+            "--target-noise".into(),
+            "0.05".into(),
         ],
     ];
     for args in cases {
