@@ -117,9 +117,9 @@ pub struct AccelOptions {
     /// Pad primitive boxes (the bug D workaround). Only tests turn this off.
     pub pad_boxes: bool,
     /// Groups of at most this many triangles are tested triangle by triangle instead of
-    /// through their BVH (default [`DIRECT_TRIANGLES`]: a floor quad beside objects of
-    /// another scale). The BVH finds every hit the exact test finds, so the answers are the
-    /// same; tests set 0 to compare.
+    /// through their BVH (default 4: a floor quad beside objects of another scale). The BVH
+    /// finds every hit the exact test finds, so the answers are the same; tests set 0 to
+    /// compare.
     pub direct_triangles: usize,
 }
 
@@ -317,7 +317,7 @@ impl WorldRay {
 /// same tests. The BVH finds every hit the exact test finds (the padding argument above), so
 /// the answers are the same (`tests/accel.rs` test14). A floor quad beside objects of another
 /// scale: `millimetre` renders in 0.94× the time (one thread, min of 9 rounds).
-pub const DIRECT_TRIANGLES: usize = 4;
+const DIRECT_TRIANGLES: usize = 4;
 
 /// From this many rays of a packet on, a candidate triangle is tested against all the
 /// packet's rays at once ([`PacketRays::hits`]); fewer go one by one.
