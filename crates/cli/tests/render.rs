@@ -1,10 +1,47 @@
 //! `prt render`: success on the default scene, clear errors and non-zero exits on bad input.
 
-use std::path::PathBuf;
+use exr::prelude::{read_all_flat_layers_from_file, AttributeValue, FlatSamples, Text};
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn prt() -> Command {
     Command::new(env!("CARGO_BIN_EXE_prt"))
+}
+
+/// `prt render` of the default scene with `args`, writing `out`; it must succeed.
+fn render_default(args: &[&str], out: &Path) {
+    let o = prt()
+        .arg("render")
+        .arg(scene("default.toml"))
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// The EXR attribute `key` of the first layer of `path`, and its `R` channel.
+fn attribute_and_red(path: &Path, key: &str) -> (Option<AttributeValue>, Vec<f32>) {
+    let image = read_all_flat_layers_from_file(path).unwrap();
+    let layer = &image.layer_data[0];
+    let red = layer
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name.to_string() == "R")
+        .expect("an R channel");
+    let FlatSamples::F32(red) = &red.sample_data else {
+        panic!("R is not f32");
+    };
+    (
+        layer.attributes.other.get(&Text::from(key)).cloned(),
+        red.clone(),
+    )
 }
 
 fn scene(name: &str) -> PathBuf {
@@ -17,10 +54,9 @@ fn scene(name: &str) -> PathBuf {
 fn test01_renders_default_scene_to_exr_and_png() {
     let dir = tempfile::tempdir().unwrap();
     let (exr_path, png_path) = (dir.path().join("x.exr"), dir.path().join("x.png"));
-    let out = prt()
-        .arg("render")
-        .arg(scene("default.toml"))
-        .args([
+    let png = png_path.display().to_string();
+    render_default(
+        &[
             "--spp",
             "2",
             "--bounces",
@@ -31,17 +67,10 @@ fn test01_renders_default_scene_to_exr_and_png() {
             "2",
             "--quiet",
             "--aovs",
-        ])
-        .arg("--out")
-        .arg(&exr_path)
-        .arg("--png")
-        .arg(&png_path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+            "--png",
+            &png,
+        ],
+        &exr_path,
     );
     let image = exr::prelude::read_all_flat_layers_from_file(&exr_path).unwrap();
     let layer = &image.layer_data[0];
@@ -74,127 +103,64 @@ fn test01_renders_default_scene_to_exr_and_png() {
         (layer.size.0, layer.size.1)
     );
 
-    // The single-sequence sampler: an image without a noise estimate (NaN in the EXR), not
-    // the replicas' image.
-    let single_path = dir.path().join("single.exr");
-    let out = prt()
-        .arg("render")
-        .arg(scene("default.toml"))
-        .args([
-            "--spp",
-            "2",
-            "--bounces",
-            "0",
-            "--seed",
-            "7",
-            "--quiet",
-            "--sampler",
-            "single",
-        ])
-        .arg("--out")
-        .arg(&single_path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let single = exr::prelude::read_all_flat_layers_from_file(&single_path).unwrap();
-    let noise = single.layer_data[0]
-        .attributes
-        .other
-        .get(&exr::prelude::Text::from("prt.noise_estimate"))
-        .cloned();
-    assert!(
-        matches!(noise, Some(exr::prelude::AttributeValue::F64(x)) if x.is_nan()),
-        "{noise:?}"
-    );
-    assert!(matches!(
-        attr("prt.noise_estimate"),
-        Some(exr::prelude::AttributeValue::F64(x)) if x.is_finite()
-    ));
-    let red = |img: &exr::prelude::FlatImage| {
-        let c = img.layer_data[0]
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == "R")
-            .expect("an R channel");
-        match &c.sample_data {
-            exr::prelude::FlatSamples::F32(v) => v.clone(),
-            other => panic!("{other:?}"),
-        }
-    };
-    assert_ne!(red(&single), red(&image));
-
     // AO and unshadowed modes run too.
-    for mode in [
-        ["--ao", "--ao-distance=0.5"],
-        ["--unshadowed", "--bounces=-1"],
-    ] {
-        let out = prt()
-            .arg("render")
-            .arg(scene("default.toml"))
-            .args(["--spp", "1", "--quiet"])
-            .args(mode)
-            .arg("--out")
-            .arg(&exr_path)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{mode:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
+    render_default(
+        &["--spp", "1", "--quiet", "--ao", "--ao-distance=0.5"],
+        &exr_path,
+    );
+    render_default(
+        &["--spp", "1", "--quiet", "--unshadowed", "--bounces=-1"],
+        &exr_path,
+    );
+}
+
+/// `--sampler single`: an image without a noise estimate (NaN in the EXR, where the replicas'
+/// image has a finite one), and not the replicas' image.
+#[test]
+fn test03_single_sequence_sampler() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = ["--spp", "2", "--bounces", "0", "--seed", "7", "--quiet"];
+    let (replicas, single) = (dir.path().join("r.exr"), dir.path().join("s.exr"));
+    render_default(&args, &replicas);
+    render_default(&[&args[..], &["--sampler", "single"]].concat(), &single);
+    let (noise_r, red_r) = attribute_and_red(&replicas, "prt.noise_estimate");
+    let (noise_s, red_s) = attribute_and_red(&single, "prt.noise_estimate");
+    assert!(
+        matches!(noise_r, Some(AttributeValue::F64(x)) if x.is_finite()),
+        "{noise_r:?}"
+    );
+    assert!(
+        matches!(noise_s, Some(AttributeValue::F64(x)) if x.is_nan()),
+        "{noise_s:?}"
+    );
+    assert_ne!(red_r, red_s);
 }
 
 #[test]
 fn test02_bad_input_fails_with_a_message() {
     let dir = tempfile::tempdir().unwrap();
     let out_path = dir.path().join("x.exr");
-    let cases: Vec<Vec<String>> = vec![
-        vec![dir.path().join("missing.toml").display().to_string()],
-        vec![
-            scene("default.toml").display().to_string(),
-            "--spp".into(),
-            "0".into(),
-        ],
-        vec![
-            scene("default.toml").display().to_string(),
-            "--bounces".into(),
-            "-2".into(),
-        ],
-        vec![
-            scene("default.toml").display().to_string(),
-            "--threads".into(),
-            "0".into(),
-        ],
-        vec![
-            scene("default.toml").display().to_string(),
-            "--ao".into(),
-            "--unshadowed".into(),
-        ],
-        vec![
-            scene("default.toml").display().to_string(),
-            "--spp".into(),
-            "many".into(),
-        ],
-        vec![
-            scene("default.toml").display().to_string(),
-            "--sampler".into(),
-            "stratified".into(),
-        ],
-        // The single sequence has no noise estimate to stop on.
-        vec![
-            scene("default.toml").display().to_string(),
-            "--sampler".into(),
-            "single".into(),
-            "--target-noise".into(),
-            "0.05".into(),
-        ],
+    // Options on the default scene that must be refused; the last: the single sequence has
+    // no noise estimate to stop on.
+    let bad_options: [&[&str]; 8] = [
+        &["--spp", "0"],
+        &["--bounces", "-2"],
+        &["--threads", "0"],
+        &["--ao", "--unshadowed"],
+        &["--spp", "many"],
+        &["--sampler", "stratified"],
+        &["--sampler", "single", "--target-psnr-ldr", "40"],
+        &["--sampler", "single", "--target-noise", "0.05"],
     ];
+    let default = scene("default.toml").display().to_string();
+    let cases: Vec<Vec<String>> =
+        std::iter::once(vec![dir.path().join("missing.toml").display().to_string()])
+            .chain(bad_options.iter().map(|opts| {
+                std::iter::once(default.clone())
+                    .chain(opts.iter().map(|o| (*o).to_string()))
+                    .collect()
+            }))
+            .collect();
     for args in cases {
         let out = prt()
             .arg("render")

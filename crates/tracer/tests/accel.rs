@@ -594,12 +594,9 @@ fn packets_against_single_rays(a: &Accel, rng: &mut Pcg64, centre: Vec3, reach: 
     hits
 }
 
-/// Packets in a scene of three scale groups (a 2 mm sphere and a 2 km floor beside the unit
-/// scene of test 11): each packet visits the groups its rays reach, nearest first, and every
-/// lane's hit is still the single ray's, bit for bit, around the unit scene and around the
-/// tiny sphere.
-#[test]
-fn test12_packets_across_scale_groups() {
+/// The scene of test 11 with a 2 mm sphere (at the returned centre) and a 2 km floor quad
+/// beside it: three scale groups, the floor one of two triangles.
+fn three_scale_groups() -> (Vec<Mesh>, Vec3) {
     let tiny = Vec3::new(1.3, 0.2, 0.1);
     let mut meshes = spheres_in_a_box((24, 48), (12, 24));
     meshes.push(test_util::uv_sphere(tiny, 1.0e-3, 12, 24, true));
@@ -608,6 +605,16 @@ fn test12_packets_across_scale_groups() {
         Vec3::new(0.0, 0.0, 2000.0),
         Vec3::new(2000.0, 0.0, 0.0),
     ));
+    (meshes, tiny)
+}
+
+/// Packets in a scene of three scale groups (a 2 mm sphere and a 2 km floor beside the unit
+/// scene of test 11): each packet visits the groups its rays reach, nearest first, and every
+/// lane's hit is still the single ray's, bit for bit, around the unit scene and around the
+/// tiny sphere.
+#[test]
+fn test12_packets_across_scale_groups() {
+    let (meshes, tiny) = three_scale_groups();
     let a = accel(&meshes);
     assert_eq!(a.group_count(), 3);
     let mut rng = Pcg64::seed_from_u64(12);
@@ -694,14 +701,7 @@ fn test13_own_traversals_find_the_same_hits() {
 /// off the floor and the spheres (where a wrong rule would show as self-hits).
 #[test]
 fn test14_small_groups_tested_directly_give_the_bvh_answers() {
-    let tiny = Vec3::new(1.3, 0.2, 0.1);
-    let mut meshes = spheres_in_a_box((24, 48), (12, 24));
-    meshes.push(test_util::uv_sphere(tiny, 1.0e-3, 12, 24, true));
-    meshes.push(test_util::quad(
-        Vec3::new(-1000.0, -1.6, -1000.0),
-        Vec3::new(0.0, 0.0, 2000.0),
-        Vec3::new(2000.0, 0.0, 0.0),
-    ));
+    let (meshes, _) = three_scale_groups();
     let direct = accel(&meshes);
     let bvh = Accel::from_meshes(
         &meshes,
