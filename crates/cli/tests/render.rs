@@ -115,7 +115,7 @@ fn test01_renders_default_scene_to_exr_and_png() {
 }
 
 /// `--sampler single`: an image without a noise estimate (NaN in the EXR, where the replicas'
-/// image has a finite one), and not the replicas' image.
+/// image has a finite one), not the replicas' image, and the sampler named in the header.
 #[test]
 fn test03_single_sequence_sampler() {
     let dir = tempfile::tempdir().unwrap();
@@ -125,6 +125,12 @@ fn test03_single_sequence_sampler() {
     render_default(&[&args[..], &["--sampler", "single"]].concat(), &single);
     let (noise_r, red_r) = attribute_and_red(&replicas, "prt.noise_estimate");
     let (noise_s, red_s) = attribute_and_red(&single, "prt.noise_estimate");
+    for (path, name) in [(&replicas, "replicas"), (&single, "single")] {
+        assert_eq!(
+            attribute_and_red(path, "prt.sampler").0,
+            Some(AttributeValue::Text(Text::from(name)))
+        );
+    }
     assert!(
         matches!(noise_r, Some(AttributeValue::F64(x)) if x.is_finite()),
         "{noise_r:?}"

@@ -6,7 +6,8 @@
 //! 0 for background), `albedo.R/G/B` (first-hit `albedo`), `depth.Z` (distance from the eye,
 //! 0 for background) and `variance.R/G/B` (estimated variance of the pixel mean, sample
 //! variance / spp). The header carries the attributes `prt.spp` (i32), `prt.bounces` (i32),
-//! `prt.seed` (text, decimal u64), `prt.mode` (text), `prt.render_seconds` (f64),
+//! `prt.seed` (text, decimal u64), `prt.mode` (text), `prt.sampler` (text: `replicas` or
+//! `single`, the pixel sampler's sequences), `prt.render_seconds` (f64),
 //! `prt.tool_version` (text), `prt.invalid_samples` (i32) and `prt.noise_estimate` (f64: the
 //! image's own relative noise estimate on object pixels, NaN when it has none) and
 //! `prt.noise_psnr_ldr` (f64: its own estimate of its 8-bit noise ceiling, dB, likewise).
@@ -20,7 +21,7 @@
 //! The writers, the sRGB curve and the 8-bit view are prt-image's (one of each for the
 //! workspace); this module adds the render's channels and metadata and the tracer's error.
 
-use crate::{Mode, RenderOutput, TracerError};
+use crate::{Mode, RenderOutput, SamplerKind, TracerError};
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer, LayerAttributes,
     SmallVec, Text,
@@ -92,6 +93,13 @@ pub fn metadata(out: &RenderOutput) -> Vec<(String, AttributeValue)> {
         (
             "prt.mode".into(),
             AttributeValue::Text(Text::from(mode_name(s.mode).as_str())),
+        ),
+        (
+            "prt.sampler".into(),
+            AttributeValue::Text(Text::from(match s.sampler {
+                SamplerKind::Replicas => "replicas",
+                SamplerKind::Single => "single",
+            })),
         ),
         (
             "prt.render_seconds".into(),
