@@ -230,7 +230,8 @@ struct Group {
     pad_world: f64,
     /// Whether a mesh of the group has an alpha mask (only such groups test coverage).
     masked: bool,
-    /// Whether its triangles are tested one by one ([`Group::direct`]).
+    /// Whether the group is small enough ([`AccelOptions::direct_triangles`]) that its
+    /// triangles are tested one by one instead of through its BVH.
     direct: bool,
 }
 
@@ -487,12 +488,6 @@ impl Group {
         (start, tmax_local.max(MIN_TRAVERSAL_TMAX))
     }
 
-    /// Whether the group is small enough ([`AccelOptions::direct_triangles`]) that its
-    /// triangles are tested one by one instead of through its BVH.
-    fn direct(&self) -> bool {
-        self.direct
-    }
-
     /// Whether the hit `(u, v)` on BVH slot `slot` is on a covered part of its mesh (always,
     /// unless the mesh has an alpha mask).
     fn covers(&self, slot: usize, u: f64, v: f64, masks: &Masks) -> bool {
@@ -560,7 +555,7 @@ impl Group {
 
     /// The closest hit closer than `best.t` in this group; updates `best`.
     fn closest(&self, group: usize, ray: &WorldRay, t0: f64, best: &mut Best, masks: &Masks) {
-        if self.direct() {
+        if self.direct {
             for slot in 0..self.world.len() {
                 self.consider(group, slot, ray, 0.0, best, masks);
             }
@@ -577,39 +572,34 @@ impl Group {
 
     /// Whether anything in this group is hit with `t ≤ tmax`.
     fn occluded(&self, ray: &WorldRay, t0: f64, tmax: f64, masks: &Masks) -> bool {
-        if self.direct() {
-            // The traversal's rule: a hit blocks if its group-space distance is below the
-            // local ray's `tmax`.
+        if self.direct {
+            // The traversal's rule, for every triangle: a hit blocks if its group-space
+            // distance is below the local ray's `tmax`.
             let (start, tmax_local) = self.local_span(t0, tmax);
-            return (0..self.world.len()).any(|slot| {
-                let found = if self.masked {
-                    match ray.intersect_uv(&self.world[slot], tmax) {
-                        Some((t, u, v)) if self.covers(slot, u, v, masks) => Some(t),
-                        _ => None,
-                    }
-                } else {
-                    ray.intersect(&self.world[slot], tmax)
-                };
-                found.is_some_and(|t| (((t - start) * self.scale) as f32).max(0.0) < tmax_local)
-            });
+            return (0..self.world.len())
+                .any(|slot| self.blocking(slot, ray, start, tmax, masks) < tmax_local);
         }
         let (local, start) = self.local_ray(ray, t0, tmax);
-        let scale = self.scale;
-        if self.masked {
-            return traverse::any_leaves_first(&self.bvh, local, |slot| {
-                match ray.intersect_uv(&self.world[slot], tmax) {
-                    Some((t, u, v)) if self.covers(slot, u, v, masks) => {
-                        (((t - start) * scale) as f32).max(0.0)
-                    }
-                    _ => f32::INFINITY,
-                }
-            });
-        }
         traverse::any_leaves_first(&self.bvh, local, |slot| {
-            match ray.intersect(&self.world[slot], tmax) {
-                Some(t) => (((t - start) * scale) as f32).max(0.0),
-                None => f32::INFINITY,
+            self.blocking(slot, ray, start, tmax, masks)
+        })
+    }
+
+    /// The exact test of candidate `slot` for an occlusion query up to world `tmax` (with the
+    /// coverage test where the group has an alpha mask): the hit's group-space distance from
+    /// the local ray's start `start`, or `∞`.
+    #[inline]
+    fn blocking(&self, slot: usize, ray: &WorldRay, start: f64, tmax: f64, masks: &Masks) -> f32 {
+        let found = if self.masked {
+            match ray.intersect_uv(&self.world[slot], tmax) {
+                Some((t, u, v)) if self.covers(slot, u, v, masks) => Some(t),
+                _ => None,
             }
+        } else {
+            ray.intersect(&self.world[slot], tmax)
+        };
+        found.map_or(f32::INFINITY, |t| {
+            (((t - start) * self.scale) as f32).max(0.0)
         })
     }
 }
@@ -869,7 +859,7 @@ impl Accel {
             .iter()
             .map(|&i| world[i as usize])
             .collect();
-        let world_len = world.len();
+        let direct = world.len() <= options.direct_triangles;
         let refs = bvh
             .primitive_indices
             .iter()
@@ -890,7 +880,7 @@ impl Accel {
             hi: hi + DVec3::splat(pad_world),
             pad_world,
             masked: false,
-            direct: world_len <= options.direct_triangles,
+            direct,
         }
     }
 
@@ -1066,7 +1056,7 @@ impl Accel {
         best: &mut [Best; PACKET],
     ) {
         let g = &self.groups[gi];
-        if g.direct() {
+        if g.direct {
             for lane in 0..PACKET {
                 if t0[lane].is_some_and(|t| t <= best[lane].t) {
                     g.closest(gi, &world[lane], 0.0, &mut best[lane], &self.masks);

@@ -229,7 +229,7 @@ impl Renderer<'_> {
 
     /// Whether a BRDF-sampled ray leaving the vertex after `indirect` reflections is the
     /// path's last one and what it hits cannot add light (no emissive surface in the scene).
-    pub(crate) fn only_escape_matters(&self, indirect: u32) -> bool {
+    fn only_escape_matters(&self, indirect: u32) -> bool {
         !self.emissive && self.settings.bounces >= 0 && indirect >= self.settings.bounces as u32
     }
 
