@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use prt_tracer::{output, MisHeuristic, Mode, RenderSettings, Renderer, SamplerKind};
+use prt_tracer::{output, EnvSampling, MisHeuristic, Mode, RenderSettings, Renderer, SamplerKind};
 use std::path::PathBuf;
 
 /// MIS heuristic names on the command line.
@@ -12,6 +12,16 @@ pub enum MisArg {
     Power,
     /// Veach's balance heuristic.
     Balance,
+}
+
+/// Environment sampling densities on the command line.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum EnvSamplingArg {
+    /// Proportional to luminance × solid angle.
+    Luminance,
+    /// MIS compensation (Karlík et al. 2019): max(0, luminance − the map's mean) × solid
+    /// angle; lower variance, same expectation.
+    Compensated,
 }
 
 /// Pixel sampler names on the command line.
@@ -86,6 +96,10 @@ pub struct RenderArgs {
     /// lower error per sample.
     #[arg(long, value_enum, default_value_t = SamplerArg::Replicas)]
     pub sampler: SamplerArg,
+    /// Environment sampling density: `compensated` (MIS compensation, lower variance) or
+    /// `luminance` (proportional to the map); the same image in expectation.
+    #[arg(long, value_enum, default_value_t = EnvSamplingArg::Compensated)]
+    pub env_sampling: EnvSamplingArg,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -128,6 +142,10 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     settings.sampler = match args.sampler {
         SamplerArg::Replicas => SamplerKind::Replicas,
         SamplerArg::Single => SamplerKind::Single,
+    };
+    settings.env_sampling = match args.env_sampling {
+        EnvSamplingArg::Luminance => EnvSampling::Luminance,
+        EnvSamplingArg::Compensated => EnvSampling::Compensated,
     };
     settings.mode = if args.ao {
         Mode::AmbientOcclusion {

@@ -19,7 +19,21 @@
 //!   quadrature, the pdf stays exact. The pdf grows without bound towards the rim (−Z), where
 //!   the map squeezes a whole ring of texels into one direction.
 //!
-//! Texels of zero luminance get zero probability. Sampling happens in the map frame and is
+//! Texels of zero luminance get zero probability.
+//!
+//! **MIS compensation** ([`EnvSampling::Compensated`]; Karlík, Šik, Vévoda, Skřivan & Křivánek,
+//! "MIS Compensation: Optimizing Sampling Techniques in Multiple Importance Sampling", ACM TOG
+//! 38(6), SIGGRAPH Asia 2019, their normal-independent variant; pbrt-v4's image infinite light
+//! does the same): when every environment sample is combined by MIS with BRDF sampling, the
+//! texel weight `max(0, luminance − L̄) × solid angle`, `L̄` the map's mean luminance over the
+//! sphere (raised by a relative 2⁻²⁰, so that a constant map stays constant after rounding), lowers the variance: BRDF sampling already covers the dim, nearly uniform part of the
+//! map well, so environment samples are better spent on what stands out of it. Texels at or
+//! below `L̄` then have pdf 0 and are reached by BRDF sampling alone (MIS weight 1), which stays
+//! unbiased as long as the BRDF's sampling pdf is positive wherever it is; a constant map has
+//! no texel above its mean and is not sampled at all. Used on its own (without MIS) this
+//! sampler would be biased: [`EnvSampling::Luminance`] is the plain one.
+//!
+//! Sampling happens in the map frame and is
 //! rotated by `rotation_y_deg` to the world ([`Environment::to_world`]); `pdf` and `radiance`
 //! undo the rotation first.
 
@@ -41,10 +55,31 @@ pub struct EnvSample {
     pub pdf: f32,
 }
 
+/// Relative margin above the mean luminance for [`EnvSampling::Compensated`].
+const COMPENSATION_MARGIN: f64 = 1.0 / (1u64 << 20) as f64;
+
+/// How [`EnvSampler`] weights a texel. The compensated density (Karlík, Šik, Vévoda, Skřivan
+/// & Křivánek, "MIS Compensation", SIGGRAPH Asia 2019, their normal-independent variant) is
+/// for estimators that combine every environment sample with BRDF sampling by MIS: BRDF
+/// sampling already covers the part of the map near its mean, so environment samples go only
+/// where the map stands out of it. Texels at or below the mean then have pdf 0 and are reached
+/// by BRDF sampling alone (MIS weight 1), unbiased wherever the BRDF's sampling pdf is positive
+/// where the BRDF is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum EnvSampling {
+    /// `luminance × solid angle`: proportional to the map, for an estimator on its own.
+    Luminance,
+    /// `max(0, luminance − mean luminance) × solid angle`: only for estimators that combine
+    /// every environment sample with BRDF sampling by MIS (Karlík et al. 2019).
+    #[default]
+    Compensated,
+}
+
 /// Importance sampler of a distant environment (see the module docs for the exact pdf).
 #[derive(Clone, Debug)]
 pub struct EnvSampler {
     env: Environment,
+    sampling: EnvSampling,
     dist: Option<Distribution2D>,
     /// Lat-long: solid angle of each row's texels. Angular: clipped `(a, b)` area of each texel.
     measure: Vec<f64>,
@@ -162,45 +197,54 @@ fn angular_texel_solid_angle(a0: f64, a1: f64, b0: f64, b1: f64) -> f64 {
 }
 
 impl EnvSampler {
-    /// Builds the sampling distribution of `env` (clones the environment).
+    /// Builds the sampling distribution of `env` proportional to luminance
+    /// ([`EnvSampling::Luminance`]; clones the environment).
     #[must_use]
     pub fn new(env: &Environment) -> Self {
+        Self::with_sampling(env, EnvSampling::Luminance)
+    }
+
+    /// Builds the sampling distribution of `env` with the texel weights of `sampling`
+    /// (clones the environment).
+    #[must_use]
+    pub fn with_sampling(env: &Environment, sampling: EnvSampling) -> Self {
         let img = &env.image;
         let (w, h) = (img.width, img.height);
-        let mut weights = vec![0.0f64; w * h];
-        let mut measure;
-        let mut total_power = 0.0;
-        match env.mapping {
+        let lum =
+            |c: usize, r: usize| f64::from(luminance(Vec3::from_array(img.texel(c, r)))).max(0.0);
+        // Per texel: luminance and solid angle (0 outside an angular probe's disc).
+        let mut texels = vec![(0.0f64, 0.0f64); w * h];
+        let measure = match env.mapping {
             Mapping::LatLong => {
-                measure = (0..h)
-                    .map(|r| latlong_row_solid_angle(r, w, h))
-                    .collect::<Vec<_>>();
-                for r in 0..h {
-                    for c in 0..w {
-                        let lum = f64::from(luminance(Vec3::from_array(img.texel(c, r)))).max(0.0);
-                        weights[r * w + c] = lum * measure[r];
-                        total_power += lum * measure[r];
-                    }
+                let measure: Vec<f64> = (0..h).map(|r| latlong_row_solid_angle(r, w, h)).collect();
+                for (i, t) in texels.iter_mut().enumerate() {
+                    *t = (lum(i % w, i / w), measure[i / w]);
                 }
+                measure
             }
             Mapping::Angular => {
-                measure = vec![0.0; w * h];
-                for r in 0..h {
-                    for c in 0..w {
-                        let (a0, a1, b0, b1) = angular_rect(c, r, w, h);
-                        let area = clipped_area(a0, a1, b0, b1);
-                        measure[r * w + c] = area;
-                        if area <= 0.0 {
-                            continue;
-                        }
-                        let lum = f64::from(luminance(Vec3::from_array(img.texel(c, r)))).max(0.0);
-                        let omega = angular_texel_solid_angle(a0, a1, b0, b1);
-                        weights[r * w + c] = lum * omega;
-                        total_power += lum * omega;
+                let mut measure = vec![0.0; w * h];
+                for (i, t) in texels.iter_mut().enumerate() {
+                    let (a0, a1, b0, b1) = angular_rect(i % w, i / w, w, h);
+                    measure[i] = clipped_area(a0, a1, b0, b1);
+                    if measure[i] > 0.0 {
+                        *t = (lum(i % w, i / w), angular_texel_solid_angle(a0, a1, b0, b1));
                     }
                 }
+                measure
             }
-        }
+        };
+        let total_power: f64 = texels.iter().map(|&(l, omega)| l * omega).sum();
+        // The mean luminance, a relative 2⁻²⁰ higher so that the rounding of a constant
+        // map's sum leaves no texel above it (any floor ≥ 0 keeps the estimator unbiased).
+        let floor = match sampling {
+            EnvSampling::Luminance => 0.0,
+            EnvSampling::Compensated => total_power / (4.0 * PI) * (1.0 + COMPENSATION_MARGIN),
+        };
+        let weights: Vec<f64> = texels
+            .iter()
+            .map(|&(l, omega)| (l - floor).max(0.0) * omega)
+            .collect();
         let dist = if w * h > 0 && weights.iter().any(|&x| x > 0.0) {
             Some(Distribution2D::new(&weights, w, h))
         } else {
@@ -212,6 +256,7 @@ impl EnvSampler {
         };
         Self {
             env: env.clone(),
+            sampling,
             dist,
             measure,
             grid,
@@ -223,6 +268,12 @@ impl EnvSampler {
     #[must_use]
     pub fn environment(&self) -> &Environment {
         &self.env
+    }
+
+    /// How texels are weighted.
+    #[must_use]
+    pub fn sampling(&self) -> EnvSampling {
+        self.sampling
     }
 
     /// Probability of choosing texel `(col, row)`.

@@ -62,7 +62,7 @@ mod warp;
 pub use bsdf::{eval, has_delta, is_pure_delta, pdf, sample, specular_selection_probability};
 pub use bsdf_sample::BsdfSample;
 pub use distribution::{Distribution1D, Distribution2D};
-pub use envmap::{EnvSample, EnvSampler};
+pub use envmap::{EnvSample, EnvSampler, EnvSampling};
 pub use frame::Frame;
 pub use fresnel::{fresnel_amplitudes, fresnel_dielectric};
 pub use microfacet::{beckmann_d, sample_beckmann_half_vector};

@@ -8,15 +8,26 @@ use glam::{DVec3, Vec3};
 use prt_scene::envmap::{angular_direction, latlong_direction};
 use prt_scene::{EnvImage, Environment, Mapping};
 use prt_shading::chi2::{chi2_p_value, pearson, sidak, Chi2Test};
-use prt_shading::{luminance, EnvSampler};
+use prt_shading::{luminance, EnvSampler, EnvSampling};
 use rand::{Rng, SeedableRng};
 use std::f64::consts::{PI, TAU};
 
-const SUITE_TESTS: usize = 4;
+const SUITE_TESTS: usize = 6;
 
 /// A sky whose colour is everywhere proportional to `tint` (so luminance ∝ RGB), with a
 /// smooth gradient, a black band and a 2×2-texel sun 10⁴ times brighter.
 fn synthetic(width: usize, height: usize, mapping: Mapping, rotation: f64) -> Environment {
+    synthetic_with_sun(width, height, mapping, rotation, 1e4)
+}
+
+/// [`synthetic`] with a sun of radiance `sun`.
+fn synthetic_with_sun(
+    width: usize,
+    height: usize,
+    mapping: Mapping,
+    rotation: f64,
+    sun: f32,
+) -> Environment {
     let tint = [1.0f32, 0.8, 0.6];
     let mut texels = Vec::with_capacity(width * height);
     for r in 0..height {
@@ -26,7 +37,7 @@ fn synthetic(width: usize, height: usize, mapping: Mapping, rotation: f64) -> En
                 v = 0.0; // zero-radiance texels get zero probability
             }
             if (r == height / 5 || r == height / 5 + 1) && (c == width / 3 || c == width / 3 + 1) {
-                v = 1e4;
+                v = sun;
             }
             texels.push([v * tint[0], v * tint[1], v * tint[2]]);
         }
@@ -43,7 +54,10 @@ fn synthetic(width: usize, height: usize, mapping: Mapping, rotation: f64) -> En
 }
 
 fn env_chi2(env: &Environment, seed: u64, name: &str) {
-    let s = EnvSampler::new(env);
+    env_chi2_with(EnvSampler::new(env), seed, name);
+}
+
+fn env_chi2_with(s: EnvSampler, seed: u64, name: &str) {
     let test = Chi2Test {
         seed,
         quadrature_tolerance: 1e-8,
@@ -77,7 +91,11 @@ fn test02_chi2_angular_with_sun() {
 }
 
 fn check_sample_consistency(env: &Environment) {
-    let s = EnvSampler::new(env);
+    check_sampler_consistency(&EnvSampler::new(env));
+}
+
+/// Samples of `s` report the pdf and radiance a lookup of their direction gives.
+fn check_sampler_consistency(s: &EnvSampler) {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
     let mut rejected = 0;
     let mut edge = 0;
@@ -272,4 +290,85 @@ fn test07_real_map_sunrise() {
         "sunrise.exr {w}×{h}: total power {:.4}, χ² {stat:.1} (dof {dof}, p = {p:.3})",
         s.total_power()
     );
+}
+
+/// The compensated density draws what it says it draws: chi-square against its own pdf on
+/// both mappings (two more of this file's `SUITE_TESTS`), the pdf integrating to one. The sun
+/// is only 3 here so that a good part of the sky stays above the mean and is drawn too.
+#[test]
+fn test08_chi2_compensated() {
+    for (env, seed, name) in [
+        (
+            synthetic_with_sun(64, 32, Mapping::LatLong, 23.0, 3.0),
+            11,
+            "compensated lat-long",
+        ),
+        (
+            synthetic_with_sun(40, 40, Mapping::Angular, 0.0, 3.0),
+            12,
+            "compensated angular",
+        ),
+    ] {
+        env_chi2_with(
+            EnvSampler::with_sampling(&env, EnvSampling::Compensated),
+            seed,
+            name,
+        );
+    }
+}
+
+/// Compensated texel probabilities against their closed form computed here from the exact
+/// solid angles: `P(texel) = max(0, lum − L̄) Ω / Σ max(0, lum − L̄) Ω` with
+/// `L̄ = Σ lum Ω / 4π · (1 + 2⁻²⁰)`; texels at or below `L̄` (most of the sky here) have pdf 0 while they
+/// still have radiance. A constant map has no texel above its mean: no sample, pdf 0, the
+/// radiance unchanged. The plain sampler of the same map is unchanged by the option.
+#[test]
+fn test09_compensated_closed_form() {
+    let (w, h) = (64, 32);
+    let env = synthetic(w, h, Mapping::LatLong, 0.0);
+    let s = EnvSampler::with_sampling(&env, EnvSampling::Compensated);
+    assert_eq!(s.sampling(), EnvSampling::Compensated);
+    let lum =
+        |c: usize, r: usize| f64::from(luminance(Vec3::from_array(env.image.texels[r * w + c])));
+    let texels: Vec<(usize, usize, f64)> = (0..h)
+        .flat_map(|r| (0..w).map(move |c| (c, r, latlong_texel(c, r, w, h).1)))
+        .collect();
+    // The mean, raised by the documented relative 2⁻²⁰ margin.
+    let mean = texels.iter().map(|&(c, r, o)| lum(c, r) * o).sum::<f64>() / (4.0 * PI)
+        * (1.0 + 2f64.powi(-20));
+    let total: f64 = texels
+        .iter()
+        .map(|&(c, r, o)| (lum(c, r) - mean).max(0.0) * o)
+        .sum();
+    let mut zero = 0;
+    for &(c, r, omega) in &texels {
+        let want = (lum(c, r) - mean).max(0.0) * omega / total;
+        let got = s.texel_probability(c, r);
+        assert!(
+            (got - want).abs() <= 1e-9 * want.max(1e-300) + 1e-15,
+            "texel ({c},{r}): P = {got}, closed form {want}"
+        );
+        let d = latlong_texel(c, r, w, h).0.as_vec3();
+        let pdf = f64::from(s.pdf(d));
+        assert!((pdf - want / omega).abs() <= 1e-5 * (want / omega) + 1e-12);
+        assert_eq!(s.radiance(d), EnvSampler::new(&env).radiance(d));
+        zero += usize::from(want == 0.0 && lum(c, r) > 0.0);
+    }
+    assert!(zero > w * h / 2, "only {zero} lit texels below the mean");
+    let plain = EnvSampler::new(&env);
+    assert_eq!(plain.sampling(), EnvSampling::Luminance);
+    assert_eq!(plain.total_power(), s.total_power());
+    for (rotation, sun) in [(23.0, 1e4), (-70.0, 3.0)] {
+        let env = synthetic_with_sun(w, h, Mapping::LatLong, rotation, sun);
+        check_sampler_consistency(&EnvSampler::with_sampling(&env, EnvSampling::Compensated));
+    }
+
+    let constant = Environment::latlong(8, 4, vec![[0.7, 0.5, 0.3]; 32]);
+    let c = EnvSampler::with_sampling(&constant, EnvSampling::Compensated);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(13);
+    for _ in 0..100 {
+        assert_eq!(c.sample([rng.random(), rng.random()]), None);
+        let d = latlong_direction(rng.random::<f64>() * TAU, rng.random::<f64>() * PI).as_vec3();
+        assert_eq!(c.radiance_and_pdf(d), (Vec3::new(0.7, 0.5, 0.3), 0.0));
+    }
 }

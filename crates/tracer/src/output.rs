@@ -21,7 +21,7 @@
 //! The writers, the sRGB curve and the 8-bit view are prt-image's (one of each for the
 //! workspace); this module adds the render's channels and metadata and the tracer's error.
 
-use crate::{Mode, RenderOutput, SamplerKind, TracerError};
+use crate::{EnvSampling, Mode, RenderOutput, SamplerKind, TracerError};
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer, LayerAttributes,
     SmallVec, Text,
@@ -99,6 +99,13 @@ pub fn metadata(out: &RenderOutput) -> Vec<(String, AttributeValue)> {
             AttributeValue::Text(Text::from(match s.sampler {
                 SamplerKind::Replicas => "replicas",
                 SamplerKind::Single => "single",
+            })),
+        ),
+        (
+            "prt.env_sampling".into(),
+            AttributeValue::Text(Text::from(match s.env_sampling {
+                EnvSampling::Luminance => "luminance",
+                EnvSampling::Compensated => "compensated",
             })),
         ),
         (

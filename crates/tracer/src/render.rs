@@ -206,7 +206,7 @@ impl<'s> Renderer<'s> {
                 });
             }
         }
-        let env = EnvSampler::new(&scene.environment);
+        let env = EnvSampler::with_sampling(&scene.environment, settings.env_sampling);
         let emissive = scene
             .meshes
             .iter()

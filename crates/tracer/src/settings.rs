@@ -1,6 +1,7 @@
 //! Parameters of a render, read in one place with their defaults beside them.
 
 use crate::TracerError;
+pub use prt_shading::EnvSampling;
 
 /// What the integrator computes at the first surface a camera ray (or a given point) sees.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,6 +64,10 @@ pub struct RenderSettings {
     pub mis: MisHeuristic,
     /// The pixel sampler's sequences (default [`SamplerKind::Replicas`]).
     pub sampler: SamplerKind,
+    /// How environment samples are drawn (default [`EnvSampling::Compensated`]: every one
+    /// is combined with BRDF sampling by MIS, so the compensated density is unbiased and has
+    /// the lower variance; see [`EnvSampling`]).
+    pub env_sampling: EnvSampling,
     /// With `bounces = -1`: Russian roulette starts at this many indirect bounces (default 3).
     pub rr_start_bounce: u32,
     /// With `bounces = -1`: survival probability is `min(luminance(throughput), this)`
@@ -101,6 +106,7 @@ impl Default for RenderSettings {
             mode: Mode::Path,
             mis: MisHeuristic::Power,
             sampler: SamplerKind::Replicas,
+            env_sampling: EnvSampling::Compensated,
             rr_start_bounce: 3,
             rr_max_survival: 0.95,
             tile_size: 16,
