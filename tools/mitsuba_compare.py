@@ -29,7 +29,7 @@ large |z| of the image-mean difference.
 Suite mode (`--suite`): prt against the peers a user would pick, in one command, on six scenes
 (plus `probe`, a mirror sphere that shows whether the environment lines up in every renderer):
   tools/.venv/bin/python tools/mitsuba_compare.py --suite [--spp 1024] [--table FILE.md]
-      [--prt PATH] [--prt-sampler replicas|single]
+      [--prt PATH] [--prt-sampler replicas|single] [--prt-env-sampling compensated|luminance]
       [--scenes sphere,bunny_floor,mirror,far,millimetre,teapot] [--ref-factor 16]
       [--peers llvm_independent,llvm_multijitter,llvm_ldsampler,cycles]
 - peers: Mitsuba 3 `llvm_ad_rgb` with its `independent`, `multijitter` and `ldsampler` samplers
@@ -153,6 +153,9 @@ def main():
                     help="prt's pixel sampler (`prt render --sampler`): `replicas` (its default, with "
                          "the image's own noise estimate) or `single` (one Sobol sequence of all the "
                          "samples: lower error per sample, no noise estimate)")
+    ap.add_argument("--prt-env-sampling", choices=["compensated", "luminance"], default="compensated",
+                    help="prt's environment sampling density (`prt render --env-sampling`): "
+                         "`compensated` (its default, MIS compensation) or `luminance`")
     ap.add_argument("--variant", default="scalar_rgb")
     ap.add_argument("--upsample", type=int, default=16,
                     help="nearest-neighbour upsampling of the map for Mitsuba (FACTS.md says ×4; "
@@ -246,7 +249,8 @@ seed = 0
     # Ours.
     t0 = time.time()
     cmd = [args.prt, "render", w("scene.toml"), "--spp", str(args.spp), "--bounces", str(args.bounces),
-           "--sampler", args.prt_sampler, "--aovs", "--quiet", "--out", w("ours.exr")]
+           "--sampler", args.prt_sampler, "--env-sampling", args.prt_env_sampling, "--aovs", "--quiet",
+           "--out", w("ours.exr")]
     run = subprocess.run(cmd, capture_output=True, text=True)
     ours_wall = time.time() - t0
     if run.returncode != 0:
@@ -835,6 +839,7 @@ def run_prt(args, work, name, spec):
     def render(seed, exr, aovs):
         cmd = [args.prt, "render", w(f"{name}.toml"), "--spp", str(args.spp), "--bounces",
                str(spec["bounces"]), "--seed", str(seed), "--sampler", args.prt_sampler,
+               "--env-sampling", args.prt_env_sampling,
                "--quiet", "--out", exr] + (["--aovs"] if aovs else [])
         t0 = time.perf_counter()
         run = subprocess.run(cmd, capture_output=True, text=True)
@@ -962,7 +967,7 @@ def suite(args):
     table = args.table or w("suite.md")
     json_path = os.path.splitext(table)[0] + ".json"
     report = {"spp": args.spp, "seeds": list(SEEDS), "size": [args.width, args.height], "prt": args.prt,
-              "prt_sampler": args.prt_sampler,
+              "prt_sampler": args.prt_sampler, "prt_env_sampling": args.prt_env_sampling,
               "peers": peers, "llvm_library": llvm_library(),
               "reference": f"llvm_ad_rgb independent, {args.ref_factor} passes × {args.spp} spp, scene in "
                            "canonical placement",
@@ -1054,7 +1059,8 @@ def suite_table(report):
     peers = [k for k in methods if k != "prt"]
     lines = [
         f"{report['spp']} spp, {report['size'][0]}×{report['size'][1]}, seeds {report['seeds']}; reference: "
-        f"{report['reference']}; prt's sampler: `--sampler {report.get('prt_sampler', 'replicas')}`. "
+        f"{report['reference']}; prt's sampler: `--sampler {report.get('prt_sampler', 'replicas')}"
+        f" --env-sampling {report.get('prt_env_sampling', 'luminance')}`. "
         "s = seconds of one render, render only for every method (mean of the two "
         "seeds' renders; prt: its own render time, BVH build excluded; Mitsuba: `mi.render` after a warm-up "
         "render of the same sampler, i.e. JIT compilation and scene loading excluded; Cycles: a render after "
