@@ -29,7 +29,7 @@ large |z| of the image-mean difference.
 Suite mode (`--suite`): prt against the peers a user would pick, in one command, on six scenes
 (plus `probe`, a mirror sphere that shows whether the environment lines up in every renderer):
   tools/.venv/bin/python tools/mitsuba_compare.py --suite [--spp 1024] [--table FILE.md]
-      [--prt PATH] [--prt-sampler replicas|single] [--prt-env-sampling compensated|luminance]
+      [--prt PATH] [--prt-sampler replicas|single] [--prt-env-sampling per-normal|compensated|luminance]
       [--scenes sphere,bunny_floor,mirror,far,millimetre,teapot] [--ref-factor 16]
       [--peers llvm_independent,llvm_multijitter,llvm_ldsampler,cycles]
 - peers: Mitsuba 3 `llvm_ad_rgb` with its `independent`, `multijitter` and `ldsampler` samplers
@@ -153,9 +153,11 @@ def main():
                     help="prt's pixel sampler (`prt render --sampler`): `replicas` (its default, with "
                          "the image's own noise estimate) or `single` (one Sobol sequence of all the "
                          "samples: lower error per sample, no noise estimate)")
-    ap.add_argument("--prt-env-sampling", choices=["compensated", "luminance"], default="compensated",
+    ap.add_argument("--prt-env-sampling", choices=["per-normal", "compensated", "luminance"],
+                    default="per-normal",
                     help="prt's environment sampling density (`prt render --env-sampling`): "
-                         "`compensated` (its default, MIS compensation) or `luminance`")
+                         "`per-normal` (its default, MIS compensation per shading normal), "
+                         "`compensated` (one compensated table) or `luminance`")
     ap.add_argument("--variant", default="scalar_rgb")
     ap.add_argument("--upsample", type=int, default=16,
                     help="nearest-neighbour upsampling of the map for Mitsuba (FACTS.md says ×4; "

@@ -22,6 +22,9 @@ pub enum EnvSamplingArg {
     /// MIS compensation (Karlík et al. 2019): max(0, luminance − the map's mean) × solid
     /// angle; lower variance, same expectation.
     Compensated,
+    /// MIS compensation per shading normal: cos⁺ × max(0, luminance − half the mean over the
+    /// normal's hemisphere) × solid angle, tabulated for 256 normals; the lowest variance.
+    PerNormal,
 }
 
 /// Pixel sampler names on the command line.
@@ -96,9 +99,10 @@ pub struct RenderArgs {
     /// lower error per sample.
     #[arg(long, value_enum, default_value_t = SamplerArg::Replicas)]
     pub sampler: SamplerArg,
-    /// Environment sampling density: `compensated` (MIS compensation, lower variance) or
-    /// `luminance` (proportional to the map); the same image in expectation.
-    #[arg(long, value_enum, default_value_t = EnvSamplingArg::Compensated)]
+    /// Environment sampling density: `per-normal` (MIS compensation per shading normal, the
+    /// lowest variance), `compensated` (one MIS-compensated table) or `luminance`
+    /// (proportional to the map); the same image in expectation.
+    #[arg(long, value_enum, default_value_t = EnvSamplingArg::PerNormal)]
     pub env_sampling: EnvSamplingArg,
     /// No progress bar.
     #[arg(long)]
@@ -146,6 +150,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     settings.env_sampling = match args.env_sampling {
         EnvSamplingArg::Luminance => EnvSampling::Luminance,
         EnvSamplingArg::Compensated => EnvSampling::Compensated,
+        EnvSamplingArg::PerNormal => EnvSampling::PerNormal,
     };
     settings.mode = if args.ao {
         Mode::AmbientOcclusion {

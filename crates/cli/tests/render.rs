@@ -194,25 +194,29 @@ fn test02_bad_input_fails_with_a_message() {
     assert!(!out_path.exists());
 }
 
-/// `--env-sampling`: the default is the MIS-compensated density, `luminance` the plain one;
-/// the header names it, and the two give different images at the same seed (the same image
-/// in expectation: `prt-tracer`'s render test09).
+/// `--env-sampling`: the default is the per-normal MIS-compensated density, `compensated`
+/// the one-table one and `luminance` the plain one; the header names it, and the three give
+/// different images at the same seed (the same image in expectation: `prt-tracer`'s render
+/// test09).
 #[test]
 fn test04_env_sampling_flag() {
     let dir = tempfile::tempdir().unwrap();
     let args = ["--spp", "2", "--bounces", "0", "--seed", "7", "--quiet"];
-    let (default, plain) = (dir.path().join("c.exr"), dir.path().join("l.exr"));
-    render_default(&args, &default);
-    render_default(
-        &[&args[..], &["--env-sampling", "luminance"]].concat(),
-        &plain,
-    );
-    let (name_c, red_c) = attribute_and_red(&default, "prt.env_sampling");
-    let (name_l, red_l) = attribute_and_red(&plain, "prt.env_sampling");
-    assert_eq!(
-        name_c,
-        Some(AttributeValue::Text(Text::from("compensated")))
-    );
-    assert_eq!(name_l, Some(AttributeValue::Text(Text::from("luminance"))));
-    assert_ne!(red_c, red_l);
+    let mut reds = Vec::new();
+    for (flag, name) in [
+        (None, "per-normal"),
+        (Some("compensated"), "compensated"),
+        (Some("luminance"), "luminance"),
+    ] {
+        let out = dir.path().join(format!("{name}.exr"));
+        let extra: Vec<&str> = flag.map_or(vec![], |f| vec!["--env-sampling", f]);
+        render_default(&[&args[..], &extra].concat(), &out);
+        let (attribute, red) = attribute_and_red(&out, "prt.env_sampling");
+        assert_eq!(attribute, Some(AttributeValue::Text(Text::from(name))));
+        assert!(
+            reds.iter().all(|r| *r != red),
+            "{name}: the same image as another"
+        );
+        reds.push(red);
+    }
 }

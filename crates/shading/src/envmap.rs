@@ -33,10 +33,17 @@
 //! no texel above its mean and is not sampled at all. Used on its own (without MIS) this
 //! sampler would be biased: [`EnvSampling::Luminance`] is the plain one.
 //!
+//! **Per shading normal** ([`EnvSampling::PerNormal`], the renderer's default): the same
+//! compensation with the cosine and the mean of the point's own hemisphere,
+//! `cos⁺ × max(0, luminance − L̄_n / 2)`, tabulated for 1024 normals (`normal_tables.rs`
+//! derives it); [`EnvSampler::sample_at`] and [`EnvSampler::radiance_and_pdf_at`] take the
+//! point's shading normal.
+//!
 //! Sampling happens in the map frame and is
 //! rotated by `rotation_y_deg` to the world ([`Environment::to_world`]); `pdf` and `radiance`
 //! undo the rotation first.
 
+use crate::normal_tables::NormalTables;
 use crate::{luminance, Distribution2D};
 use glam::{DVec3, Vec3};
 use prt_scene::envmap::{angular_direction, LatLongGrid};
@@ -71,8 +78,15 @@ pub enum EnvSampling {
     Luminance,
     /// `max(0, luminance − mean luminance) × solid angle`: only for estimators that combine
     /// every environment sample with BRDF sampling by MIS (Karlík et al. 2019).
-    #[default]
     Compensated,
+    /// Per shading normal `n`: `cos⁺ × max(0, luminance − L̄_n / 2) × solid angle`, with `L̄_n`
+    /// the map's cosine-weighted mean over `n`'s hemisphere, tabulated for 256 normal
+    /// directions ([`EnvSampler::sample_at`]): the density that makes the MIS mixture with
+    /// cosine-weighted BRDF sampling proportional to a Lambert integrand. Only for estimators
+    /// that combine every environment sample with BRDF sampling by MIS. Lat-long maps; an
+    /// angular map gets [`EnvSampling::Compensated`].
+    #[default]
+    PerNormal,
 }
 
 /// Importance sampler of a distant environment (see the module docs for the exact pdf).
@@ -87,6 +101,8 @@ pub struct EnvSampler {
     /// trigonometry in `θ` and libm in `φ`. `None` for angular maps.
     grid: Option<LatLongGrid>,
     total_power: f64,
+    /// [`EnvSampling::PerNormal`] on a lat-long map: the tables per normal.
+    per_normal: Option<NormalTables>,
 }
 
 /// Solid angle of a lat-long texel of row `row` in a `w × h` map.
@@ -239,8 +255,13 @@ impl EnvSampler {
         // map's sum leaves no texel above it (any floor ≥ 0 keeps the estimator unbiased).
         let floor = match sampling {
             EnvSampling::Luminance => 0.0,
-            EnvSampling::Compensated => total_power / (4.0 * PI) * (1.0 + COMPENSATION_MARGIN),
+            EnvSampling::Compensated | EnvSampling::PerNormal => {
+                total_power / (4.0 * PI) * (1.0 + COMPENSATION_MARGIN)
+            }
         };
+        let per_normal =
+            (sampling == EnvSampling::PerNormal && env.mapping == Mapping::LatLong && w * h > 0)
+                .then(|| NormalTables::new(&texels, w, h));
         let weights: Vec<f64> = texels
             .iter()
             .map(|&(l, omega)| (l - floor).max(0.0) * omega)
@@ -261,6 +282,7 @@ impl EnvSampler {
             measure,
             grid,
             total_power,
+            per_normal,
         }
     }
 
@@ -387,6 +409,48 @@ impl EnvSampler {
             }
         };
         (radiance, pdf)
+    }
+
+    /// [`Self::sample`] for a surface point with world shading normal `n` (unit): with
+    /// [`EnvSampling::PerNormal`] from `n`'s table, otherwise the same as `sample`.
+    #[must_use]
+    pub fn sample_at(&self, n: Vec3, u: [f32; 2]) -> Option<EnvSample> {
+        let Some(tables) = &self.per_normal else {
+            return self.sample(u);
+        };
+        let m = self.env.to_map_frame(n.as_dvec3());
+        let ((c, r), p, rem) = tables.sample(m, [f64::from(u[0]), f64::from(u[1])])?;
+        let grid = self.grid.as_ref()?;
+        let dir = self
+            .env
+            .to_world(grid.direction(c, r, rem))
+            .as_vec3()
+            .normalize();
+        let pdf = (p / self.measure[r]) as f32;
+        (pdf.is_finite() && pdf > 0.0).then(|| EnvSample {
+            dir,
+            radiance: Vec3::from_array(self.env.image.texel(c, r)),
+            pdf,
+        })
+    }
+
+    /// [`Self::radiance_and_pdf`] for a surface point with world shading normal `n`: the pdf
+    /// of [`Self::sample_at`] with the same `n`.
+    #[must_use]
+    pub fn radiance_and_pdf_at(&self, n: Vec3, dir: Vec3) -> (Vec3, f32) {
+        let Some(tables) = &self.per_normal else {
+            return self.radiance_and_pdf(dir);
+        };
+        let (c, r) = self.texel(self.env.to_map_frame(dir.as_dvec3()));
+        let radiance = Vec3::from_array(self.env.image.texel(c, r));
+        let m = self.env.to_map_frame(n.as_dvec3());
+        (radiance, (tables.pmf(m, c, r) / self.measure[r]) as f32)
+    }
+
+    /// The pdf of [`Self::sample_at`] with normal `n` at `dir`.
+    #[must_use]
+    pub fn pdf_at(&self, n: Vec3, dir: Vec3) -> f32 {
+        self.radiance_and_pdf_at(n, dir).1
     }
 
     /// Radiance arriving from world direction `dir` (the piecewise-constant texel value).

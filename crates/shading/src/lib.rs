@@ -38,7 +38,9 @@
 //!
 //! # Environment maps
 //! [`EnvSampler`] draws directions with probability proportional to luminance × solid angle
-//! of each texel and returns exactly the pdf of the piecewise-constant map (see its docs).
+//! of each texel and returns exactly the pdf of the piecewise-constant map (see its docs), or,
+//! for estimators that combine it with BRDF sampling by MIS, with the MIS-compensated
+//! densities of Karlík et al. 2019 ([`EnvSampling`]: one table, or one per shading normal).
 //!
 //! # Testing samplers
 //! [`chi2`] is a Pearson chi-square test of a sampler against its pdf over bins of the sphere,
@@ -54,6 +56,7 @@ mod fresnel;
 mod lambert;
 mod microfacet;
 mod mirror;
+mod normal_tables;
 mod pbr;
 mod phong;
 pub mod projection;

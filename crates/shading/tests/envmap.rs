@@ -12,7 +12,7 @@ use prt_shading::{luminance, EnvSampler, EnvSampling};
 use rand::{Rng, SeedableRng};
 use std::f64::consts::{PI, TAU};
 
-const SUITE_TESTS: usize = 6;
+const SUITE_TESTS: usize = 10;
 
 /// A sky whose colour is everywhere proportional to `tint` (so luminance ∝ RGB), with a
 /// smooth gradient, a black band and a 2×2-texel sun 10⁴ times brighter.
@@ -370,5 +370,61 @@ fn test09_compensated_closed_form() {
         assert_eq!(c.sample([rng.random(), rng.random()]), None);
         let d = latlong_direction(rng.random::<f64>() * TAU, rng.random::<f64>() * PI).as_vec3();
         assert_eq!(c.radiance_and_pdf(d), (Vec3::new(0.7, 0.5, 0.3), 0.0));
+    }
+}
+
+/// The per-normal density draws what it says it draws for a given shading normal:
+/// chi-square against `pdf_at` (four more of this file's `SUITE_TESTS`) on a map with one
+/// texel per block and on one of 4 × 4-texel blocks, for a normal towards the sun's side and
+/// one across it; and its samples agree with the lookup of their direction.
+#[test]
+fn test10_chi2_per_normal() {
+    let normals = [
+        Vec3::new(0.2, 0.9, 0.1).normalize(),
+        Vec3::new(-0.7, -0.2, 0.6).normalize(),
+    ];
+    let mut seed = 20;
+    for (w, h) in [(64, 32), (256, 128)] {
+        let env = synthetic_with_sun(w, h, Mapping::LatLong, 23.0, 30.0);
+        let s = EnvSampler::with_sampling(&env, EnvSampling::PerNormal);
+        assert_eq!(s.sampling(), EnvSampling::PerNormal);
+        for n in normals {
+            seed += 1;
+            let test = Chi2Test {
+                seed,
+                quadrature_tolerance: 1e-8,
+                ..Chi2Test::default()
+            };
+            let name = format!("per-normal {w}×{h}, n = {n}");
+            let report = test.run(
+                |u| s.sample_at(n, [u[0], u[1]]).map(|x| x.dir),
+                |d| f64::from(s.pdf_at(n, d)),
+            );
+            assert!(
+                (report.pdf_integral - 1.0).abs() < 2e-3,
+                "{name}: ∫pdf = {}",
+                report.pdf_integral
+            );
+            report.assert_passes(sidak(ALPHA, SUITE_TESTS), &name);
+            let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+            let mut edge = 0;
+            for _ in 0..20_000 {
+                let x = s
+                    .sample_at(n, [rng.random(), rng.random()])
+                    .expect("a sample");
+                let (l, p) = s.radiance_and_pdf_at(n, x.dir);
+                edge += usize::from(l != x.radiance || p != x.pdf);
+            }
+            assert!(
+                edge <= 2,
+                "{name}: {edge} samples disagree with their lookup"
+            );
+        }
+        // Without a normal it is the one-table compensated sampler.
+        let c = EnvSampler::with_sampling(&env, EnvSampling::Compensated);
+        for d in [Vec3::new(0.3, 0.4, -0.5), Vec3::new(-0.1, 0.9, 0.2)] {
+            let d = d.normalize();
+            assert_eq!(s.radiance_and_pdf(d), c.radiance_and_pdf(d));
+        }
     }
 }

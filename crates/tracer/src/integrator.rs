@@ -164,7 +164,7 @@ impl Renderer<'_> {
         if is_pure_delta(&v.mat) {
             return None;
         }
-        let es = self.env.sample(u_env)?;
+        let es = self.env.sample_at(ns, u_env)?;
         let cos = ns.dot(es.dir);
         if !(es.pdf > 0.0 && cos > 0.0 && ng.dot(es.dir) > 0.0) {
             return None;
@@ -200,7 +200,7 @@ impl Renderer<'_> {
 
     /// The path's BRDF ray `sc` left the scene: the environment's contribution.
     fn escape(&self, path: &mut PathState, sc: &Scatter) {
-        path.radiance += self.escaped(path.beta, &sc.bs);
+        path.radiance += self.escaped(path.beta, path.ns, &sc.bs);
     }
 
     /// The path's BRDF ray `sc` hit `hit`: its emission (direct light from an emitter,
@@ -234,10 +234,10 @@ impl Renderer<'_> {
     }
 
     /// The environment's contribution through throughput `beta` of a BRDF-sampled ray that
-    /// escapes: its radiance, MIS-weighted against environment sampling unless the lobe is
-    /// a delta.
-    fn escaped(&self, beta: Vec3, bs: &BsdfSample) -> Vec3 {
-        let (l, env_pdf) = self.env.radiance_and_pdf(bs.wi);
+    /// escapes a vertex of shading normal `ns`: its radiance, MIS-weighted against
+    /// environment sampling (at that normal) unless the lobe is a delta.
+    fn escaped(&self, beta: Vec3, ns: Vec3, bs: &BsdfSample) -> Vec3 {
+        let (l, env_pdf) = self.env.radiance_and_pdf_at(ns, bs.wi);
         let w = if bs.is_delta {
             1.0
         } else {
@@ -250,7 +250,7 @@ impl Renderer<'_> {
         let h = self.settings.mis;
         let (_, ns) = v.oriented(wo);
         let mut radiance = Vec3::ZERO;
-        if let Some(es) = self.env.sample(s.next_2d()) {
+        if let Some(es) = self.env.sample_at(ns, s.next_2d()) {
             let cos = ns.dot(es.dir);
             if es.pdf > 0.0 && cos > 0.0 {
                 let f = eval(&v.mat, ns, wo, es.dir);
@@ -262,7 +262,7 @@ impl Renderer<'_> {
             let w = if bs.is_delta {
                 1.0
             } else {
-                mis_weight(h, bs.pdf, self.env.pdf(bs.wi))
+                mis_weight(h, bs.pdf, self.env.pdf_at(ns, bs.wi))
             };
             radiance += bs.weight * self.env.radiance(bs.wi) * w;
         }

@@ -106,6 +106,7 @@ pub fn metadata(out: &RenderOutput) -> Vec<(String, AttributeValue)> {
             AttributeValue::Text(Text::from(match s.env_sampling {
                 EnvSampling::Luminance => "luminance",
                 EnvSampling::Compensated => "compensated",
+                EnvSampling::PerNormal => "per-normal",
             })),
         ),
         (

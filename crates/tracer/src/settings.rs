@@ -64,8 +64,8 @@ pub struct RenderSettings {
     pub mis: MisHeuristic,
     /// The pixel sampler's sequences (default [`SamplerKind::Replicas`]).
     pub sampler: SamplerKind,
-    /// How environment samples are drawn (default [`EnvSampling::Compensated`]: every one
-    /// is combined with BRDF sampling by MIS, so the compensated density is unbiased and has
+    /// How environment samples are drawn (default [`EnvSampling::PerNormal`]: every one is
+    /// combined with BRDF sampling by MIS, so the compensated densities are unbiased and have
     /// the lower variance; see [`EnvSampling`]).
     pub env_sampling: EnvSampling,
     /// With `bounces = -1`: Russian roulette starts at this many indirect bounces (default 3).
@@ -106,7 +106,7 @@ impl Default for RenderSettings {
             mode: Mode::Path,
             mis: MisHeuristic::Power,
             sampler: SamplerKind::Replicas,
-            env_sampling: EnvSampling::Compensated,
+            env_sampling: EnvSampling::PerNormal,
             rr_start_bounce: 3,
             rr_max_survival: 0.95,
             tile_size: 16,
