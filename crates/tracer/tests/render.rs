@@ -271,10 +271,12 @@ fn compare_on_objects(
 /// `--target-noise`: the render stops when its own two-half-image estimate of the relative
 /// noise on object pixels is below the target. Checked against a converged render (16384 spp,
 /// its own noise subtracted in quadrature): the measured relative error is within 20 % of the
-/// requested one (the estimate's own spread over ~1000 object pixels × 3 channels is ~3 %, and
-/// the last pass aims 1 % under the target), the mean difference is within 4 standard errors
-/// (no bias from stopping on the image's own statistics), and the result is bit-identical to a
-/// fixed render of the same spp, on 1 or 2 threads.
+/// image's own estimate (whose spread over ~1000 object pixels × 3 channels is ~3 %), so at
+/// most 1.2× the target; the mean difference is within 4 standard errors (no bias from
+/// stopping on the image's own statistics); and the result is bit-identical to a fixed render
+/// of the same spp, on 1 or 2 threads. How far under the target the last pass lands depends
+/// on how fast the noise falls, which the schedule only knows from the second pass on (with
+/// the per-normal environment density, 5 % was reached after 8 and 32 spp at 4.0 %).
 #[test]
 fn test05_target_noise_stops_at_the_requested_noise_without_bias() {
     let scene = test_scene(40, 30);
@@ -322,8 +324,8 @@ fn test05_target_noise_stops_at_the_requested_noise_without_bias() {
             "target {target}: {spp} spp, estimate {estimate:.4}, measured {measured:.4} (raw {e:.4}, reference {e_ref:.4}), mean z {z:.2}"
         );
         assert!(
-            (measured / target - 1.0).abs() <= 0.2,
-            "target {target}: measured {measured}"
+            (measured / estimate - 1.0).abs() <= 0.2 && measured <= 1.2 * target,
+            "target {target}: measured {measured}, estimate {estimate}"
         );
         assert!(z.abs() <= 4.0, "target {target}: mean difference z = {z}");
         // Bit-identical to a fixed render of the same spp, and on one thread.
