@@ -19,14 +19,16 @@
 //! Tables are over blocks of texels (at most 64 × 32 blocks, one texel each for maps that
 //! small) weighted with the block's mean luminance and solid angle and the cosine at its
 //! centre; inside a block a texel is drawn by luminance × solid angle, the same for every
-//! normal. Lat-long maps only.
+//! normal. Lat-long maps only. The tables hold 16-bit CDFs (4.3 MB for the largest block
+//! grid): a sample at a vertex whose normal changes from sample to sample reads its table
+//! from memory, and `f32` tables (8.6 MB) took 1.12× the one-table sampler's time.
 
 use crate::Distribution2D;
 use glam::DVec3;
 use prt_scene::envmap::latlong_direction;
 use std::f64::consts::PI;
 
-/// Normal bins per side of the octahedral map (`BIN_SIDE²` tables, about 43 MB for the
+/// Normal bins per side of the octahedral map (`BIN_SIDE²` tables, about 4.3 MB for the
 /// largest block grid). Measured on the suite's scenes at 256 spp: 16 per side (256 normals)
 /// took one render's error from 0.00316 / 0.00410 / 0.00422 (one table) to 0.00268 / 0.00318
 /// / 0.00324 on `sphere` / `bunny_floor` / `teapot`, 32 per side to 0.00239 / 0.00296 /
@@ -60,19 +62,25 @@ pub(crate) fn bin_normal(bin: usize) -> DVec3 {
     DVec3::new(x, y, z).normalize()
 }
 
-/// A piecewise-constant 2D distribution over `w × h` blocks in one compact `f32` array (a
-/// thousand of them are kept, so they must be small: 8.4 KB for 64 × 32 blocks, where a
-/// [`Distribution2D`] takes 42 KB): the marginal CDF over rows, then each row's conditional
-/// CDF over its columns, each from 0 to exactly 1. A cell is drawn by the inverse CDF (binary
-/// search, so stratified `u` stay stratified) and its probability is the difference of the
-/// two `f32` CDF entries around it, evaluated in `f64`: exactly the measure of the `u` that
-/// draw it, so sampling and [`BlockTable::pmf`] agree exactly. A weight too small to move an
-/// `f32` CDF entry gets probability 0 in both.
+/// Fixed-point unit of the block tables' CDFs: an entry `e` stands for `e / ONE`.
+const ONE: f64 = 65536.0;
+
+/// A piecewise-constant 2D distribution over `w × h` blocks in one compact array of 16-bit
+/// fixed-point CDF entries (a thousand of them are kept and read at random, so they must be
+/// small: 4.2 KB for 64 × 32 blocks, where a [`Distribution2D`] takes 42 KB): the marginal CDF
+/// over rows, then each row's conditional CDF over its columns. Each CDF of `n` cells keeps
+/// its `n` lower edges `e_i / 2¹⁶` (`e_0 = 0`); the upper edge of the last is 1. A cell is
+/// drawn by the inverse CDF (binary search, so stratified `u` stay stratified) and its
+/// probability is `(e_{i+1} − e_i) / 2¹⁶`, exact in `f64`: the measure of the `u` that draw
+/// it, so sampling and [`BlockTable::pmf`] agree exactly. Each probability is its weight's
+/// share rounded to a multiple of 2⁻¹⁶ (a cell of weight 0 gets 0, unless rounding leaves the
+/// last 2⁻¹⁶ to a tail of zero weights: any density is valid under MIS, only its variance
+/// changes).
 #[derive(Clone, Debug)]
 struct BlockTable {
     w: usize,
     h: usize,
-    cdf: Vec<f32>,
+    edges: Vec<u16>,
 }
 
 impl BlockTable {
@@ -83,21 +91,21 @@ impl BlockTable {
         if total.is_nan() || total <= 0.0 {
             return None;
         }
-        let mut cdf = Vec::with_capacity(h + 1 + h * (w + 1));
-        push_cdf(&mut cdf, &rows);
+        let mut edges = Vec::with_capacity(h + h * w);
+        push_edges(&mut edges, &rows);
         for row in weights.chunks(w) {
-            push_cdf(&mut cdf, row);
+            push_edges(&mut edges, row);
         }
-        Some(Self { w, h, cdf })
+        Some(Self { w, h, edges })
     }
 
-    fn marginal(&self) -> &[f32] {
-        &self.cdf[..=self.h]
+    fn marginal(&self) -> &[u16] {
+        &self.edges[..self.h]
     }
 
-    fn row(&self, r: usize) -> &[f32] {
-        let start = self.h + 1 + r * (self.w + 1);
-        &self.cdf[start..=start + self.w]
+    fn row(&self, r: usize) -> &[u16] {
+        let start = self.h + r * self.w;
+        &self.edges[start..start + self.w]
     }
 
     /// Draws `((col, row), probability, u remapped into the cell)`.
@@ -113,40 +121,44 @@ impl BlockTable {
     }
 }
 
-/// Appends the CDF of `weights` (from 0 to exactly 1; all zero: a CDF that stays 0, whose
-/// cells are never drawn).
-fn push_cdf(cdf: &mut Vec<f32>, weights: &[f64]) {
+/// Appends the lower edges of the CDF of `weights` in units of 2⁻¹⁶ (all zero: every edge 0,
+/// so only the last cell can be drawn; a zero row is never drawn by its marginal).
+fn push_edges(edges: &mut Vec<u16>, weights: &[f64]) {
     let total: f64 = weights.iter().sum();
     let mut acc = 0.0;
-    cdf.push(0.0);
-    for (i, &x) in weights.iter().enumerate() {
-        acc += x;
-        let last = i + 1 == weights.len();
-        cdf.push(if total <= 0.0 {
-            0.0
-        } else if last {
-            1.0
+    for &x in weights {
+        let e = if total > 0.0 {
+            (acc / total * ONE).round().min(ONE - 1.0)
         } else {
-            (acc / total).min(1.0) as f32
-        });
+            0.0
+        };
+        edges.push(e as u16);
+        acc += x;
     }
 }
 
-/// `cdf[i + 1] − cdf[i]` in `f64`.
-fn width(cdf: &[f32], i: usize) -> f64 {
-    f64::from(cdf[i + 1]) - f64::from(cdf[i])
+/// Upper edge of cell `i` (in units of 2⁻¹⁶).
+fn upper(edges: &[u16], i: usize) -> f64 {
+    edges.get(i + 1).map_or(ONE, |&e| f64::from(e))
 }
 
-/// The cell `i` with `cdf[i] ≤ u < cdf[i + 1]`, its probability and `u` remapped into it.
-fn invert(cdf: &[f32], u: f64) -> Option<(usize, f64, f64)> {
-    let k = cdf.partition_point(|&c| f64::from(c) <= u);
-    let i = k.checked_sub(1).filter(|&i| i + 1 < cdf.len())?;
-    let p = width(cdf, i);
-    (p > 0.0).then(|| {
+/// Probability of cell `i`.
+fn width(edges: &[u16], i: usize) -> f64 {
+    (upper(edges, i) - f64::from(edges[i])) / ONE
+}
+
+/// The cell `i` with `e_i ≤ u·2¹⁶ < e_{i+1}`, its probability and `u` remapped into it.
+fn invert(edges: &[u16], u: f64) -> Option<(usize, f64, f64)> {
+    let x = u * ONE;
+    let i = edges
+        .partition_point(|&e| f64::from(e) <= x)
+        .checked_sub(1)?;
+    let (lo, hi) = (f64::from(edges[i]), upper(edges, i));
+    (hi > lo).then(|| {
         (
             i,
-            p,
-            ((u - f64::from(cdf[i])) / p).clamp(0.0, 1.0 - f64::EPSILON),
+            (hi - lo) / ONE,
+            ((x - lo) / (hi - lo)).clamp(0.0, 1.0 - f64::EPSILON),
         )
     })
 }
@@ -300,9 +312,9 @@ mod tests {
             for i in 0..w * h {
                 let p = tables.pmf(n, i % w, i / w);
                 sum += p;
-                // Each CDF entry is rounded to f32 (2⁻²⁴ of at most 1), so a width is within
-                // 2 · 2⁻²⁴ and a product of two within 3e-7.
-                assert!((p - weight(i) / total).abs() < 3e-7, "{n} texel {i}: {p}");
+                // Each CDF edge is rounded to a multiple of 2⁻¹⁶ (within 2⁻¹⁷), so a width is
+                // within 2⁻¹⁶ and a product of two within 2⁻¹⁵ = 3.1e-5.
+                assert!((p - weight(i) / total).abs() < 3.1e-5, "{n} texel {i}: {p}");
             }
             assert!((sum - 1.0).abs() < 1e-12, "Σ = {sum}");
         }
@@ -335,7 +347,7 @@ mod tests {
         let total: f64 = weights.iter().sum();
         for (k, &count) in counts.iter().enumerate() {
             let want = weights[k] / total;
-            assert!((t.pmf(k % 4, k / 4) - want).abs() < 3e-7);
+            assert!((t.pmf(k % 4, k / 4) - want).abs() < 3.1e-5);
             let expected = t.pmf(k % 4, k / 4) * (n * n) as f64;
             assert!(
                 (count as f64 - expected).abs() <= 2.0 * n as f64,
