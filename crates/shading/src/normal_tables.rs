@@ -147,11 +147,17 @@ fn width(edges: &[u16], i: usize) -> f64 {
     (upper(edges, i) - f64::from(edges[i])) / ONE
 }
 
-/// The cell `i` with `e_i ≤ u·2¹⁶ < e_{i+1}`, its probability and `u` remapped into it.
+/// The cell `i` with `e_i ≤ u·2¹⁶ < e_{i+1}`, its probability and `u` remapped into it. The
+/// edges are sorted, so `i + 1` is the number of edges `≤ u·2¹⁶`, i.e. `≤ ⌊u·2¹⁶⌋` (they are
+/// integers): counted over the whole CDF without branches (one or two cache lines, loaded
+/// together) rather than by a binary search whose loads wait on each other.
 fn invert(edges: &[u16], u: f64) -> Option<(usize, f64, f64)> {
     let x = u * ONE;
+    let floor = x.floor().clamp(0.0, ONE - 1.0) as u16;
     let i = edges
-        .partition_point(|&e| f64::from(e) <= x)
+        .iter()
+        .map(|&e| usize::from(e <= floor))
+        .sum::<usize>()
         .checked_sub(1)?;
     let (lo, hi) = (f64::from(edges[i]), upper(edges, i));
     (hi > lo).then(|| {
