@@ -18,12 +18,12 @@
 //! is all MIS needs to stay unbiased (any density is, where BRDF sampling covers the rest).
 //! Tables are over blocks of texels (at most 64 × 32 blocks, one texel each for maps that
 //! small) weighted with the block's mean luminance and solid angle and the cosine at its
-//! centre; inside a block a texel is drawn by luminance × solid angle, the same for every
+//! centre; inside a block a texel is drawn by luminance × solid angle (a [`BlockTable`] per
+//! block too), the same for every
 //! normal. Lat-long maps only. The tables hold 16-bit CDFs (4.3 MB for the largest block
 //! grid): a sample at a vertex whose normal changes from sample to sample reads its table
 //! from memory, and `f32` tables (8.6 MB) took 1.12× the one-table sampler's time.
 
-use crate::Distribution2D;
 use glam::DVec3;
 use prt_scene::envmap::latlong_direction;
 use std::f64::consts::PI;
@@ -67,7 +67,7 @@ const ONE: f64 = 65536.0;
 
 /// A piecewise-constant 2D distribution over `w × h` blocks in one compact array of 16-bit
 /// fixed-point CDF entries (a thousand of them are kept and read at random, so they must be
-/// small: 4.2 KB for 64 × 32 blocks, where a [`Distribution2D`] takes 42 KB): the marginal CDF
+/// small: 4.2 KB for 64 × 32 blocks, where a [`crate::Distribution2D`] takes 42 KB): the marginal CDF
 /// over rows, then each row's conditional CDF over its columns. Each CDF of `n` cells keeps
 /// its `n` lower edges `e_i / 2¹⁶` (`e_0 = 0`); the upper edge of the last is 1. A cell is
 /// drawn by the inverse CDF (binary search, so stratified `u` stay stratified) and its
@@ -180,7 +180,7 @@ pub(crate) struct NormalTables {
     bins: Vec<Option<BlockTable>>,
     /// Per block: the distribution over its texels (`None` for one-texel blocks and black
     /// blocks).
-    within: Vec<Option<Distribution2D>>,
+    within: Vec<Option<BlockTable>>,
 }
 
 impl NormalTables {
@@ -207,9 +207,11 @@ impl NormalTables {
                 let theta = PI * (r0 as f64 + 0.5 * bh as f64) / h as f64;
                 summary.push((power, omega, latlong_direction(phi, theta)));
                 let weights: Vec<f64> = cells.iter().map(|&(l, o)| l * o).collect();
-                within.push(
-                    (bw * bh > 1 && power > 0.0).then(|| Distribution2D::new(&weights, bw, bh)),
-                );
+                within.push(if bw * bh > 1 {
+                    BlockTable::new(&weights, bw, bh)
+                } else {
+                    None
+                });
             }
         }
         let bins = (0..BIN_SIDE * BIN_SIDE)
@@ -257,7 +259,7 @@ impl NormalTables {
         match &self.within[by * self.blocks[0] + bx] {
             None => Some(((c0, r0), p_block, rem)),
             Some(inner) => {
-                let ((c, r), p, rem) = inner.sample_discrete(rem)?;
+                let ((c, r), p, rem) = inner.sample(rem)?;
                 Some(((c0 + c, r0 + r), p_block * p, rem))
             }
         }
