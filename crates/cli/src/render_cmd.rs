@@ -23,7 +23,7 @@ pub enum EnvSamplingArg {
     /// angle; lower variance, same expectation.
     Compensated,
     /// MIS compensation per shading normal: cos⁺ × max(0, luminance − half the mean over the
-    /// normal's hemisphere) × solid angle, tabulated for 256 normals; the lowest variance.
+    /// normal's hemisphere) × solid angle, tabulated for 1024 normals; the lowest variance.
     PerNormal,
 }
 

@@ -26,8 +26,9 @@
 //! 38(6), SIGGRAPH Asia 2019, their normal-independent variant; pbrt-v4's image infinite light
 //! does the same): when every environment sample is combined by MIS with BRDF sampling, the
 //! texel weight `max(0, luminance − L̄) × solid angle`, `L̄` the map's mean luminance over the
-//! sphere (raised by a relative 2⁻²⁰, so that a constant map stays constant after rounding), lowers the variance: BRDF sampling already covers the dim, nearly uniform part of the
-//! map well, so environment samples are better spent on what stands out of it. Texels at or
+//! sphere (raised by a relative 2⁻²⁰, so that a constant map stays constant after rounding),
+//! lowers the variance: BRDF sampling already covers the dim, nearly uniform part of the map
+//! well, so environment samples are better spent on what stands out of it. Texels at or
 //! below `L̄` then have pdf 0 and are reached by BRDF sampling alone (MIS weight 1), which stays
 //! unbiased as long as the BRDF's sampling pdf is positive wherever it is; a constant map has
 //! no texel above its mean and is not sampled at all. Used on its own (without MIS) this
@@ -62,7 +63,7 @@ pub struct EnvSample {
     pub pdf: f32,
 }
 
-/// Relative margin above the mean luminance for [`EnvSampling::Compensated`].
+/// Relative margin above the mean luminance for the compensated densities.
 const COMPENSATION_MARGIN: f64 = 1.0 / (1u64 << 20) as f64;
 
 /// How [`EnvSampler`] weights a texel. The compensated density (Karlík, Šik, Vévoda, Skřivan
@@ -80,7 +81,7 @@ pub enum EnvSampling {
     /// every environment sample with BRDF sampling by MIS (Karlík et al. 2019).
     Compensated,
     /// Per shading normal `n`: `cos⁺ × max(0, luminance − L̄_n / 2) × solid angle`, with `L̄_n`
-    /// the map's cosine-weighted mean over `n`'s hemisphere, tabulated for 256 normal
+    /// the map's cosine-weighted mean over `n`'s hemisphere, tabulated for 1024 normal
     /// directions ([`EnvSampler::sample_at`]): the density that makes the MIS mixture with
     /// cosine-weighted BRDF sampling proportional to a Lambert integrand. Only for estimators
     /// that combine every environment sample with BRDF sampling by MIS. Lat-long maps; an
@@ -311,27 +312,8 @@ impl EnvSampler {
         let dist = self.dist.as_ref()?;
         let ((c, r), p, rem) = dist.sample_discrete([f64::from(u[0]), f64::from(u[1])])?;
         let (w, h) = (self.env.image.width, self.env.image.height);
-        let img = &self.env.image;
         match self.env.mapping {
-            Mapping::LatLong => {
-                // Uniform in φ and in cos θ over the texel (the grid's exact edges, φ's sine and
-                // cosine by rotating the column edge: no libm call).
-                let grid = self.grid.as_ref()?;
-                let map_dir = grid.direction(c, r, rem);
-                let dir = self.env.to_world(map_dir).as_vec3().normalize();
-                // The pdf and radiance of the texel the sample was drawn from: the same values
-                // a lookup of `dir` gives, except where f32 rounding of `dir` crosses a texel
-                // edge (a set of measure zero, so the estimator is unchanged).
-                let pdf = (p / self.measure[r]) as f32;
-                if !(pdf.is_finite() && pdf > 0.0) {
-                    return None;
-                }
-                Some(EnvSample {
-                    dir,
-                    radiance: Vec3::from_array(img.texel(c, r)),
-                    pdf,
-                })
-            }
+            Mapping::LatLong => self.latlong_sample((c, r), p, rem),
             Mapping::Angular => {
                 let (a0, a1, b0, b1) = angular_rect(c, r, w, h);
                 let area = self.measure[r * w + c];
@@ -419,7 +401,17 @@ impl EnvSampler {
             return self.sample(u);
         };
         let m = self.env.to_map_frame(n.as_dvec3());
-        let ((c, r), p, rem) = tables.sample(m, [f64::from(u[0]), f64::from(u[1])])?;
+        let (texel, p, rem) = tables.sample(m, [f64::from(u[0]), f64::from(u[1])])?;
+        self.latlong_sample(texel, p, rem)
+    }
+
+    /// The sample of lat-long texel `(c, r)` drawn with probability `p`, at remainder `rem`
+    /// inside it: uniform in `φ` and in `cos θ` over the texel (the grid's exact edges, `φ`'s
+    /// sine and cosine by rotating the column edge: no libm call). Its pdf and radiance are
+    /// the texel's: the values a lookup of the direction gives, except where f32 rounding of
+    /// the direction crosses a texel edge (a set of measure zero, so the estimator is
+    /// unchanged).
+    fn latlong_sample(&self, (c, r): (usize, usize), p: f64, rem: [f64; 2]) -> Option<EnvSample> {
         let grid = self.grid.as_ref()?;
         let dir = self
             .env

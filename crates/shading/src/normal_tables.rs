@@ -12,15 +12,14 @@
 //! BRDF sampling covers.
 //!
 //! The cosine and `L̄_n` depend on the normal, so the density is tabulated for
-//! `BIN_SIDE × BIN_SIDE` (1024) normals (the cell centres of an octahedral map of the sphere) and a
-//! point uses the table of the cell its shading normal falls in: `O(1)` to find, and the same
+//! `BIN_SIDE × BIN_SIDE` (1024) normals (the cell centres of an octahedral map of the sphere)
+//! and a point uses the table of the cell its shading normal falls in: `O(1)` to find, and the same
 //! table for its environment samples and for the pdf its BRDF samples are weighted with, which
 //! is all MIS needs to stay unbiased (any density is, where BRDF sampling covers the rest).
 //! Tables are over blocks of texels (at most 64 × 32 blocks, one texel each for maps that
 //! small) weighted with the block's mean luminance and solid angle and the cosine at its
 //! centre; inside a block a texel is drawn by luminance × solid angle (a [`BlockTable`] per
-//! block too), the same for every
-//! normal. Lat-long maps only. The tables hold 16-bit CDFs (4.3 MB for the largest block
+//! block too), the same for every normal. Lat-long maps only. The tables hold 16-bit CDFs (4.3 MB for the largest block
 //! grid): a sample at a vertex whose normal changes from sample to sample reads its table
 //! from memory, and `f32` tables (8.6 MB) took 1.12× the one-table sampler's time.
 
@@ -37,6 +36,12 @@ pub(crate) const BIN_SIDE: usize = 32;
 /// Most blocks across and down the map.
 const MAX_BLOCKS: [usize; 2] = [64, 32];
 
+/// The octahedral map's fold of the lower hemisphere onto the square's corners (its own
+/// inverse on the square).
+fn fold(x: f64, y: f64) -> (f64, f64) {
+    ((1.0 - y.abs()) * x.signum(), (1.0 - x.abs()) * y.signum())
+}
+
 /// The octahedral cell `[0, BIN_SIDE)²` of a unit direction.
 pub(crate) fn bin_of(d: DVec3) -> usize {
     let l1 = d.x.abs() + d.y.abs() + d.z.abs();
@@ -45,7 +50,7 @@ pub(crate) fn bin_of(d: DVec3) -> usize {
     }
     let (mut x, mut y) = (d.x / l1, d.y / l1);
     if d.z < 0.0 {
-        (x, y) = ((1.0 - y.abs()) * x.signum(), (1.0 - x.abs()) * y.signum());
+        (x, y) = fold(x, y);
     }
     let cell = |t: f64| (((t + 1.0) * 0.5 * BIN_SIDE as f64) as usize).min(BIN_SIDE - 1);
     cell(y) * BIN_SIDE + cell(x)
@@ -57,7 +62,7 @@ pub(crate) fn bin_normal(bin: usize) -> DVec3 {
     let (mut x, mut y) = (centre(bin % BIN_SIDE), centre(bin / BIN_SIDE));
     let z = 1.0 - x.abs() - y.abs();
     if z < 0.0 {
-        (x, y) = ((1.0 - y.abs()) * x.signum(), (1.0 - x.abs()) * y.signum());
+        (x, y) = fold(x, y);
     }
     DVec3::new(x, y, z).normalize()
 }
@@ -70,7 +75,7 @@ const ONE: f64 = 65536.0;
 /// small: 4.2 KB for 64 × 32 blocks, where a [`crate::Distribution2D`] takes 42 KB): the marginal CDF
 /// over rows, then each row's conditional CDF over its columns. Each CDF of `n` cells keeps
 /// its `n` lower edges `e_i / 2¹⁶` (`e_0 = 0`); the upper edge of the last is 1. A cell is
-/// drawn by the inverse CDF (binary search, so stratified `u` stay stratified) and its
+/// drawn by the inverse CDF (a monotone map, so stratified `u` stay stratified) and its
 /// probability is `(e_{i+1} − e_i) / 2¹⁶`, exact in `f64`: the measure of the `u` that draw
 /// it, so sampling and [`BlockTable::pmf`] agree exactly. Each probability is its weight's
 /// share rounded to a multiple of 2⁻¹⁶ (a cell of weight 0 gets 0, unless rounding leaves the
