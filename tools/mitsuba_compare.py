@@ -30,6 +30,7 @@ Suite mode (`--suite`): prt against the peers a user would pick, in one command,
 (plus `probe`, a mirror sphere that shows whether the environment lines up in every renderer):
   tools/.venv/bin/python tools/mitsuba_compare.py --suite [--spp 1024] [--table FILE.md]
       [--prt PATH] [--prt-sampler replicas|single] [--prt-env-sampling per-normal|compensated|luminance]
+      [--prt-split-lobes mirror|none|all]
       [--scenes sphere,bunny_floor,mirror,far,millimetre,teapot] [--ref-factor 16]
       [--peers llvm_independent,llvm_multijitter,llvm_ldsampler,cycles]
 - peers: Mitsuba 3 `llvm_ad_rgb` with its `independent`, `multijitter` and `ldsampler` samplers
@@ -158,6 +159,10 @@ def main():
                     help="prt's environment sampling density (`prt render --env-sampling`): "
                          "`per-normal` (its default, MIS compensation per shading normal), "
                          "`compensated` (one compensated table) or `luminance`")
+    ap.add_argument("--prt-split-lobes", choices=["mirror", "none", "all"], default="mirror",
+                    help="prt's lobe splitting (`prt render --split-lobes`): `mirror` (its default: "
+                         "diffuse-plus-mirror materials trace the mirror ray besides a diffuse "
+                         "sample), `none` (one lobe chosen at random, as the peers do) or `all`")
     ap.add_argument("--variant", default="scalar_rgb")
     ap.add_argument("--upsample", type=int, default=16,
                     help="nearest-neighbour upsampling of the map for Mitsuba (FACTS.md says ×4; "
@@ -251,7 +256,8 @@ seed = 0
     # Ours.
     t0 = time.time()
     cmd = [args.prt, "render", w("scene.toml"), "--spp", str(args.spp), "--bounces", str(args.bounces),
-           "--sampler", args.prt_sampler, "--env-sampling", args.prt_env_sampling, "--aovs", "--quiet",
+           "--sampler", args.prt_sampler, "--env-sampling", args.prt_env_sampling,
+           "--split-lobes", args.prt_split_lobes, "--aovs", "--quiet",
            "--out", w("ours.exr")]
     run = subprocess.run(cmd, capture_output=True, text=True)
     ours_wall = time.time() - t0
@@ -841,7 +847,7 @@ def run_prt(args, work, name, spec):
     def render(seed, exr, aovs):
         cmd = [args.prt, "render", w(f"{name}.toml"), "--spp", str(args.spp), "--bounces",
                str(spec["bounces"]), "--seed", str(seed), "--sampler", args.prt_sampler,
-               "--env-sampling", args.prt_env_sampling,
+               "--env-sampling", args.prt_env_sampling, "--split-lobes", args.prt_split_lobes,
                "--quiet", "--out", exr] + (["--aovs"] if aovs else [])
         t0 = time.perf_counter()
         run = subprocess.run(cmd, capture_output=True, text=True)
@@ -970,6 +976,7 @@ def suite(args):
     json_path = os.path.splitext(table)[0] + ".json"
     report = {"spp": args.spp, "seeds": list(SEEDS), "size": [args.width, args.height], "prt": args.prt,
               "prt_sampler": args.prt_sampler, "prt_env_sampling": args.prt_env_sampling,
+              "prt_split_lobes": args.prt_split_lobes,
               "peers": peers, "llvm_library": llvm_library(),
               "reference": f"llvm_ad_rgb independent, {args.ref_factor} passes × {args.spp} spp, scene in "
                            "canonical placement",
@@ -1062,7 +1069,8 @@ def suite_table(report):
     lines = [
         f"{report['spp']} spp, {report['size'][0]}×{report['size'][1]}, seeds {report['seeds']}; reference: "
         f"{report['reference']}; prt's sampler: `--sampler {report.get('prt_sampler', 'replicas')}"
-        f" --env-sampling {report.get('prt_env_sampling', 'luminance')}`. "
+        f" --env-sampling {report.get('prt_env_sampling', 'luminance')}"
+        f" --split-lobes {report.get('prt_split_lobes', 'none')}`. "
         "s = seconds of one render, render only for every method (mean of the two "
         "seeds' renders; prt: its own render time, BVH build excluded; Mitsuba: `mi.render` after a warm-up "
         "render of the same sampler, i.e. JIT compilation and scene loading excluded; Cycles: a render after "

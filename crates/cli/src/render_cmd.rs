@@ -2,7 +2,9 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use prt_tracer::{output, EnvSampling, MisHeuristic, Mode, RenderSettings, Renderer, SamplerKind};
+use prt_tracer::{
+    output, EnvSampling, MisHeuristic, Mode, RenderSettings, Renderer, SamplerKind, SplitLobes,
+};
 use std::path::PathBuf;
 
 /// MIS heuristic names on the command line.
@@ -36,6 +38,18 @@ pub enum SamplerArg {
     /// One scrambled Sobol sequence of all the samples: lower variance at the same sample
     /// count (up to 1/√2 of the error where the image is smooth), no noise estimate.
     Single,
+}
+
+/// Lobe-splitting choices on the command line.
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum SplitLobesArg {
+    /// Never split: one lobe chosen at random, as Mitsuba and pbrt do.
+    None,
+    /// Diffuse-plus-mirror materials: the mirror ray is traced besides a diffuse sample.
+    Mirror,
+    /// Every material of two lobes, glossy ones too (pays where the lobes see different
+    /// light; measure your scene).
+    All,
 }
 
 /// Options of `prt render`.
@@ -104,6 +118,15 @@ pub struct RenderArgs {
     /// (proportional to the map); the same image in expectation.
     #[arg(long, value_enum, default_value_t = EnvSamplingArg::PerNormal)]
     pub env_sampling: EnvSamplingArg,
+    /// Lobe splitting: which materials of two lobes are sampled once per lobe, both
+    /// directions followed, instead of one lobe chosen at random (the same image in
+    /// expectation, less noise where the lobes see different light).
+    #[arg(long, value_enum, default_value_t = SplitLobesArg::Mirror)]
+    pub split_lobes: SplitLobesArg,
+    /// Lobe splitting happens at the first N vertices of a path (a camera sample ends in at
+    /// most 2^N paths).
+    #[arg(long, value_name = "N", default_value_t = 2)]
+    pub split_depth: u32,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -147,6 +170,12 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         SamplerArg::Replicas => SamplerKind::Replicas,
         SamplerArg::Single => SamplerKind::Single,
     };
+    settings.split_lobes = match args.split_lobes {
+        SplitLobesArg::None => SplitLobes::None,
+        SplitLobesArg::Mirror => SplitLobes::Mirror,
+        SplitLobesArg::All => SplitLobes::All,
+    };
+    settings.split_depth = args.split_depth;
     settings.env_sampling = match args.env_sampling {
         EnvSamplingArg::Luminance => EnvSampling::Luminance,
         EnvSamplingArg::Compensated => EnvSampling::Compensated,

@@ -220,3 +220,45 @@ fn test04_env_sampling_flag() {
         reds.push(red);
     }
 }
+
+/// `--split-lobes` and `--split-depth`: the header names them; the default splits only
+/// mirror materials, so on the default scene (a Lambert bunny on a Phong floor) it is `none`'s
+/// image bit for bit, while `all` splits the floor's two lobes and gives another image
+/// (the same in expectation: `prt-tracer`'s render test10). A bad choice is an error.
+#[test]
+fn test05_split_lobes_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = ["--spp", "2", "--bounces", "1", "--seed", "7", "--quiet"];
+    let mut reds = Vec::new();
+    for (extra, name, depth) in [
+        (&[][..], "mirror", 2),
+        (&["--split-lobes", "none"][..], "none", 2),
+        (
+            &["--split-lobes", "all", "--split-depth", "1"][..],
+            "all",
+            1,
+        ),
+    ] {
+        let out = dir.path().join(format!("{name}.exr"));
+        render_default(&[&args[..], extra].concat(), &out);
+        let (attribute, red) = attribute_and_red(&out, "prt.split_lobes");
+        assert_eq!(attribute, Some(AttributeValue::Text(Text::from(name))));
+        let (attribute, _) = attribute_and_red(&out, "prt.split_depth");
+        assert_eq!(attribute, Some(AttributeValue::I32(depth)));
+        reds.push(red);
+    }
+    assert_eq!(
+        reds[0], reds[1],
+        "no mirror in the default scene: nothing splits"
+    );
+    assert_ne!(reds[0], reds[2], "--split-lobes all splits the Phong floor");
+    let out = prt()
+        .arg("render")
+        .arg(scene("default.toml"))
+        .args(["--split-lobes", "glossy", "--quiet", "--out"])
+        .arg(dir.path().join("bad.exr"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--split-lobes"));
+}

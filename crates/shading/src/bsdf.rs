@@ -18,7 +18,7 @@ use prt_scene::Material;
 
 /// A specular lobe of a glossy material (local frame).
 #[derive(Clone, Copy, Debug)]
-enum Lobe {
+pub(crate) enum Lobe {
     Phong(PhongLobe),
     Blinn(BlinnPhongLobe),
     Ward(WardLobe),
@@ -26,7 +26,7 @@ enum Lobe {
 }
 
 impl Lobe {
-    fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
+    pub(crate) fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
         match self {
             Lobe::Phong(l) => l.eval(wo, wi),
             Lobe::Blinn(l) => l.eval(wo, wi),
@@ -34,7 +34,7 @@ impl Lobe {
             Lobe::CookTorrance(l) => l.eval(wo, wi),
         }
     }
-    fn sample(&self, wo: Vec3, u: [f32; 2]) -> Option<Vec3> {
+    pub(crate) fn sample(&self, wo: Vec3, u: [f32; 2]) -> Option<Vec3> {
         match self {
             Lobe::Phong(l) => l.sample(wo, u),
             Lobe::Blinn(l) => l.sample(wo, u),
@@ -42,7 +42,7 @@ impl Lobe {
             Lobe::CookTorrance(l) => l.sample(wo, u),
         }
     }
-    fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    pub(crate) fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         match self {
             Lobe::Phong(l) => l.pdf(wo, wi),
             Lobe::Blinn(l) => l.pdf(wo, wi),
@@ -59,7 +59,7 @@ impl Lobe {
 }
 
 /// A material split into what the sampler needs.
-enum Parts {
+pub(crate) enum Parts {
     Diffuse(Vec3),
     Glossy {
         albedo: Vec3,
@@ -74,7 +74,7 @@ enum Parts {
     Pbr(PbrLobe),
 }
 
-fn parts(mat: &Material) -> Parts {
+pub(crate) fn parts(mat: &Material) -> Parts {
     let v = |c: &[f32; 3]| Vec3::from_array(*c);
     match mat {
         Material::Lambert { albedo } => Parts::Diffuse(v(albedo)),
@@ -171,7 +171,7 @@ pub fn specular_selection_probability(mat: &Material, n: Vec3, wo: Vec3) -> f32 
 }
 
 /// BRDF value in the local frame (`wo.z > 0`, `wi.z > 0` checked by callers).
-fn eval_local(p: &Parts, wo: Vec3, wi: Vec3) -> Vec3 {
+pub(crate) fn eval_local(p: &Parts, wo: Vec3, wi: Vec3) -> Vec3 {
     match p {
         Parts::Diffuse(albedo) | Parts::Mirror { albedo, .. } => lambert::eval(*albedo),
         Parts::Glossy {

@@ -246,6 +246,23 @@ impl Chi2Test {
             |wi| f64::from(crate::pdf(mat, n, wo, wi)),
         )
     }
+
+    /// Chi-square test of lobe splitting ([`crate::sample_lobe`]) for `mat` at normal `n` and
+    /// outgoing `wo`: a lobe of [`crate::SPLIT_LOBES`] chosen with probability ½ each (by
+    /// `u[0]`), then sampled alone, has the density `split_pdf / 2` if [`crate::split_pdf`]
+    /// is the sum of the lobes' own densities, as the split estimator's weights assume.
+    /// Delta-lobe samples count as rejected, since `split_pdf` excludes them.
+    pub fn run_split(&self, mat: &Material, n: Vec3, wo: Vec3) -> Chi2Report {
+        self.run(
+            |u| {
+                let lobe = crate::SPLIT_LOBES[usize::from(u[0] >= 0.5)];
+                crate::sample_lobe(mat, n, wo, lobe, [u[1], u[2]])
+                    .filter(|s| !s.is_delta)
+                    .map(|s| s.wi)
+            },
+            |wi| 0.5 * f64::from(crate::split_pdf(mat, n, wo, wi)),
+        )
+    }
 }
 
 /// Pearson statistic and degrees of freedom of counts against expected counts, after pooling

@@ -21,6 +21,9 @@
 //!
 //! Glossy materials choose a lobe with a probability from the lobes' luminance (see
 //! [`bsdf`](crate::specular_selection_probability) for the rule) and return the mixture pdf.
+//! [`sample_lobe`] instead draws from each lobe on its own, for estimators that take one
+//! sample per lobe ("lobe splitting", weighted by [`split_pdf`], the sum of the lobes'
+//! densities: Veach & Guibas 1995's balance heuristic).
 //!
 //! ## Where CONVENTIONS.md differs from the lecture notes
 //! The lecture notes (Lensch, "BRDFs & Texturing") present the *unnormalised* Phong lobe
@@ -60,6 +63,7 @@ mod normal_tables;
 mod pbr;
 mod phong;
 pub mod projection;
+mod split;
 mod warp;
 
 pub use bsdf::{eval, has_delta, is_pure_delta, pdf, sample, specular_selection_probability};
@@ -70,6 +74,7 @@ pub use frame::Frame;
 pub use fresnel::{fresnel_amplitudes, fresnel_dielectric};
 pub use microfacet::{beckmann_d, sample_beckmann_half_vector};
 pub use pbr::{ggx_d, ggx_g1, pbr_terms, sample_ggx_visible_normal, MIN_ALPHA};
+pub use split::{sample_lobe, split_pdf, splits, SplitLobe, SPLIT_LOBES};
 pub use warp::{
     cosine_hemisphere_pdf, invert_cosine_hemisphere, invert_uniform_hemisphere,
     invert_uniform_sphere, sample_cosine_hemisphere, sample_uniform_hemisphere,

@@ -11,8 +11,8 @@ use prt_shading::*;
 
 const ANGLES: [f32; 4] = [0.0, 30.0, 60.0, 85.0];
 /// warps 2, Lambert + Mirror 8, Phong 12 + pure + tilted, Blinn 12 + 1, Ward 8 + 1, CT 12 + 1,
-/// PBR 24 + tilted.
-const SUITE_TESTS: usize = 2 + 8 + 14 + 13 + 9 + 13 + 25;
+/// PBR 24 + tilted, lobe splitting 7 materials × 3 angles.
+const SUITE_TESTS: usize = 2 + 8 + 14 + 13 + 9 + 13 + 25 + 21;
 
 fn alpha() -> f64 {
     sidak(ALPHA, SUITE_TESTS)
@@ -134,4 +134,35 @@ fn test07_pbr() {
         40.0,
         700,
     );
+}
+
+/// Lobe splitting: each lobe sampled alone has its own density, and `split_pdf` is their sum
+/// (`Chi2Test::run_split`), for every kind of two-lobe material, at normal, oblique and
+/// grazing view. The mirror's delta lobe counts as rejected samples (half of them).
+#[test]
+fn test08_split_lobes() {
+    let mats = [
+        Material::Mirror {
+            albedo: grey(0.4),
+            specular: grey(0.5),
+        },
+        phong(0.3, 0.6, 30.0),
+        blinn(0.3, 0.6, 50.0),
+        ward(0.3, 0.6, 0.2),
+        cook(0.3, 0.6, 0.3),
+        pbr(0.6, 0.0, 0.4),
+        pbr(0.5, 0.5, 0.3),
+    ];
+    for (i, mat) in mats.iter().enumerate() {
+        for (k, t) in [0.0f32, 60.0, 85.0].iter().enumerate() {
+            let wo = dir_at(*t);
+            assert!(splits(mat, Vec3::Z, wo), "{mat:?} has two lobes");
+            let test = Chi2Test {
+                seed: 800 + 10 * i as u64 + k as u64,
+                ..Chi2Test::default()
+            };
+            test.run_split(mat, Vec3::Z, wo)
+                .assert_passes(alpha(), &format!("split {mat:?} θo={t}"));
+        }
+    }
 }

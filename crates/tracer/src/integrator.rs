@@ -15,12 +15,13 @@
 //! except in the unshadowed mode, which by definition ignores geometry.
 
 use crate::rng::Sampler;
-use crate::settings::{MisHeuristic, Mode};
+use crate::settings::{MisHeuristic, Mode, SplitLobes};
 use crate::vertex::Vertex;
 use crate::{Hit, Renderer};
 use glam::Vec3;
 use prt_shading::{
-    eval, is_pure_delta, luminance, pdf, sample, sample_cosine_hemisphere, BsdfSample, Frame,
+    eval, has_delta, is_pure_delta, luminance, pdf, sample, sample_cosine_hemisphere, sample_lobe,
+    split_pdf, splits, BsdfSample, Frame, SPLIT_LOBES,
 };
 
 /// A path of [`Mode::Path`] at a surface vertex: what it has gathered and what it carries.
@@ -119,46 +120,99 @@ impl Renderer<'_> {
         path.radiance
     }
 
-    /// Follows `path` from its current vertex to its end, one ray at a time.
+    /// Follows `path` from its current vertex to its end, one ray at a time (two where a
+    /// vertex splits its material's lobes, [`Renderer::split`]).
     fn continue_path(&self, path: &mut PathState, s: &mut Sampler) {
         loop {
-            if let Some(r) = self.next_event(path, s) {
+            let split = self.splits_at(path);
+            if let Some(r) = self.next_event(path, split, s) {
                 if !self.accel.occluded(r.origin, r.dir, f32::INFINITY) {
                     path.radiance += r.add;
                 }
             }
+            if split {
+                self.split(path, s);
+                return;
+            }
             let Some(sc) = self.scatter(path, s) else {
                 return;
             };
-            if self.only_escape_matters(path.indirect) {
-                // The path ends at this ray's hit whatever it hits, and no surface emits:
-                // only whether it escapes matters, which an occlusion query answers (it
-                // agrees with `closest_hit` on hit or miss for every ray of unbounded length,
-                // so the image is bit-identical).
-                if !self.accel.occluded(sc.origin, sc.bs.wi, f32::INFINITY) {
-                    self.escape(path, &sc);
-                }
+            if !self.follow(path, &sc, s) {
                 return;
-            }
-            match self.accel.closest_hit(sc.origin, sc.bs.wi, f32::INFINITY) {
-                None => {
-                    self.escape(path, &sc);
-                    return;
-                }
-                Some(hit) => {
-                    if !self.arrive(path, &sc, &hit, s) {
-                        return;
-                    }
-                }
             }
         }
     }
 
+    /// Traces the path's BRDF ray `sc`: the environment if it escapes, else the vertex it
+    /// hits. Returns whether the path goes on from that vertex.
+    fn follow(&self, path: &mut PathState, sc: &Scatter, s: &mut Sampler) -> bool {
+        if self.only_escape_matters(path.indirect) {
+            // The path ends at this ray's hit whatever it hits, and no surface emits: only
+            // whether it escapes matters, which an occlusion query answers (it agrees with
+            // `closest_hit` on hit or miss for every ray of unbounded length, so the image is
+            // bit-identical).
+            if !self.accel.occluded(sc.origin, sc.bs.wi, f32::INFINITY) {
+                self.escape(path, sc);
+            }
+            return false;
+        }
+        match self.accel.closest_hit(sc.origin, sc.bs.wi, f32::INFINITY) {
+            None => {
+                self.escape(path, sc);
+                false
+            }
+            Some(hit) => self.arrive(path, sc, &hit, s),
+        }
+    }
+
+    /// Whether the path's vertex takes one sample of each lobe of its material
+    /// ([`prt_shading::splits`]): one of the materials [`RenderSettings::split_lobes`] names,
+    /// within the first [`RenderSettings::split_depth`] vertices.
+    ///
+    /// [`RenderSettings::split_lobes`]: crate::RenderSettings::split_lobes
+    /// [`RenderSettings::split_depth`]: crate::RenderSettings::split_depth
+    fn splits_at(&self, path: &PathState) -> bool {
+        let named = match self.settings.split_lobes {
+            SplitLobes::None => false,
+            SplitLobes::Mirror => has_delta(&path.v.mat),
+            SplitLobes::All => true,
+        };
+        named && path.indirect < self.settings.split_depth && splits(&path.v.mat, path.ns, path.wo)
+    }
+
+    /// Lobe splitting at the path's vertex (`prt_shading`'s `split` module): one direction
+    /// from each lobe, each followed to the end of its own path, their radiance summed. The
+    /// vertex takes the same numbers an unsplit one does (its lobe choice goes unused) and
+    /// both lobes use the same direction numbers; each branch then continues from a copy of
+    /// the sampler, so both draw the same stratified dimensions. Each branch's estimate is
+    /// unbiased on its own, so their sum is.
+    fn split(&self, path: &mut PathState, s: &mut Sampler) {
+        let u = s.next_3d();
+        for lobe in SPLIT_LOBES {
+            let Some(bs) = sample_lobe(&path.v.mat, path.ns, path.wo, lobe, [u[1], u[2]]) else {
+                continue;
+            };
+            let mut branch = PathState {
+                radiance: Vec3::ZERO,
+                ..*path
+            };
+            let mut s = s.clone();
+            if let Some(sc) = self.scattered(&mut branch, bs) {
+                if self.follow(&mut branch, &sc, &mut s) {
+                    self.continue_path(&mut branch, &mut s);
+                }
+            }
+            path.radiance += branch.radiance;
+        }
+    }
+
     /// Next-event estimation at the path's vertex: one environment sample, and the shadow
-    /// ray that decides whether it counts (`None` when it cannot add light). At a pure mirror
-    /// it would always get a BRDF value of zero, so it is not drawn (its two numbers are
-    /// still taken, so the sample mapping and the image stay the same).
-    fn next_event(&self, path: &PathState, s: &mut Sampler) -> Option<ShadowRay> {
+    /// ray that decides whether it counts (`None` when it cannot add light). Its MIS weight
+    /// is against the BRDF technique the vertex uses: the one-sample mixture, or both lobes
+    /// when it splits (`split`). At a pure mirror it would always get a BRDF value of zero,
+    /// so it is not drawn (its two numbers are still taken, so the sample mapping and the
+    /// image stay the same).
+    fn next_event(&self, path: &PathState, split: bool, s: &mut Sampler) -> Option<ShadowRay> {
         let u_env = s.next_2d();
         let (v, ng, ns, wo) = (&path.v, path.ng, path.ns, path.wo);
         if is_pure_delta(&v.mat) {
@@ -173,7 +227,12 @@ impl Renderer<'_> {
         if f == Vec3::ZERO {
             return None;
         }
-        let w = mis_weight(self.settings.mis, es.pdf, pdf(&v.mat, ns, wo, es.dir));
+        let brdf_pdf = if split {
+            split_pdf(&v.mat, ns, wo, es.dir)
+        } else {
+            pdf(&v.mat, ns, wo, es.dir)
+        };
+        let w = mis_weight(self.settings.mis, es.pdf, brdf_pdf);
         Some(ShadowRay {
             origin: v.spawn(ng, es.dir),
             dir: es.dir,
@@ -185,6 +244,12 @@ impl Renderer<'_> {
     /// environment with MIS), with the throughput updated; `None` ends the path.
     fn scatter(&self, path: &mut PathState, s: &mut Sampler) -> Option<Scatter> {
         let bs = sample(&path.v.mat, path.ns, path.wo, s.next_3d())?;
+        self.scattered(path, bs)
+    }
+
+    /// The ray of BRDF sample `bs` from the path's vertex, with the throughput updated;
+    /// `None` (the path ends) below the geometric surface or at zero throughput.
+    fn scattered(&self, path: &mut PathState, bs: BsdfSample) -> Option<Scatter> {
         if path.ng.dot(bs.wi) <= 0.0 {
             return None;
         }

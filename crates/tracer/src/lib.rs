@@ -52,4 +52,4 @@ pub use error::TracerError;
 pub use obvhs::BvhBuildParams;
 pub use progress::progress_bar;
 pub use render::{render, Aovs, RenderOutput, Renderer, SurfacePoint, FIRST_PASS_SPP};
-pub use settings::{EnvSampling, MisHeuristic, Mode, RenderSettings, SamplerKind};
+pub use settings::{EnvSampling, MisHeuristic, Mode, RenderSettings, SamplerKind, SplitLobes};

@@ -21,7 +21,7 @@
 //! The writers, the sRGB curve and the 8-bit view are prt-image's (one of each for the
 //! workspace); this module adds the render's channels and metadata and the tracer's error.
 
-use crate::{EnvSampling, Mode, RenderOutput, SamplerKind, TracerError};
+use crate::{EnvSampling, Mode, RenderOutput, SamplerKind, SplitLobes, TracerError};
 use exr::prelude::{
     AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image, Layer, LayerAttributes,
     SmallVec, Text,
@@ -108,6 +108,18 @@ pub fn metadata(out: &RenderOutput) -> Vec<(String, AttributeValue)> {
                 EnvSampling::Compensated => "compensated",
                 EnvSampling::PerNormal => "per-normal",
             })),
+        ),
+        (
+            "prt.split_lobes".into(),
+            AttributeValue::Text(Text::from(match s.split_lobes {
+                SplitLobes::None => "none",
+                SplitLobes::Mirror => "mirror",
+                SplitLobes::All => "all",
+            })),
+        ),
+        (
+            "prt.split_depth".into(),
+            AttributeValue::I32(i32::try_from(s.split_depth).unwrap_or(i32::MAX)),
         ),
         (
             "prt.render_seconds".into(),
