@@ -286,6 +286,13 @@ pub fn sample(mat: &Material, n: Vec3, wo: Vec3, u: [f32; 3]) -> Option<BsdfSamp
     })
 }
 
+/// Whether [`sample`] reads its first number `u[0]` (the lobe choice): every material but
+/// Lambert, whose one lobe needs no choice. A caller may skip drawing it otherwise.
+#[must_use]
+pub fn chooses_lobe(mat: &Material) -> bool {
+    !matches!(mat, Material::Lambert { .. })
+}
+
 /// True when the material is nothing but a delta lobe (a mirror with zero albedo): [`eval`]
 /// is then zero for every pair of directions, so light sampling at such a vertex can never
 /// contribute and only the sampled mirror direction carries light.

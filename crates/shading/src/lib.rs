@@ -66,7 +66,9 @@ pub mod projection;
 mod split;
 mod warp;
 
-pub use bsdf::{eval, has_delta, is_pure_delta, pdf, sample, specular_selection_probability};
+pub use bsdf::{
+    chooses_lobe, eval, has_delta, is_pure_delta, pdf, sample, specular_selection_probability,
+};
 pub use bsdf_sample::BsdfSample;
 pub use distribution::{Distribution1D, Distribution2D};
 pub use envmap::{EnvSample, EnvSampler, EnvSampling};

@@ -20,8 +20,8 @@ use crate::vertex::Vertex;
 use crate::{Hit, Renderer};
 use glam::Vec3;
 use prt_shading::{
-    eval, has_delta, is_pure_delta, luminance, pdf, sample, sample_cosine_hemisphere, sample_lobe,
-    split_pdf, splits, BsdfSample, Frame, SPLIT_LOBES,
+    chooses_lobe, eval, has_delta, is_pure_delta, luminance, pdf, sample, sample_cosine_hemisphere,
+    sample_lobe, split_pdf, splits, BsdfSample, Frame, SPLIT_LOBES,
 };
 
 /// A path of [`Mode::Path`] at a surface vertex: what it has gathered and what it carries.
@@ -182,14 +182,14 @@ impl Renderer<'_> {
 
     /// Lobe splitting at the path's vertex (`prt_shading`'s `split` module): one direction
     /// from each lobe, each followed to the end of its own path, their radiance summed. The
-    /// vertex takes the same numbers an unsplit one does (its lobe choice goes unused) and
+    /// vertex takes the same numbers an unsplit one does (its lobe choice is skipped, not drawn) and
     /// both lobes use the same direction numbers; each branch then continues from a copy of
     /// the sampler, so both draw the same stratified dimensions. Each branch's estimate is
     /// unbiased on its own, so their sum is.
     fn split(&self, path: &mut PathState, s: &mut Sampler) {
-        let u = s.next_3d();
+        let u = s.next_3d_tail();
         for lobe in SPLIT_LOBES {
-            let Some(bs) = sample_lobe(&path.v.mat, path.ns, path.wo, lobe, [u[1], u[2]]) else {
+            let Some(bs) = sample_lobe(&path.v.mat, path.ns, path.wo, lobe, u) else {
                 continue;
             };
             let mut branch = PathState {
@@ -243,7 +243,13 @@ impl Renderer<'_> {
     /// BRDF sampling at the path's vertex: the ray that continues it (and hits the
     /// environment with MIS), with the throughput updated; `None` ends the path.
     fn scatter(&self, path: &mut PathState, s: &mut Sampler) -> Option<Scatter> {
-        let bs = sample(&path.v.mat, path.ns, path.wo, s.next_3d())?;
+        let u = if chooses_lobe(&path.v.mat) {
+            s.next_3d()
+        } else {
+            let [a, b] = s.next_3d_tail();
+            [0.0, a, b]
+        };
+        let bs = sample(&path.v.mat, path.ns, path.wo, u)?;
         self.scattered(path, bs)
     }
 

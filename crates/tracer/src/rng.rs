@@ -127,7 +127,7 @@ impl PixelKeys {
         let mut s = stream_from_pixel_hash(self.stream, sample);
         s.qmc = Some(Qmc {
             key,
-            index: index as u32,
+            reversed_index: (index as u32).reverse_bits(),
             dim: 0,
             pending: 0,
         });
@@ -139,7 +139,8 @@ impl PixelKeys {
 #[derive(Clone, Debug)]
 struct Qmc {
     key: u64,
-    index: u32,
+    /// The sample's index in the sequence, bit-reversed (what the scrambling works on).
+    reversed_index: u32,
     /// Next dimension.
     dim: u32,
     /// The second component of the pair whose first one was just taken.
@@ -184,13 +185,29 @@ const SOBOL_DIM1_BYTES: [[u32; 256]; 4] = {
     t
 };
 
-/// Second dimension of the Sobol sequence for index `i`.
-fn sobol_dim1(i: u32) -> u32 {
+/// [`SOBOL_DIM1_BYTES`] with every entry bit-reversed: bit reversal is linear over GF(2)
+/// too, so these give the reversed second dimension without reversing it afterwards.
+const SOBOL_DIM1_REVERSED_BYTES: [[u32; 256]; 4] = {
+    let mut t = SOBOL_DIM1_BYTES;
+    let mut byte = 0;
+    while byte < 4 {
+        let mut value = 0;
+        while value < 256 {
+            t[byte][value] = t[byte][value].reverse_bits();
+            value += 1;
+        }
+        byte += 1;
+    }
+    t
+};
+
+/// Second dimension of the Sobol sequence for index `i`, bit-reversed.
+fn sobol_dim1_reversed(i: u32) -> u32 {
     let b = i.to_le_bytes();
-    SOBOL_DIM1_BYTES[0][b[0] as usize]
-        ^ SOBOL_DIM1_BYTES[1][b[1] as usize]
-        ^ SOBOL_DIM1_BYTES[2][b[2] as usize]
-        ^ SOBOL_DIM1_BYTES[3][b[3] as usize]
+    SOBOL_DIM1_REVERSED_BYTES[0][b[0] as usize]
+        ^ SOBOL_DIM1_REVERSED_BYTES[1][b[1] as usize]
+        ^ SOBOL_DIM1_REVERSED_BYTES[2][b[2] as usize]
+        ^ SOBOL_DIM1_REVERSED_BYTES[3][b[3] as usize]
 }
 
 /// The Laine–Karras permutation (Burley 2020): adding the seed and multiplying by even
@@ -205,23 +222,20 @@ fn laine_karras(mut v: u32, seed: u32) -> u32 {
     v
 }
 
-/// A nested uniform (Owen) scrambling of the bits of `x`, most significant first.
-fn owen_scramble(x: u32, seed: u32) -> u32 {
-    laine_karras(x.reverse_bits(), seed).reverse_bits()
-}
-
 impl Qmc {
     /// Both components of dimension pair `pair` of this sample, in 32-bit fixed point.
     fn pair(&self, pair: u32) -> (u32, u32) {
         let h = mix64(self.key ^ u64::from(pair));
         let (shuffle, scramble) = (h as u32, (h >> 32) as u32);
-        // The point order, shuffled by an Owen scrambling of the index (any aligned block of
-        // 2^k consecutive samples keeps its set of points).
-        let i = owen_scramble(self.index, shuffle);
+        // The point order, shuffled by a nested uniform (Owen) scrambling of the index's bits,
+        // most significant first, i.e. `reverse(laine_karras(reverse(index)))` (any aligned
+        // block of 2^k consecutive samples keeps its set of points).
+        let i = laine_karras(self.reversed_index, shuffle).reverse_bits();
+        // Each component is Owen-scrambled the same way: the first Sobol dimension is the
+        // bit reversal of `i`, so its scrambling reverses `i` twice, i.e. not at all.
         (
-            // owen_scramble(reverse(i)) without reversing twice.
             laine_karras(i, scramble).reverse_bits(),
-            owen_scramble(sobol_dim1(i), scramble ^ 0x9e37_79b9),
+            laine_karras(sobol_dim1_reversed(i), scramble ^ 0x9e37_79b9).reverse_bits(),
         )
     }
 }
@@ -266,6 +280,23 @@ impl Sampler {
             }
         }
         [self.next_f32(), self.next_f32()]
+    }
+
+    /// The last two of [`Sampler::next_3d`]'s numbers, without computing the first: the
+    /// sequence moves on exactly as after `next_3d` (past the quasi-random dimensions a PCG
+    /// number is still drawn), so what comes next is the same. For a BRDF with no lobe to
+    /// choose.
+    pub fn next_3d_tail(&mut self) -> [f32; 2] {
+        match &mut self.qmc {
+            // `next_f32` would compute this dimension's pair for its first component (or
+            // return the pending second one); `next_2d` then starts at the next even
+            // dimension either way, so nothing reads the skipped value.
+            Some(q) if q.dim < QMC_DIMENSIONS => q.dim += 1,
+            _ => {
+                self.pcg.next_u32();
+            }
+        }
+        self.next_2d()
     }
 
     /// Three numbers: one, then a 2D pair (how BRDF sampling uses them: lobe, then direction).

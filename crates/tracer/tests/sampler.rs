@@ -133,3 +133,32 @@ fn test02_points_are_uniform_across_pixels_and_replicas_independent() {
     let corr = cov / (1.0 / 12.0);
     assert!(corr.abs() < 0.025, "replica correlation {corr}");
 }
+
+/// `next_3d_tail` is `next_3d` without its first number: the same two numbers and the same
+/// numbers afterwards, whether it starts on an even dimension, on an odd one (after a lone
+/// `next_f32`), or past the quasi-random dimensions (PCG), for both sampler kinds.
+#[test]
+fn test04_next_3d_tail_skips_only_the_lobe_number() {
+    for kind in [SamplerKind::Replicas, SamplerKind::Single] {
+        for sample in 0..64u64 {
+            for lead in 0..QMC_DIMENSIONS + 6 {
+                let keys = PixelKeys::new(9, 1234 + sample);
+                let (mut a, mut b) = (keys.sampler_of(kind, sample), keys.sampler_of(kind, sample));
+                for _ in 0..lead {
+                    assert_eq!(a.next_f32().to_bits(), b.next_f32().to_bits());
+                }
+                let full = a.next_3d();
+                let tail = b.next_3d_tail();
+                assert_eq!([full[1], full[2]], tail, "lead {lead}, sample {sample}");
+                for _ in 0..8 {
+                    assert_eq!(
+                        a.next_2d(),
+                        b.next_2d(),
+                        "after: lead {lead}, sample {sample}"
+                    );
+                    assert_eq!(a.next_f32().to_bits(), b.next_f32().to_bits());
+                }
+            }
+        }
+    }
+}
