@@ -233,6 +233,52 @@ struct Group {
     /// Whether the group is small enough ([`AccelOptions::direct_triangles`]) that its
     /// triangles are tested one by one instead of through its BVH.
     direct: bool,
+    /// For a direct group whose triangles are flat (a floor quad): the slab they lie in, so
+    /// that a ray leaving it is turned away before any triangle test.
+    slab: Option<Slab>,
+}
+
+/// The slab `|n·x − d| ≤ half_width` that holds every vertex of a flat group, `n` unit.
+#[derive(Clone, Copy, Debug)]
+struct Slab {
+    n: DVec3,
+    d: f64,
+    half_width: f64,
+}
+
+/// A [`Slab`] is only kept if it is this thin against the group's extent.
+const SLAB_FLATNESS: f64 = 1e-6;
+
+/// A ray starting this far outside a slab, relative to the size of the numbers in the
+/// triangle test (the origin's distance from the triangles and their extent), is turned
+/// away: 10⁷ times f64's rounding, so the exact test could never have found a hit there.
+const SLAB_MARGIN: f64 = 1e-9;
+
+impl Slab {
+    /// The slab of `tris` if they are flat to [`SLAB_FLATNESS`] of their extent.
+    fn of(tris: &[[Vec3; 3]]) -> Option<Self> {
+        let [a, b, c] = tris.first()?.map(Vec3::as_dvec3);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        if n == DVec3::ZERO {
+            return None;
+        }
+        let d = n.dot(a);
+        let points = || tris.iter().flatten().map(|v| v.as_dvec3());
+        let half_width = points().map(|v| (n.dot(v) - d).abs()).fold(0.0, f64::max);
+        let (lo, hi) = points().fold((a, a), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        (half_width <= SLAB_FLATNESS * (hi - lo).max_element()).then_some(Self { n, d, half_width })
+    }
+
+    /// Whether `ray` starts outside the slab (by more than [`SLAB_MARGIN`] of the numbers
+    /// involved) and does not move towards it: then it meets no triangle inside the slab,
+    /// and Möller–Trumbore in f64, whose rounding is far below that margin, finds none.
+    #[inline]
+    fn turns_away(&self, ray: &WorldRay) -> bool {
+        let s_o = self.n.dot(ray.origin) - self.d;
+        let s_d = self.n.dot(ray.dir);
+        let margin = self.half_width + SLAB_MARGIN * (s_o.abs() + self.d.abs() + 1.0);
+        (s_o > margin && s_d >= 0.0) || (s_o < -margin && s_d <= 0.0)
+    }
 }
 
 /// The ray of one query in f64 (exact copies of the caller's f32 values).
@@ -556,6 +602,9 @@ impl Group {
     /// The closest hit closer than `best.t` in this group; updates `best`.
     fn closest(&self, group: usize, ray: &WorldRay, t0: f64, best: &mut Best, masks: &Masks) {
         if self.direct {
+            if self.slab.is_some_and(|s| s.turns_away(ray)) {
+                return;
+            }
             for slot in 0..self.world.len() {
                 self.consider(group, slot, ray, 0.0, best, masks);
             }
@@ -573,6 +622,9 @@ impl Group {
     /// Whether anything in this group is hit with `t ≤ tmax`.
     fn occluded(&self, ray: &WorldRay, t0: f64, tmax: f64, masks: &Masks) -> bool {
         if self.direct {
+            if self.slab.is_some_and(|s| s.turns_away(ray)) {
+                return false;
+            }
             // The traversal's rule, for every triangle: a hit blocks if its group-space
             // distance is below the local ray's `tmax`.
             let (start, tmax_local) = self.local_span(t0, tmax);
@@ -860,6 +912,7 @@ impl Accel {
             .map(|&i| world[i as usize])
             .collect();
         let direct = world.len() <= options.direct_triangles;
+        let slab = if direct { Slab::of(&world) } else { None };
         let refs = bvh
             .primitive_indices
             .iter()
@@ -881,6 +934,7 @@ impl Accel {
             pad_world,
             masked: false,
             direct,
+            slab,
         }
     }
 

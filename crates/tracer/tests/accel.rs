@@ -750,3 +750,57 @@ fn test14_small_groups_tested_directly_give_the_bvh_answers() {
     assert!(floor_hits > 2_000, "{floor_hits} rays from the floor");
     assert!(blocked > 2_000 && blocked < 18_000, "{blocked} blocked");
 }
+
+/// A flat group tested directly turns away rays that start outside its slab and leave it
+/// before any triangle test (`Slab::turns_away`); that must never change an answer. A tilted
+/// quad far from the origin (its f32 corners are not exactly coplanar) beside a small
+/// sphere: rays from points spawned off the quad, from points on its plane and a few
+/// rounding steps either side of it, in grazing and steep directions, with infinite and
+/// finite `tmax`: closest hits and occlusion, bit for bit, as through the quad's BVH.
+#[test]
+fn test15_flat_groups_turn_away_rays_with_the_same_answers() {
+    let corner = Vec3::new(300.0, -40.0, 120.0);
+    let (eu, ev) = (Vec3::new(50.0, 3.0, -7.0), Vec3::new(-4.0, 2.0, 45.0));
+    let n = eu.cross(ev).normalize();
+    let mut sphere = test_util::uv_sphere(corner + 0.5 * (eu + ev) + n * 0.05, 0.04, 8, 16, true);
+    sphere.material = 1;
+    let meshes = vec![test_util::quad(corner, eu, ev), sphere];
+    let direct = accel(&meshes);
+    let bvh = Accel::from_meshes(
+        &meshes,
+        AccelOptions {
+            direct_triangles: 0,
+            ..AccelOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(direct.group_count(), 2);
+    let mut rng = Pcg64::seed_from_u64(15);
+    let mut hits = 0;
+    for case in 0..40_000 {
+        let p = corner + eu * rng.random::<f32>() + ev * rng.random::<f32>();
+        let mut d = unit_dir(&mut rng);
+        if case % 4 == 0 {
+            // Grazing: nearly in the plane, on either side.
+            d = (d - n * d.dot(n) + n * rng.random_range(-1e-4f32..1e-4)).normalize();
+        }
+        let o = match case % 3 {
+            0 => {
+                let h = bvh.closest_hit(p + n * 10.0, -n, f32::INFINITY);
+                h.map_or(p, |h| h.spawn_origin(d))
+            }
+            1 => p,
+            _ => p + n * rng.random_range(-1e-4f32..1e-4) * p.abs().max_element() * 1e-3,
+        };
+        let tmax = [f32::INFINITY, 0.01, 80.0][case % 3];
+        let hit = bvh.closest_hit(o, d, tmax);
+        hits += usize::from(hit.is_some());
+        assert_eq!(direct.closest_hit(o, d, tmax), hit, "case {case}");
+        assert_eq!(
+            direct.occluded(o, d, tmax),
+            bvh.occluded(o, d, tmax),
+            "case {case}"
+        );
+    }
+    assert!(hits > 5_000, "{hits} hits");
+}
