@@ -8,21 +8,36 @@ fn prt() -> Command {
     Command::new(env!("CARGO_BIN_EXE_prt"))
 }
 
-/// `prt render` of the default scene with `args`, writing `out`; it must succeed.
-fn render_default(args: &[&str], out: &Path) {
-    let o = prt()
+/// `prt render` of the default scene with `args`, writing `out`.
+fn run_default(args: &[&str], out: &Path) -> std::process::Output {
+    prt()
         .arg("render")
         .arg(scene("default.toml"))
         .args(args)
         .arg("--out")
         .arg(out)
         .output()
-        .unwrap();
+        .unwrap()
+}
+
+/// `prt render` of the default scene with `args`, writing `out`; it must succeed.
+fn render_default(args: &[&str], out: &Path) {
+    let o = run_default(args, out);
     assert!(
         o.status.success(),
         "{args:?}: {}",
         String::from_utf8_lossy(&o.stderr)
     );
+}
+
+/// `prt render` of the default scene with `args`, writing `out`: it must fail without a
+/// panic. Returns its error output.
+fn render_default_fails(args: &[&str], out: &Path) -> String {
+    let o = run_default(args, out);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success(), "{args:?} should fail");
+    assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    stderr
 }
 
 /// The EXR attribute `key` of the first layer of `path`, and its `R` channel.
@@ -182,15 +197,11 @@ fn test02_bad_input_fails_with_a_message() {
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     }
     // An unwritable destination.
-    let out = prt()
-        .arg("render")
-        .arg(scene("default.toml"))
-        .args(["--spp", "1", "--quiet", "--out"])
-        .arg(dir.path().join("no/such/dir/x.exr"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot write"));
+    let stderr = render_default_fails(
+        &["--spp", "1", "--quiet"],
+        &dir.path().join("no/such/dir/x.exr"),
+    );
+    assert!(stderr.contains("cannot write"));
     assert!(!out_path.exists());
 }
 
@@ -252,13 +263,9 @@ fn test05_split_lobes_flags() {
         "no mirror in the default scene: nothing splits"
     );
     assert_ne!(reds[0], reds[2], "--split-lobes all splits the Phong floor");
-    let out = prt()
-        .arg("render")
-        .arg(scene("default.toml"))
-        .args(["--split-lobes", "glossy", "--quiet", "--out"])
-        .arg(dir.path().join("bad.exr"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--split-lobes"));
+    let stderr = render_default_fails(
+        &["--split-lobes", "glossy", "--quiet"],
+        &dir.path().join("bad.exr"),
+    );
+    assert!(stderr.contains("--split-lobes"));
 }

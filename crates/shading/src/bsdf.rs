@@ -208,24 +208,22 @@ fn pdf_local(p: &Parts, wo: Vec3, wi: Vec3) -> f32 {
 /// Zero when either direction is not strictly above the surface.
 #[must_use]
 pub fn eval(mat: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> Vec3 {
+    local_pair(n, wo, wi).map_or(Vec3::ZERO, |(wo, wi)| eval_local(&parts(mat), wo, wi))
+}
+
+/// `wo` and `wi` in the local frame of the unit normal `n`, if both are strictly above the
+/// surface (what `eval` and the pdfs require).
+pub(crate) fn local_pair(n: Vec3, wo: Vec3, wi: Vec3) -> Option<(Vec3, Vec3)> {
     let f = Frame::from_normal(n);
     let (wo, wi) = (f.to_local(wo), f.to_local(wi));
-    if wo.z <= 0.0 || wi.z <= 0.0 {
-        return Vec3::ZERO;
-    }
-    eval_local(&parts(mat), wo, wi)
+    (wo.z > 0.0 && wi.z > 0.0).then_some((wo, wi))
 }
 
 /// Solid-angle pdf with which [`sample`] generates `wi` (non-delta part, including
 /// lobe-selection probabilities). Zero when either direction is below the surface.
 #[must_use]
 pub fn pdf(mat: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> f32 {
-    let f = Frame::from_normal(n);
-    let (wo, wi) = (f.to_local(wo), f.to_local(wi));
-    if wo.z <= 0.0 || wi.z <= 0.0 {
-        return 0.0;
-    }
-    pdf_local(&parts(mat), wo, wi)
+    local_pair(n, wo, wi).map_or(0.0, |(wo, wi)| pdf_local(&parts(mat), wo, wi))
 }
 
 /// Importance-samples `wi` given `wo` with three uniform numbers (`u[0]` chooses the lobe,
@@ -266,21 +264,32 @@ pub fn sample(mat: &Material, n: Vec3, wo: Vec3, u: [f32; 3]) -> Option<BsdfSamp
             }
         }
     };
-    // Weight and pdf from the world direction taken back to the local frame: exactly the
-    // numbers `eval` and `pdf` give for the returned `wi`, so MIS sees a consistent pdf.
+    finish_sample(&p, &frame, wo_l, wi, pdf_local)
+}
+
+/// The sample of local direction `wi` drawn at local `wo_l` with density `pdf_of`: weight
+/// and pdf from the world direction taken back to the local frame, i.e. exactly the numbers
+/// `eval` and `pdf_of` give for the returned `wi`, so MIS sees a consistent pdf. `None` below
+/// the horizon or at a zero density.
+pub(crate) fn finish_sample(
+    p: &Parts,
+    frame: &Frame,
+    wo_l: Vec3,
+    wi: Vec3,
+    pdf_of: impl Fn(&Parts, Vec3, Vec3) -> f32,
+) -> Option<BsdfSample> {
     let wi_world = frame.to_world(wi);
     let wi = frame.to_local(wi_world);
     if wi.z <= 0.0 {
         return None;
     }
-    let pdf = pdf_local(&p, wo_l, wi);
+    let pdf = pdf_of(p, wo_l, wi);
     if !(pdf.is_finite() && pdf > 0.0) {
         return None;
     }
-    let weight = eval_local(&p, wo_l, wi) * (wi.z / pdf);
     Some(BsdfSample {
         wi: wi_world,
-        weight,
+        weight: eval_local(p, wo_l, wi) * (wi.z / pdf),
         pdf,
         is_delta: false,
     })

@@ -24,7 +24,7 @@
 //! The price is a second ray and the path behind it, so renderers split only at the first
 //! vertices of a path (the tracer's `RenderSettings::split_lobes`).
 
-use crate::bsdf::{eval_local, parts, specular_selection_probability, Parts};
+use crate::bsdf::{finish_sample, local_pair, parts, specular_selection_probability, Parts};
 use crate::bsdf_sample::BsdfSample;
 use crate::phong::reflect_z;
 use crate::{lambert, Frame};
@@ -73,12 +73,7 @@ fn split_pdf_local(p: &Parts, wo: Vec3, wi: Vec3) -> f32 {
 /// Zero when either direction is below the surface.
 #[must_use]
 pub fn split_pdf(mat: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> f32 {
-    let f = Frame::from_normal(n);
-    let (wo, wi) = (f.to_local(wo), f.to_local(wi));
-    if wo.z <= 0.0 || wi.z <= 0.0 {
-        return 0.0;
-    }
-    split_pdf_local(&parts(mat), wo, wi)
+    local_pair(n, wo, wi).map_or(0.0, |(wo, wi)| split_pdf_local(&parts(mat), wo, wi))
 }
 
 /// Draws `wi` from lobe `lobe` alone with two uniform numbers. The weight is
@@ -115,20 +110,5 @@ pub fn sample_lobe(
         (Parts::Pbr(l), SplitLobe::Specular) => l.sample_specular(wo_l, u)?,
         (Parts::Diffuse(_), SplitLobe::Specular) => return None,
     };
-    // As in `sample`: weight and pdf from the world direction taken back to the local frame.
-    let wi_world = frame.to_world(wi);
-    let wi = frame.to_local(wi_world);
-    if wi.z <= 0.0 {
-        return None;
-    }
-    let pdf = split_pdf_local(&p, wo_l, wi);
-    if !(pdf.is_finite() && pdf > 0.0) {
-        return None;
-    }
-    Some(BsdfSample {
-        wi: wi_world,
-        weight: eval_local(&p, wo_l, wi) * (wi.z / pdf),
-        pdf,
-        is_delta: false,
-    })
+    finish_sample(&p, &frame, wo_l, wi, split_pdf_local)
 }

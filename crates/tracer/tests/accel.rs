@@ -12,6 +12,19 @@ fn accel(meshes: &[Mesh]) -> Accel {
     Accel::from_meshes(meshes, AccelOptions::default()).expect("valid meshes")
 }
 
+/// The structure of `meshes` with every group traversed through its BVH, even groups small
+/// enough to be tested triangle by triangle (what those are compared against).
+fn through_bvhs(meshes: &[Mesh]) -> Accel {
+    Accel::from_meshes(
+        meshes,
+        AccelOptions {
+            direct_triangles: 0,
+            ..AccelOptions::default()
+        },
+    )
+    .unwrap()
+}
+
 fn unit_dir(rng: &mut Pcg64) -> Vec3 {
     let z: f32 = rng.random_range(-1.0..1.0);
     let phi: f32 = rng.random_range(0.0..std::f32::consts::TAU);
@@ -703,14 +716,7 @@ fn test13_own_traversals_find_the_same_hits() {
 fn test14_small_groups_tested_directly_give_the_bvh_answers() {
     let (meshes, _) = three_scale_groups();
     let direct = accel(&meshes);
-    let bvh = Accel::from_meshes(
-        &meshes,
-        AccelOptions {
-            direct_triangles: 0,
-            ..AccelOptions::default()
-        },
-    )
-    .unwrap();
+    let bvh = through_bvhs(&meshes);
     assert_eq!(direct.group_count(), 3);
     let mut rng = Pcg64::seed_from_u64(14);
     let (mut floor_hits, mut blocked) = (0, 0);
@@ -766,14 +772,7 @@ fn test15_flat_groups_turn_away_rays_with_the_same_answers() {
     sphere.material = 1;
     let meshes = vec![test_util::quad(corner, eu, ev), sphere];
     let direct = accel(&meshes);
-    let bvh = Accel::from_meshes(
-        &meshes,
-        AccelOptions {
-            direct_triangles: 0,
-            ..AccelOptions::default()
-        },
-    )
-    .unwrap();
+    let bvh = through_bvhs(&meshes);
     assert_eq!(direct.group_count(), 2);
     let mut rng = Pcg64::seed_from_u64(15);
     let mut hits = 0;
