@@ -182,10 +182,10 @@ impl Renderer<'_> {
 
     /// Lobe splitting at the path's vertex (`prt_shading`'s `split` module): one direction
     /// from each lobe, each followed to the end of its own path, their radiance summed. The
-    /// vertex takes the same numbers an unsplit one does (its lobe choice is skipped, not drawn) and
-    /// both lobes use the same direction numbers; each branch then continues from a copy of
-    /// the sampler, so both draw the same stratified dimensions. Each branch's estimate is
-    /// unbiased on its own, so their sum is.
+    /// vertex moves through the same numbers an unsplit one does (its lobe choice skipped,
+    /// not computed) and both lobes use the same direction numbers; each branch then
+    /// continues from a copy of the sampler, so both draw the same stratified dimensions.
+    /// Each branch's estimate is unbiased on its own, so their sum is.
     fn split(&self, path: &mut PathState, s: &mut Sampler) {
         let u = s.next_3d_tail();
         for lobe in SPLIT_LOBES {
