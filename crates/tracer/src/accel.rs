@@ -244,15 +244,22 @@ struct Slab {
     n: DVec3,
     d: f64,
     half_width: f64,
+    /// A vertex of the group, and the group's extent: `|o − anchor|∞ + extent` bounds the
+    /// size of the differences Möller–Trumbore forms for a ray from `o`.
+    anchor: DVec3,
+    extent: f64,
+    /// [`SLAB_MARGIN`] times the worst `|e₁|·|e₂| / |e₁ × e₂|` of the group's triangles (how
+    /// much a thin triangle magnifies the test's rounding).
+    relative: f64,
 }
 
 /// A [`Slab`] is only kept if it is this thin against the group's extent.
 const SLAB_FLATNESS: f64 = 1e-6;
 
-/// A ray starting this far outside a slab, relative to the size of the numbers in the
-/// triangle test (the origin's distance from the triangles and their extent), is turned
-/// away: 10⁷ times f64's rounding, so the exact test could never have found a hit there.
-const SLAB_MARGIN: f64 = 1e-9;
+/// How far outside a slab a ray must start, and how clearly it must point away, relative to
+/// the numbers of the triangle test (see [`Slab::turns_away`]): 10⁴ times f64's unit
+/// roundoff, against an error of at most about ten roundings in the test's distance.
+const SLAB_MARGIN: f64 = 1e-12;
 
 impl Slab {
     /// The slab of `tris` if they are flat to [`SLAB_FLATNESS`] of their extent.
@@ -266,18 +273,39 @@ impl Slab {
         let points = || tris.iter().flatten().map(|v| v.as_dvec3());
         let half_width = points().map(|v| (n.dot(v) - d).abs()).fold(0.0, f64::max);
         let (lo, hi) = points().fold((a, a), |(lo, hi), v| (lo.min(v), hi.max(v)));
-        (half_width <= SLAB_FLATNESS * (hi - lo).max_element()).then_some(Self { n, d, half_width })
+        let extent = (hi - lo).max_element();
+        let thinness = tris
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(Vec3::as_dvec3);
+                let (e1, e2) = (b - a, c - a);
+                e1.length() * e2.length() / e1.cross(e2).length()
+            })
+            .fold(1.0, f64::max);
+        (half_width <= SLAB_FLATNESS * extent && thinness.is_finite()).then_some(Self {
+            n,
+            d,
+            half_width,
+            anchor: a,
+            extent,
+            relative: SLAB_MARGIN * thinness,
+        })
     }
 
-    /// Whether `ray` starts outside the slab (by more than [`SLAB_MARGIN`] of the numbers
-    /// involved) and does not move towards it: then it meets no triangle inside the slab,
-    /// and Möller–Trumbore in f64, whose rounding is far below that margin, finds none.
+    /// Whether `ray` starts outside the slab and points away from it, both by a margin:
+    /// then no point of the ray at `t ≥ 0` is in the slab, so it meets none of the group's
+    /// triangles. The exact test agrees: its distance `t` for a triangle is a ratio whose
+    /// numerator (the origin's height over the triangle's plane) and denominator (the
+    /// direction's slope against it) are each computed with an error of about ten roundings
+    /// of `|o − a|·|e₁|·|e₂|` and `|e₁|·|e₂|`; the margins are about a thousand times those,
+    /// so both signs, and with them `t < 0` or the miss, come out as they are.
     #[inline]
     fn turns_away(&self, ray: &WorldRay) -> bool {
         let s_o = self.n.dot(ray.origin) - self.d;
         let s_d = self.n.dot(ray.dir);
-        let margin = self.half_width + SLAB_MARGIN * (s_o.abs() + self.d.abs() + 1.0);
-        (s_o > margin && s_d >= 0.0) || (s_o < -margin && s_d <= 0.0)
+        let reach = (ray.origin - self.anchor).abs().max_element() + self.extent;
+        let margin = self.half_width + self.relative * reach;
+        (s_o > margin && s_d > self.relative) || (s_o < -margin && s_d < -self.relative)
     }
 }
 
