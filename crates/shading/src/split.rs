@@ -50,9 +50,6 @@ pub const SPLIT_LOBES: [SplitLobe; 2] = [SplitLobe::Diffuse, SplitLobe::Specular
 /// pure mirrors, pure specular lobes and metals are one lobe and are never split.
 #[must_use]
 pub fn splits(mat: &Material, n: Vec3, wo: Vec3) -> bool {
-    if matches!(mat, Material::Lambert { .. }) {
-        return false;
-    }
     let p = specular_selection_probability(mat, n, wo);
     p > 0.0 && p < 1.0
 }

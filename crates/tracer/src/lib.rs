@@ -12,7 +12,10 @@
 //!   estimation samples the environment map (`prt_shading::EnvSampler`), the BRDF is importance
 //!   sampled (`prt_shading::sample`), and the two are combined with Veach's multiple importance
 //!   sampling (power heuristic by default, balance on request; Veach & Guibas 1995). Delta
-//!   (mirror) lobes take no MIS weight. Bounces count as in CONVENTIONS.md (`-1`: unlimited
+//!   (mirror) lobes take no MIS weight. At the first vertices of a path, diffuse-plus-mirror
+//!   materials follow a sample of each lobe instead of choosing one (lobe splitting,
+//!   [`SplitLobes`]; Veach's multi-sample MIS with the balance heuristic between the lobes;
+//!   glossy two-lobe materials on request). Bounces count as in CONVENTIONS.md (`-1`: unlimited
 //!   with Russian roulette). Modes: [`Mode::Path`], [`Mode::Unshadowed`],
 //!   [`Mode::AmbientOcclusion`]; and radiance at given points ([`Renderer::radiance_at_points`]).
 //! - glTF material inputs (issue 34): shading with the normal-mapped shading normal
