@@ -158,7 +158,10 @@ fn width(edges: &[u16], i: usize) -> f64 {
 /// together) rather than by a binary search whose loads wait on each other.
 fn invert(edges: &[u16], u: f64) -> Option<(usize, f64, f64)> {
     let x = u * ONE;
-    let floor = x.floor().clamp(0.0, ONE - 1.0) as u16;
+    // `⌊x⌋` clamped to `[0, 2¹⁶ − 1]` (NaN to 0): a float-to-int cast truncates towards zero
+    // and saturates, which for every `x` gives the same value without a call to libm's
+    // `floor` (baseline x86-64 has no rounding instruction).
+    let floor = x as u16;
     let i = count_at_most(edges, floor).checked_sub(1)?;
     let (lo, hi) = (f64::from(edges[i]), upper(edges, i));
     (hi > lo).then(|| {
