@@ -15,6 +15,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cycles_render as cr  # noqa: E402
 import mitsuba_compare as mc  # noqa: E402
+import hit_miss_probe as hm  # noqa: E402
 
 
 def synthetic(seed, shape=(100, 100, 3)):
@@ -145,6 +146,23 @@ class CyclesEnvironment(unittest.TestCase):
         np.testing.assert_allclose(m[:3, 1], [0, 0, 1], atol=1e-12)   # local +Y is up
         np.testing.assert_allclose(m[:3, :3].T @ m[:3, :3], np.eye(3), atol=1e-12)
 
+
+class HitMissProbe(unittest.TestCase):
+    def test_variants(self):
+        base = {"camera": {"eye": [0.0, 0.0, 3.6], "target": [0.0, 0.0, 0.0], "fov": 40.0},
+                "objects": [{"mesh": "sphere.obj", "translate": [0.0, 0.0, 0.0]}]}
+        before = repr(base)
+        self.assertEqual(hm.variant_spec(base, "suite"), base)
+        hit = hm.variant_spec(base, "hit")
+        self.assertEqual(hit["camera"]["eye"], [0.0, 0.0, 1.9])
+        # Every camera ray of the 4:3 image meets the unit sphere from 1.9 away: the corner
+        # ray's angle to the axis is below the sphere's angular radius asin(1 / 1.9).
+        tan_y = math.tan(math.radians(base["camera"]["fov"] / 2))
+        corner = math.atan(math.hypot(tan_y, tan_y * 4.0 / 3.0))
+        self.assertLess(corner, math.asin(1.0 / 1.9))
+        miss = hm.variant_spec(base, "miss")
+        self.assertEqual(miss["objects"][0]["translate"], [0.0, 100.0, 0.0])
+        self.assertEqual(repr(base), before)  # the base spec is not changed
 
 if __name__ == "__main__":
     unittest.main()

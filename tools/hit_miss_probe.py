@@ -1,0 +1,107 @@
+#!/usr/bin/env python3
+"""Where prt's time per sample differs from Mitsuba 3's: the suite's `sphere` scene and two
+variants of it, timed side by side in one process, alternating the two renderers.
+
+  tools/.venv/bin/python tools/hit_miss_probe.py [--prt target/release/prt] [--spp 256]
+      [--rounds 3] [--prt-arg=--split-lobes=none ...]
+
+- `suite`: the suite's sphere as `mitsuba_compare.py --suite` renders it (about a third of the
+  camera samples hit the sphere, the rest see the environment directly);
+- `hit`: the camera moved to 1.9 units, so every camera sample hits the sphere (a camera ray,
+  an environment sample with its shadow ray, a BRDF sample with its ray, the lookups);
+- `miss`: the sphere moved 100 units up, out of view, so every sample is a camera ray that
+  escapes and one environment lookup.
+
+Both renderers get the scene `mitsuba_compare.py` writes (same meshes, map, camera; Mitsuba
+`llvm_ad_rgb` with its `multijitter` sampler, the best peer of the suite, `max_depth` 2; prt
+`--sampler single`). Times are render only: prt's own printed render time, Mitsuba's
+`mi.render` after one warm-up render (JIT compilation excluded). Both use every core (Dr.Jit's
+default thread pool and prt's). Per variant and renderer the minimum and the median over the
+rounds, in nanoseconds per sample, and the ratio prt / Mitsuba of each. Needs the peers' set-up
+(tools/requirements-peers.txt, libllvm19) and the suite's work files (run
+`mitsuba_compare.py --suite` once, or this script writes them).
+"""
+import argparse
+import copy
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mitsuba_compare as mc  # noqa: E402
+
+VARIANTS = ("suite", "hit", "miss")
+
+
+def variant_spec(spec, name):
+    """The suite's sphere spec changed for variant `name`."""
+    s = copy.deepcopy(spec)
+    if name == "hit":
+        s["camera"]["eye"] = [0.0, 0.0, 1.9]
+    elif name == "miss":
+        s["objects"][0]["translate"] = [0.0, 100.0, 0.0]
+    return s
+
+
+def prt_seconds(prt, toml, spp, extra):
+    run = subprocess.run([prt, "render", toml, "--spp", str(spp), "--sampler", "single", "--quiet",
+                          "--out", toml[:-5] + "_probe.exr"] + extra, capture_output=True, text=True)
+    if run.returncode != 0:
+        sys.exit(f"prt render failed on {toml}: {run.stderr}")
+    return mc.parse_prt_render_seconds(run.stderr)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--prt", default=os.path.join(mc.ROOT, "target", "release", "prt"))
+    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--width", type=int, default=160)
+    ap.add_argument("--height", type=int, default=120)
+    ap.add_argument("--work", default=os.path.join(mc.ROOT, "out", "mitsuba_compare"))
+    ap.add_argument("--prt-arg", action="append", default=[],
+                    help="one more argument for prt render (repeatable)")
+    args = ap.parse_args()
+    work = os.path.join(args.work, "suite")
+    os.makedirs(work, exist_ok=True)
+    if mc.llvm_library():
+        os.environ["DRJIT_LIBLLVM_PATH"] = mc.llvm_library()
+    import mitsuba as mi
+    mi.set_variant("llvm_ad_rgb")
+    mc.write_suite_meshes(work)
+    mc.write_env(mi, work, 16, mc.SUITE_UPSAMPLE_NAME)
+    base = mc.suite_specs(work)["sphere"]
+    scenes = {}
+    for name in VARIANTS:
+        spec = variant_spec(base, name)
+        toml = os.path.join(work, f"probe_{name}.toml")
+        mc.write_prt_toml(toml, spec, args)
+        scene = mc.build_mitsuba_scene(mi, mc.mitsuba_desc(spec, work, args), args.spp, "multijitter")
+        np.array(mi.render(scene, seed=0, spp=args.spp))  # warm-up: JIT tracing and compilation
+        scenes[name] = (toml, scene)
+    times = {(n, r): [] for n in VARIANTS for r in ("prt", "mitsuba")}
+    for k in range(args.rounds):
+        for name, (toml, scene) in scenes.items():
+            t = time.perf_counter()
+            np.array(mi.render(scene, seed=1 + k, spp=args.spp))
+            times[(name, "mitsuba")].append(time.perf_counter() - t)
+            times[(name, "prt")].append(prt_seconds(args.prt, toml, args.spp, args.prt_arg))
+    n = args.width * args.height * args.spp
+    print(f"ns per sample, {args.width}x{args.height} at {args.spp} spp, {args.rounds} rounds "
+          f"(min / median); load average {os.getloadavg()[0]:.2f}")
+    print("| variant | prt | Mitsuba llvm multijitter | prt / Mitsuba |")
+    print("|---|---|---|---|")
+    for name in VARIANTS:
+        p, m = times[(name, "prt")], times[(name, "mitsuba")]
+        ns = lambda xs: (min(xs) / n * 1e9, statistics.median(xs) / n * 1e9)
+        (pmin, pmed), (mmin, mmed) = ns(p), ns(m)
+        print(f"| {name} | {pmin:.0f} / {pmed:.0f} | {mmin:.0f} / {mmed:.0f} | "
+              f"{pmin / mmin:.2f} / {pmed / mmed:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
