@@ -501,20 +501,45 @@ impl PacketRays {
         self.hits_lanes(tri, best)
     }
 
-    /// [`PacketRays::hits`] compiled for AVX2: four lanes to an instruction.
+    /// [`PacketRays::hits`] compiled for AVX2: four lanes to an instruction, the comparisons
+    /// too (each the IEEE predicate of the scalar test's operator, so the same lanes).
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
-    #[allow(unsafe_code)] // `#[target_feature]`, called only after detection.
+    #[allow(unsafe_code)] // `#[target_feature]` and intrinsics, called only after detection.
     #[target_feature(enable = "avx2")]
     unsafe fn hits_avx2(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
-        self.hits_lanes(tri, best)
+        use std::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ};
+        let m = self.quantities(tri);
+        let tmax = Lanes(std::array::from_fn(|i| best[i].t));
+        let (zero, one) = (Lanes::splat(0.0), Lanes::splat(1.0));
+        // `d != 0` holds for NaN (unordered, true); every other test fails on NaN (ordered).
+        let hit = lane_cmp::<_CMP_NEQ_UQ>(&m.det, &zero)
+            & lane_cmp::<_CMP_GE_OQ>(&m.u, &zero)
+            & lane_cmp::<_CMP_LE_OQ>(&m.u, &one)
+            & !(lane_cmp::<_CMP_LT_OQ>(&m.v, &zero) | lane_cmp::<_CMP_GT_OQ>(&m.uv, &one))
+            & lane_cmp::<_CMP_GE_OQ>(&m.t, &zero)
+            & lane_cmp::<_CMP_LE_OQ>(&m.t, &tmax);
+        (hit, m.t.0)
     }
 
-    /// The body of [`PacketRays::hits`].
-    #[inline(always)]
+    /// The body of [`PacketRays::hits`] without AVX2.
     fn hits_lanes(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
+        let m = self.quantities(tri);
+        let within = (0..PACKET).fold(0, |w, i| w | u8::from(m.t.0[i] <= best[i].t) << i);
+        let hit = m.det.mask(|d| d != 0.0)
+            & m.u.mask(|u| (0.0..=1.0).contains(&u))
+            & !(m.v.mask(|v| v < 0.0) | m.uv.mask(|s| s > 1.0))
+            & m.t.mask(|t| t >= 0.0)
+            & within;
+        (hit, m.t.0)
+    }
+
+    /// The numbers of the scalar test ([`WorldRay::intersect_uv`]) for every lane, formed by
+    /// the same operations in the same order.
+    #[inline(always)]
+    fn quantities(&self, tri: &[Vec3; 3]) -> TestLanes {
         let [a, b, c] = tri.map(Vec3::as_dvec3);
         let (e1, e2) = (b - a, c - a);
         let s = |v: DVec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
@@ -531,15 +556,41 @@ impl PacketRays {
         let q = cross(tv, e1);
         let v = dot(self.dir, q) * inv;
         let t = dot(e2, q) * inv;
-        let uv = u + v;
-        let within = (0..PACKET).fold(0, |m, i| m | u8::from(t.0[i] <= best[i].t) << i);
-        let hit = det.mask(|d| d != 0.0)
-            & u.mask(|u| (0.0..=1.0).contains(&u))
-            & !(v.mask(|v| v < 0.0) | uv.mask(|s| s > 1.0))
-            & t.mask(|t| t >= 0.0)
-            & within;
-        (hit, t.0)
+        TestLanes {
+            det,
+            u,
+            v,
+            uv: u + v,
+            t,
+        }
     }
+}
+
+/// The per-lane numbers of a packet's triangle test: the determinant, the barycentric
+/// weights `u`, `v` and their sum, the distance.
+struct TestLanes {
+    det: Lanes,
+    u: Lanes,
+    v: Lanes,
+    uv: Lanes,
+    t: Lanes,
+}
+
+/// Bit `i` set where `a[i] P b[i]`, `P` an AVX2 comparison predicate, eight lanes in two
+/// compares.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)] // Intrinsics, called only after detection.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn lane_cmp<const P: i32>(a: &Lanes, b: &Lanes) -> u8 {
+    use std::arch::x86_64::{_mm256_cmp_pd, _mm256_loadu_pd, _mm256_movemask_pd};
+    let half = |x: &Lanes, k: usize| _mm256_loadu_pd(x.0[4 * k..4 * k + 4].as_ptr());
+    let low = _mm256_movemask_pd(_mm256_cmp_pd::<P>(half(a, 0), half(b, 0)));
+    let high = _mm256_movemask_pd(_mm256_cmp_pd::<P>(half(a, 1), half(b, 1)));
+    (low | high << 4) as u8
 }
 
 impl Group {
