@@ -1436,3 +1436,97 @@ fn barycentrics_of_point(a0: DVec3, a1: DVec3, a2: DVec3, p: DVec3) -> (f64, f64
     }
     ((d22 * r1 - d12 * r2) / den, (d11 * r2 - d12 * r1) / den)
 }
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::{traverse, Best, PacketRays, Vec3, WorldRay, PACKET};
+    use rand::{Rng, SeedableRng};
+
+    /// A triangle, a packet's rays (origin, direction) and their `tmax`.
+    type Case = ([Vec3; 3], [(Vec3, Vec3); PACKET], [f64; PACKET]);
+
+    /// The AVX2 packet test ([`PacketRays::hits_avx2`]) returns the lanes and distances of the
+    /// portable one ([`PacketRays::hits_lanes`], the scalar operators lane by lane): on rays
+    /// through a triangle's corners and edges exactly, just outside it, parallel to its plane
+    /// (`det = 0`), with infinite and NaN components, ending exactly at the hit, and on random
+    /// triangles and rays.
+    #[test]
+    fn avx2_lane_masks_are_the_scalar_operators() {
+        if !traverse::wide_node_test() {
+            return;
+        }
+        let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let down = -Vec3::Z;
+        let special: Vec<(Vec3, Vec3)> = [
+            (0.0, 0.0),
+            (1.0, 0.0),
+            (0.0, 1.0),
+            (0.5, 0.5),
+            (0.5, 0.0),
+            (0.0, 0.5),
+            (-0.0, 0.25),
+            (1.0, 1.0),
+            (-1e-7, 0.5),
+            (0.5, 0.500_000_1),
+        ]
+        .iter()
+        .map(|&(x, y)| (Vec3::new(x, y, 1.0), down))
+        .chain([
+            (Vec3::new(0.2, 0.2, 0.0), Vec3::X),
+            (
+                Vec3::new(0.2, 0.2, 1.0),
+                Vec3::new(f32::INFINITY, 0.0, -1.0),
+            ),
+            (Vec3::new(0.2, 0.2, 1.0), Vec3::new(f32::NAN, 0.0, -1.0)),
+            (Vec3::new(f32::INFINITY, 0.2, 1.0), down),
+            (Vec3::new(0.2, 0.2, -1.0), down),
+            (Vec3::new(0.2, 0.2, 1.0), Vec3::Z),
+        ])
+        .collect();
+        let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(32);
+        let mut cases: Vec<Case> = Vec::new();
+        for chunk in special.chunks(PACKET) {
+            let rays: [(Vec3, Vec3); PACKET] =
+                std::array::from_fn(|i| chunk.get(i).copied().unwrap_or(special[i]));
+            // Unbounded, ending exactly at the plane (t = 1 for the downward rays), just short
+            // of it, and NaN.
+            for tmax in [f64::INFINITY, 1.0, 0.999_999_9, f64::NAN] {
+                cases.push((tri, rays, [tmax; PACKET]));
+            }
+        }
+        let mut v = |s: f32| Vec3::new(rng.random::<f32>(), rng.random(), rng.random()) * s;
+        for _ in 0..2000 {
+            let t = [v(2.0), v(2.0), v(2.0)];
+            let rays: [(Vec3, Vec3); PACKET] = std::array::from_fn(|_| {
+                (v(4.0) - Vec3::splat(1.0), (v(2.0) - Vec3::ONE).normalize())
+            });
+            cases.push((t, rays, [f64::INFINITY; PACKET]));
+        }
+        let mut hit_lanes = 0;
+        let total = cases.len() * PACKET;
+        for (tri, rays, tmax) in cases {
+            let world: [WorldRay; PACKET] =
+                std::array::from_fn(|i| WorldRay::new(rays[i].0, rays[i].1));
+            let best: [Best; PACKET] = std::array::from_fn(|i| Best {
+                t: tmax[i],
+                slot: None,
+            });
+            let lanes = PacketRays::new(&world);
+            let portable = lanes.hits_lanes(&tri, &best);
+            #[allow(unsafe_code)] // AVX2 is present (checked above).
+            let wide = unsafe { lanes.hits_avx2(&tri, &best) };
+            assert_eq!(wide.0, portable.0, "lanes hit, {tri:?} {rays:?} {tmax:?}");
+            hit_lanes += wide.0.count_ones() as usize;
+            assert_eq!(
+                wide.1.map(f64::to_bits),
+                portable.1.map(f64::to_bits),
+                "distances, {tri:?} {rays:?}"
+            );
+        }
+        // Both outcomes occur, so neither mask is trivially all ones or all zeros.
+        assert!(
+            hit_lanes > 0 && hit_lanes < total,
+            "{hit_lanes} of {total} lanes hit"
+        );
+    }
+}
