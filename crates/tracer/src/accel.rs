@@ -1517,6 +1517,17 @@ mod tests {
             let wide = unsafe { lanes.hits_avx2(&tri, &best) };
             assert_eq!(wide.0, portable.0, "lanes hit, {tri:?} {rays:?} {tmax:?}");
             hit_lanes += wide.0.count_ones() as usize;
+            for (lane, ray) in world.iter().enumerate() {
+                let single = ray.intersect(&tri, best[lane].t);
+                let lane_hit = wide.0 & (1 << lane) != 0;
+                assert_eq!(
+                    single.map(f64::to_bits),
+                    lane_hit.then(|| wide.1[lane].to_bits()),
+                    "lane {lane} against the single ray, {tri:?} {:?} tmax {}",
+                    rays[lane],
+                    tmax[lane]
+                );
+            }
             assert_eq!(
                 wide.1.map(f64::to_bits),
                 portable.1.map(f64::to_bits),
