@@ -17,7 +17,9 @@ Both renderers get the scene `mitsuba_compare.py` writes (same meshes, map, came
 `--sampler single`). Times are render only: prt's own printed render time, Mitsuba's
 `mi.render` after one warm-up render (JIT compilation excluded). Both use every core (Dr.Jit's
 default thread pool and prt's). Per variant and renderer the minimum and the median over the
-rounds, in nanoseconds per sample, and the ratio prt / Mitsuba of each. Needs the peers' set-up
+rounds, in nanoseconds per sample, and the ratio prt / Mitsuba of each. Keep `--spp` at 256 or
+more: at 64 spp a single round gave Mitsuba 258 ns per sample on `suite` against 67–70 at 256
+(its fixed cost per render, and the first round's, dominate a short render). Needs the peers' set-up
 (tools/requirements-peers.txt, libllvm19) and the suite's work files (run
 `mitsuba_compare.py --suite` once, or this script writes them).
 """
@@ -82,6 +84,9 @@ def main():
         mc.write_prt_toml(toml, spec, args)
         scene = mc.build_mitsuba_scene(mi, mc.mitsuba_desc(spec, work, args), args.spp, "multijitter")
         np.array(mi.render(scene, seed=0, spp=args.spp))  # warm-up: JIT tracing and compilation
+        count = int(scene.sensors()[0].sampler().sample_count())
+        if count != args.spp:  # multijitter rounds to what it can stratify
+            sys.exit(f"Mitsuba's multijitter takes {count} samples per pixel, not {args.spp}")
         scenes[name] = (toml, scene)
     times = {(n, r): [] for n in VARIANTS for r in ("prt", "mitsuba")}
     for k in range(args.rounds):
