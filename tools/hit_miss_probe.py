@@ -3,7 +3,7 @@
 variants of it, timed side by side in one process, alternating the two renderers.
 
   tools/.venv/bin/python tools/hit_miss_probe.py [--prt target/release/prt] [--spp 256]
-      [--rounds 3] [--prt-arg=--split-lobes=none ...]
+      [--rounds 3] [--scalar] [--prt-arg=--split-lobes=none ...]
 
 - `suite`: the suite's sphere as `mitsuba_compare.py --suite` renders it (about a third of the
   camera samples hit the sphere, the rest see the environment directly);
@@ -16,7 +16,10 @@ Both renderers get the scene `mitsuba_compare.py` writes (same meshes, map, came
 `llvm_ad_rgb` with its `multijitter` sampler, the best peer of the suite, `max_depth` 2; prt
 `--sampler single`). Times are render only: prt's own printed render time, Mitsuba's
 `mi.render` after one warm-up render (JIT compilation excluded). Both use every core (Dr.Jit's
-default thread pool and prt's). Per variant and renderer the minimum and the median over the
+default thread pool and prt's). With `--scalar`, Mitsuba's `scalar_rgb` variant too (the same
+scene and sampler, one sample at a time on every core, Embree for its rays as in `llvm_ad_rgb`),
+alternated with the other two: how much of the gap is Dr.Jit running many samples per
+instruction rather than the cost of one sample's work. Per variant and renderer the minimum and the median over the
 rounds, in nanoseconds per sample, and the ratio prt / Mitsuba of each. Keep `--spp` at 256 or
 more: at 64 spp a single round gave Mitsuba 258 ns per sample on `suite` against 67–70 at 256
 (its fixed cost per render, and the first round's, dominate a short render). Needs the peers' set-up
@@ -37,6 +40,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import mitsuba_compare as mc  # noqa: E402
 
 VARIANTS = ("suite", "hit", "miss")
+
+# Mitsuba's variants the probe can time: (column name, Mitsuba variant).
+MITSUBA = {"mitsuba": "llvm_ad_rgb", "scalar": "scalar_rgb"}
 
 
 def variant_spec(spec, name):
@@ -67,12 +73,15 @@ def main():
     ap.add_argument("--work", default=os.path.join(mc.ROOT, "out", "mitsuba_compare"))
     ap.add_argument("--prt-arg", action="append", default=[],
                     help="one more argument for prt render (repeatable)")
+    ap.add_argument("--scalar", action="store_true",
+                    help="also time Mitsuba's scalar_rgb variant")
     args = ap.parse_args()
     work = os.path.join(args.work, "suite")
     os.makedirs(work, exist_ok=True)
     if mc.llvm_library():
         os.environ["DRJIT_LIBLLVM_PATH"] = mc.llvm_library()
     import mitsuba as mi
+    peers = ["mitsuba"] + (["scalar"] if args.scalar else [])
     mi.set_variant("llvm_ad_rgb")
     mc.write_suite_meshes(work)
     mc.write_env(mi, work, 16, mc.SUITE_UPSAMPLE_NAME)
@@ -82,30 +91,53 @@ def main():
         spec = variant_spec(base, name)
         toml = os.path.join(work, f"probe_{name}.toml")
         mc.write_prt_toml(toml, spec, args)
-        scene = mc.build_mitsuba_scene(mi, mc.mitsuba_desc(spec, work, args), args.spp, "multijitter")
-        np.array(mi.render(scene, seed=0, spp=args.spp))  # warm-up: JIT tracing and compilation
-        count = int(scene.sensors()[0].sampler().sample_count())
-        if count != args.spp:  # multijitter rounds to what it can stratify
-            sys.exit(f"Mitsuba's multijitter takes {count} samples per pixel, not {args.spp}")
-        scenes[name] = (toml, scene)
-    times = {(n, r): [] for n in VARIANTS for r in ("prt", "mitsuba")}
+        scenes[(name, "prt")] = toml
+        for peer in peers:
+            scenes[(name, peer)] = mitsuba_scene(mi, peer, spec, work, args)
+    times = {key: [] for key in scenes}
     for k in range(args.rounds):
-        for name, (toml, scene) in scenes.items():
-            t = time.perf_counter()
-            np.array(mi.render(scene, seed=1 + k, spp=args.spp))
-            times[(name, "mitsuba")].append(time.perf_counter() - t)
-            times[(name, "prt")].append(prt_seconds(args.prt, toml, args.spp, args.prt_arg))
+        for name in VARIANTS:
+            for peer in peers:
+                mi.set_variant(MITSUBA[peer])
+                t = time.perf_counter()
+                np.array(mi.render(scenes[(name, peer)], seed=1 + k, spp=args.spp))
+                times[(name, peer)].append(time.perf_counter() - t)
+            times[(name, "prt")].append(
+                prt_seconds(args.prt, scenes[(name, "prt")], args.spp, args.prt_arg))
+    print_table(times, peers, args)
+
+
+def mitsuba_scene(mi, peer, spec, work, args):
+    """The Mitsuba scene of `spec` in `peer`'s variant, rendered once (JIT tracing and
+    compilation, caches), its sampler's sample count checked."""
+    mi.set_variant(MITSUBA[peer])
+    scene = mc.build_mitsuba_scene(mi, mc.mitsuba_desc(spec, work, args), args.spp, "multijitter")
+    np.array(mi.render(scene, seed=0, spp=args.spp))
+    count = int(scene.sensors()[0].sampler().sample_count())
+    if count != args.spp:  # multijitter rounds to what it can stratify
+        sys.exit(f"Mitsuba's multijitter takes {count} samples per pixel, not {args.spp}")
+    return scene
+
+
+def print_table(times, peers, args):
+    """Min / median ns per sample of each renderer and prt's ratio to each peer."""
     n = args.width * args.height * args.spp
+    ns = lambda xs: (min(xs) / n * 1e9, statistics.median(xs) / n * 1e9)
+    heads = {"mitsuba": "Mitsuba llvm multijitter", "scalar": "Mitsuba scalar multijitter"}
     print(f"ns per sample, {args.width}x{args.height} at {args.spp} spp, {args.rounds} rounds "
           f"(min / median); load average {os.getloadavg()[0]:.2f}")
-    print("| variant | prt | Mitsuba llvm multijitter | prt / Mitsuba |")
-    print("|---|---|---|---|")
+    cols = ["variant", "prt"]
+    for peer in peers:
+        cols += [heads[peer], f"prt / {heads[peer].rsplit(' ', 1)[0]}"]
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "---|" * len(cols))
     for name in VARIANTS:
-        p, m = times[(name, "prt")], times[(name, "mitsuba")]
-        ns = lambda xs: (min(xs) / n * 1e9, statistics.median(xs) / n * 1e9)
-        (pmin, pmed), (mmin, mmed) = ns(p), ns(m)
-        print(f"| {name} | {pmin:.0f} / {pmed:.0f} | {mmin:.0f} / {mmed:.0f} | "
-              f"{pmin / mmin:.2f} / {pmed / mmed:.2f} |")
+        pmin, pmed = ns(times[(name, "prt")])
+        row = [name, f"{pmin:.0f} / {pmed:.0f}"]
+        for peer in peers:
+            mmin, mmed = ns(times[(name, peer)])
+            row += [f"{mmin:.0f} / {mmed:.0f}", f"{pmin / mmin:.2f} / {pmed / mmed:.2f}"]
+        print("| " + " | ".join(row) + " |")
 
 
 if __name__ == "__main__":

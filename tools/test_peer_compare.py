@@ -5,6 +5,8 @@
 Run: python3 tools/test_peer_compare.py   (or tools/.venv/bin/python tools/test_peer_compare.py)
 """
 
+import contextlib
+import io
 import math
 import os
 import sys
@@ -163,6 +165,21 @@ class HitMissProbe(unittest.TestCase):
         miss = hm.variant_spec(base, "miss")
         self.assertEqual(miss["objects"][0]["translate"], [0.0, 100.0, 0.0])
         self.assertEqual(repr(base), before)  # the base spec is not changed
+
+    def test_table_ratios(self):
+        """Per variant, min and median in ns per sample and prt's ratio to each peer."""
+        class Args:
+            width, height, spp, rounds = 10, 10, 10, 3  # 1000 samples: 1 µs = 1 ns/sample
+        times = {}
+        for name in hm.VARIANTS:
+            times[(name, "prt")] = [3e-6, 2e-6, 9e-6]  # min 2, median 3
+            times[(name, "mitsuba")] = [1e-6, 1.5e-6, 1e-6]  # min 1, median 1
+            times[(name, "scalar")] = [4e-6, 6e-6, 5e-6]  # min 4, median 5
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            hm.print_table(times, ["mitsuba", "scalar"], Args())
+        rows = [r for r in out.getvalue().splitlines() if r.startswith("| miss")]
+        self.assertEqual(rows, ["| miss | 2 / 3 | 1 / 1 | 2.00 / 3.00 | 4 / 5 | 0.50 / 0.60 |"])
 
 if __name__ == "__main__":
     unittest.main()
