@@ -8,6 +8,8 @@ Run: python3 tools/test_peer_compare.py   (or tools/.venv/bin/python tools/test_
 import contextlib
 import io
 import math
+import struct
+import tempfile
 import os
 import sys
 import unittest
@@ -18,6 +20,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cycles_render as cr  # noqa: E402
 import mitsuba_compare as mc  # noqa: E402
 import hit_miss_probe as hm  # noqa: E402
+import ray_peer_probe as rp  # noqa: E402
 
 
 def synthetic(seed, shape=(100, 100, 3)):
@@ -180,6 +183,53 @@ class HitMissProbe(unittest.TestCase):
             hm.print_table(times, ["mitsuba", "scalar"], Args())
         rows = [r for r in out.getvalue().splitlines() if r.startswith("| miss")]
         self.assertEqual(rows, ["| miss | 2 / 3 | 1 / 1 | 2.00 / 3.00 | 4 / 5 | 0.50 / 0.60 |"])
+
+class RayPeerProbe(unittest.TestCase):
+    def test_camera_rays(self):
+        """Unit directions; the grid's centre looks at the target, row 0 is the top row, and
+        the corner pixel centre is (1 − 1/size) of the half field of view off the axis."""
+        eye, target, size = np.array([0.0, 1.0, 5.0]), np.array([0.0, 1.0, 0.0]), 4
+        o, d = rp.camera_rays(eye, target, size, 40.0)
+        self.assertEqual(o.shape, (16, 3))
+        np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, rtol=1e-12)
+        np.testing.assert_array_equal(o, np.tile(eye, (16, 1)))
+        mean = d.mean(axis=0)
+        np.testing.assert_allclose(mean / np.linalg.norm(mean), [0.0, 0.0, -1.0], atol=1e-12)
+        self.assertGreater(d[0, 1], 0.0)  # top row looks up
+        self.assertLess(d[0, 0], 0.0)  # first column looks left (−x seen from +z)
+        half = math.tan(math.radians(20.0)) * (1.0 - 1.0 / size)
+        np.testing.assert_allclose(d[0] / -d[0, 2], [-half, half, -1.0], rtol=1e-12)
+
+    def test_random_rays(self):
+        """Origins at twice the radius, each ray passing within half the radius of the centre."""
+        center, radius = np.array([1.0, -2.0, 0.5]), 3.0
+        o, d = rp.random_rays(1000, center, radius, seed=3)
+        np.testing.assert_allclose(np.linalg.norm(o - center, axis=1), 2.0 * radius, rtol=1e-12)
+        np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, rtol=1e-12)
+        to_c = center - o
+        miss = np.linalg.norm(to_c - (to_c * d).sum(axis=1, keepdims=True) * d, axis=1)
+        self.assertTrue(np.all(miss <= 0.5 * radius + 1e-9))
+
+    def test_ray_file(self):
+        """Six little-endian f32 per ray, origin then direction, −0 written as +0."""
+        o = np.array([[1.0, 2.0, 3.0]])
+        d = np.array([[-0.0, 0.6, -0.8]])
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "r.f32")
+            rp.write_rays(path, o, d)
+            raw = open(path, "rb").read()
+        self.assertEqual(raw, struct.pack("<6f", 1.0, 2.0, 3.0, 0.0, 0.6, -0.8))
+
+    def test_agreement_threshold(self):
+        """At most one ray in a thousand may disagree."""
+        a = np.zeros(2000, dtype=bool)
+        b = a.copy()
+        b[:2] = True
+        self.assertEqual(rp.check_agreement("x", a, b), 2)
+        b[2] = True
+        with self.assertRaises(SystemExit):
+            rp.check_agreement("x", a, b)
+
 
 if __name__ == "__main__":
     unittest.main()

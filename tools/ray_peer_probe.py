@@ -1,0 +1,218 @@
+#!/usr/bin/env python3
+"""Ray throughput of prt's tracer next to Mitsuba 3's (Embree, driven by Dr.Jit's LLVM
+backend) on exactly the same rays and mesh, the two alternated in one run.
+
+  tools/.venv/bin/python tools/ray_peer_probe.py [--mesh scenes/meshes/bunny.obj]
+      [--rays 1048576] [--repeats 5] [--rounds 3] [--prt-example target/release/examples/trace_rays]
+
+Three batches on the mesh, as `cargo bench -p prt-tracer --bench trace -- rays` builds them:
+- `coherent`: a pinhole camera's rays through the pixel centres of a square grid (40° field of
+  view, from 2.5 bounding radii in front of the mesh and 0.3 above, row by row), closest hit;
+- `incoherent`: random rays (origins on a sphere of twice the bounding radius around the mesh's
+  centre, aimed at random points within half the radius of it), closest hit;
+- `shadow`: the incoherent rays as occlusion queries (any hit), unbounded.
+
+prt traces them with `examples/trace_rays.rs` (`Accel::closest_hit`, which also builds the full
+hit record with f64 barycentrics and normals, and `Accel::occluded`), one ray at a time per
+thread, on every core; the camera batch also in packets of eight consecutive rays
+(`Accel::closest_hits`, as the renderer traces a pixel's camera rays). Mitsuba (`llvm_ad_rgb`) traces each batch as one wavefront with
+`Scene.ray_intersect_preliminary` (the camera batch with `coherent=True`, Embree's coherent
+mode) and `Scene.ray_test`, on Dr.Jit's default thread pool (every core), after one untimed
+warm-up (JIT compilation). Each side reports the fastest of `--repeats` passes, per round; the
+table gives the minimum and median over rounds in Mrays/s and the ratio of prt's time to
+Mitsuba's. Both must give the same hit or miss on all but 0.1 % of each batch (rays grazing
+an edge or a vertex), or the script stops.
+
+Build the example first: `cargo build --release -p prt-tracer --example trace_rays`.
+"""
+import argparse
+import json
+import math
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import mitsuba_compare as mc  # noqa: E402
+
+# The table's rows: (row, batch, trace_rays' kind, Mitsuba's query).
+ROWS = (
+    ("coherent", "coherent", "closest", "closest"),
+    ("coherent, prt in packets of 8", "coherent", "closest_packets", "closest"),
+    ("incoherent", "incoherent", "closest", "closest"),
+    ("shadow", "incoherent", "occluded", "any"),
+)
+
+
+def obj_positions(path):
+    """The `v` lines of an OBJ file as an (n, 3) array."""
+    pts = []
+    with open(path) as f:
+        for line in f:
+            if line.startswith("v "):
+                pts.append([float(x) for x in line.split()[1:4]])
+    if not pts:
+        sys.exit(f"{path}: no vertex positions")
+    return np.array(pts)
+
+
+def bounds_sphere(positions):
+    """Centre and radius (half the diagonal) of the positions' bounding box."""
+    lo, hi = positions.min(axis=0), positions.max(axis=0)
+    return (lo + hi) / 2.0, float(np.linalg.norm(hi - lo)) / 2.0
+
+
+def camera_rays(eye, target, size, fov_deg=40.0):
+    """Rays from `eye` through the pixel centres of a `size`×`size` pinhole grid looking at
+    `target` (up +y), row 0 at the top, row by row."""
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    half = math.tan(math.radians(fov_deg) / 2.0)
+    c = (np.arange(size) + 0.5) / size * 2.0 - 1.0
+    x, y = np.meshgrid(c * half, -c * half)
+    d = forward + x.reshape(-1, 1) * right + y.reshape(-1, 1) * up
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return np.broadcast_to(eye, d.shape).copy(), d
+
+
+def unit_vectors(rng, n):
+    """`n` directions uniform on the sphere."""
+    z = rng.uniform(-1.0, 1.0, n)
+    phi = rng.uniform(0.0, 2.0 * math.pi, n)
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def random_rays(n, center, radius, seed=7):
+    """Origins on the sphere of radius 2·`radius` around `center`, each aimed at a random point
+    within 0.5·`radius` of it."""
+    rng = np.random.default_rng(seed)
+    o = center + unit_vectors(rng, n) * (2.0 * radius)
+    t = center + unit_vectors(rng, n) * (0.5 * radius * rng.uniform(0.0, 1.0, n))[:, None]
+    d = t - o
+    return o, d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def write_rays(path, o, d):
+    """The file `trace_rays` reads: six little-endian f32 per ray. `+ 0.0` turns −0 into +0."""
+    np.concatenate([o, d + 0.0], axis=1).astype("<f4").tofile(path)
+
+
+def prt_trace(example, mesh, rays_path, repeats, threads, hits_path):
+    """`trace_rays` on one batch: {kind: Mrays/s} and {kind: hit flags}."""
+    run = subprocess.run([example, mesh, rays_path, str(threads), str(repeats), hits_path],
+                         capture_output=True, text=True)
+    if run.returncode != 0:
+        sys.exit(f"trace_rays failed: {run.stderr.strip()}")
+    kinds = [json.loads(line) for line in run.stdout.splitlines()]
+    flags = np.fromfile(hits_path, dtype=np.uint8).reshape(len(kinds), -1).astype(bool)
+    return ({k["kind"]: k["mrays_per_s"] for k in kinds},
+            {k["kind"]: f for k, f in zip(kinds, flags)})
+
+
+def mitsuba_trace(mi, dr, scene, o, d, query, coherent, repeats):
+    """Mrays/s of the fastest of `repeats` passes of Mitsuba's `query` ("closest" or "any")
+    over the batch, and its answers."""
+    ray = mi.Ray3f(mi.Point3f(*[o[:, i].astype(np.float32) for i in range(3)]),
+                   mi.Vector3f(*[d[:, i].astype(np.float32) for i in range(3)]))
+    dr.eval(ray)
+
+    def once():
+        if query == "any":
+            hit = scene.ray_test(ray)
+        else:
+            hit = scene.ray_intersect_preliminary(ray, coherent=coherent).is_valid()
+        dr.eval(hit)
+        dr.sync_thread()
+        return hit
+
+    once()  # warm-up: tracing and compiling the kernel
+    best = math.inf
+    for _ in range(repeats):
+        t = time.perf_counter()
+        hit = once()
+        best = min(best, time.perf_counter() - t)
+    return len(o) / best / 1e6, np.array(hit, dtype=bool)
+
+
+def check_agreement(row, prt_hits, peer_hits):
+    """The number of rays on which the two disagree; stops above 0.1 % of the batch."""
+    disagree = int(np.count_nonzero(prt_hits != peer_hits))
+    if disagree * 1000 > len(prt_hits):
+        sys.exit(f"{row}: prt and Mitsuba disagree on {disagree} of {len(prt_hits)} rays")
+    return disagree
+
+
+def print_table(rates, disagree, sizes, args):
+    """Per row: best / median Mrays/s of each side over the rounds, and prt's time over
+    Mitsuba's (of the best rounds, and of the medians)."""
+    print(f"Mrays/s on {os.path.basename(args.mesh)}, {args.rounds} rounds of the best of "
+          f"{args.repeats} passes (best / median round), {sizes['coherent']} camera and "
+          f"{sizes['incoherent']} random rays; load average {os.getloadavg()[0]:.2f}")
+    print("| rays | prt | Mitsuba (Embree) | prt time / Mitsuba time | hit/miss disagreements |")
+    print("|---|---|---|---|---|")
+    for row, *_ in ROWS:
+        p, m = rates[(row, "prt")], rates[(row, "mitsuba")]
+        pm, mm = statistics.median(p), statistics.median(m)
+        print(f"| {row} | {max(p):.2f} / {pm:.2f} | {max(m):.2f} / {mm:.2f} | "
+              f"{max(m) / max(p):.2f} / {mm / pm:.2f} | {disagree[row]} |")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--mesh", default=os.path.join(mc.ROOT, "scenes", "meshes", "bunny.obj"))
+    ap.add_argument("--rays", type=int, default=1 << 20, help="incoherent rays per batch")
+    ap.add_argument("--camera", type=int, default=1024, help="camera grid size (square)")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--prt-example", default=os.path.join(
+        mc.ROOT, "target", "release", "examples", "trace_rays"))
+    args = ap.parse_args()
+    if not os.path.exists(args.prt_example):
+        sys.exit(f"{args.prt_example} is missing: cargo build --release -p prt-tracer "
+                 "--example trace_rays")
+    if mc.llvm_library():
+        os.environ["DRJIT_LIBLLVM_PATH"] = mc.llvm_library()
+    import drjit as dr
+    import mitsuba as mi
+    mi.set_variant("llvm_ad_rgb")
+    scene = mi.load_dict({"type": "scene",
+                          "mesh": {"type": "obj", "filename": args.mesh, "face_normals": True}})
+    center, radius = bounds_sphere(obj_positions(args.mesh))
+    eye = center + np.array([0.0, 0.3 * radius, 2.5 * radius])
+    batches = {"coherent": camera_rays(eye, center, args.camera),
+               "incoherent": random_rays(args.rays, center, radius)}
+    threads = os.cpu_count()
+    rates = {(row[0], who): [] for row in ROWS for who in ("prt", "mitsuba")}
+    disagree = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, (o, d) in batches.items():
+            write_rays(os.path.join(tmp, f"{name}.f32"), o, d)
+        for _ in range(args.rounds):
+            for name, (o, d) in batches.items():
+                prt, flags = prt_trace(args.prt_example, args.mesh,
+                                       os.path.join(tmp, f"{name}.f32"), args.repeats,
+                                       threads, os.path.join(tmp, f"{name}.hits"))
+                peer = {}
+                for row, batch, prt_kind, query in ROWS:
+                    if batch != name:
+                        continue
+                    if query not in peer:
+                        peer[query] = mitsuba_trace(mi, dr, scene, o, d, query,
+                                                    name == "coherent", args.repeats)
+                    rate, peer_hits = peer[query]
+                    rates[(row, "prt")].append(prt[prt_kind])
+                    rates[(row, "mitsuba")].append(rate)
+                    disagree[row] = check_agreement(row, flags[prt_kind], peer_hits)
+    print_table(rates, disagree, {"coherent": args.camera ** 2, "incoherent": args.rays}, args)
+
+
+if __name__ == "__main__":
+    main()
