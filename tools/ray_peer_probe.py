@@ -15,13 +15,16 @@ Three batches on the mesh, as `cargo bench -p prt-tracer --bench trace -- rays` 
 prt traces them with `examples/trace_rays.rs` (`Accel::closest_hit`, which also builds the full
 hit record with f64 barycentrics and normals, and `Accel::occluded`), one ray at a time per
 thread, on every core; the camera batch also in packets of eight consecutive rays
-(`Accel::closest_hits`, as the renderer traces a pixel's camera rays). Mitsuba (`llvm_ad_rgb`) traces each batch as one wavefront with
+(`Accel::closest_hits`, as the renderer traces a pixel's camera rays). The same program
+traces them through plain obvhs too (a CWBVH over the same triangles with obvhs' own
+traversals and f32 triangle test, the library `Accel` is built on), so the table shows
+whether obvhs is the ceiling. Mitsuba (`llvm_ad_rgb`) traces each batch as one wavefront with
 `Scene.ray_intersect_preliminary` (the camera batch with `coherent=True`, Embree's coherent
 mode) and `Scene.ray_test`, on Dr.Jit's default thread pool (every core), after one untimed
 warm-up (JIT compilation). Each side reports the fastest of `--repeats` passes, per round; the
-table gives the minimum and median over rounds in Mrays/s and the ratio of prt's time to
-Mitsuba's. Both must give the same hit or miss on all but 0.1 % of each batch (rays grazing
-an edge or a vertex), or the script stops.
+table gives the best and median round in Mrays/s and the ratios of prt's and obvhs' time to
+Mitsuba's. prt and obvhs must each give Mitsuba's hit or miss on all but 0.1 % of each batch
+(rays grazing an edge or a vertex), or the script stops.
 
 Build the example first: `cargo build --release -p prt-tracer --example trace_rays`.
 """
@@ -40,12 +43,12 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import mitsuba_compare as mc  # noqa: E402
 
-# The table's rows: (row, batch, trace_rays' kind, Mitsuba's query).
+# The table's rows: (row, batch, trace_rays' prt kind, its plain-obvhs kind, Mitsuba's query).
 ROWS = (
-    ("coherent", "coherent", "closest", "closest"),
-    ("coherent, prt in packets of 8", "coherent", "closest_packets", "closest"),
-    ("incoherent", "incoherent", "closest", "closest"),
-    ("shadow", "incoherent", "occluded", "any"),
+    ("coherent", "coherent", "closest", "obvhs_closest", "closest"),
+    ("coherent, prt in packets of 8", "coherent", "closest_packets", None, "closest"),
+    ("incoherent", "incoherent", "closest", "obvhs_closest", "closest"),
+    ("shadow", "incoherent", "occluded", "obvhs_occluded", "any"),
 )
 
 
@@ -151,18 +154,31 @@ def check_agreement(row, prt_hits, peer_hits):
 
 
 def print_table(rates, disagree, sizes, args):
-    """Per row: best / median Mrays/s of each side over the rounds, and prt's time over
-    Mitsuba's (of the best rounds, and of the medians)."""
+    """Per row: best / median Mrays/s of each tracer over the rounds, and prt's and obvhs'
+    time over Mitsuba's (of the best rounds / of the medians)."""
     print(f"Mrays/s on {os.path.basename(args.mesh)}, {args.rounds} rounds of the best of "
           f"{args.repeats} passes (best / median round), {sizes['coherent']} camera and "
           f"{sizes['incoherent']} random rays; load average {os.getloadavg()[0]:.2f}")
-    print("| rays | prt | Mitsuba (Embree) | prt time / Mitsuba time | hit/miss disagreements |")
-    print("|---|---|---|---|---|")
+    print("| rays | prt | plain obvhs | Mitsuba (Embree) | prt time / Mitsuba time | "
+          "obvhs time / Mitsuba time | hit/miss disagreements with Mitsuba (prt, obvhs) |")
+    print("|---|---|---|---|---|---|---|")
     for row, *_ in ROWS:
-        p, m = rates[(row, "prt")], rates[(row, "mitsuba")]
-        pm, mm = statistics.median(p), statistics.median(m)
-        print(f"| {row} | {max(p):.2f} / {pm:.2f} | {max(m):.2f} / {mm:.2f} | "
-              f"{max(m) / max(p):.2f} / {mm / pm:.2f} | {disagree[row]} |")
+        m = rates[(row, "mitsuba")]
+        best_m, med_m = max(m), statistics.median(m)
+        cells = [row]
+        ratios = []
+        for who in ("prt", "obvhs"):
+            r = rates[(row, who)]
+            if not r:
+                cells.append("–")
+                ratios.append("–")
+                continue
+            cells.append(f"{max(r):.2f} / {statistics.median(r):.2f}")
+            ratios.append(f"{best_m / max(r):.2f} / {med_m / statistics.median(r):.2f}")
+        cells.append(f"{best_m:.2f} / {med_m:.2f}")
+        d = disagree[row]
+        cells += ratios + [f"{d['prt']}, {d.get('obvhs', '–')}"]
+        print("| " + " | ".join(cells) + " |")
 
 
 def main():
@@ -190,8 +206,8 @@ def main():
     batches = {"coherent": camera_rays(eye, center, args.camera),
                "incoherent": random_rays(args.rays, center, radius)}
     threads = os.cpu_count()
-    rates = {(row[0], who): [] for row in ROWS for who in ("prt", "mitsuba")}
-    disagree = {}
+    rates = {(row[0], who): [] for row in ROWS for who in ("prt", "obvhs", "mitsuba")}
+    disagree = {row[0]: {} for row in ROWS}
     with tempfile.TemporaryDirectory() as tmp:
         for name, (o, d) in batches.items():
             write_rays(os.path.join(tmp, f"{name}.f32"), o, d)
@@ -201,16 +217,19 @@ def main():
                                        os.path.join(tmp, f"{name}.f32"), args.repeats,
                                        threads, os.path.join(tmp, f"{name}.hits"))
                 peer = {}
-                for row, batch, prt_kind, query in ROWS:
+                for row, batch, prt_kind, obvhs_kind, query in ROWS:
                     if batch != name:
                         continue
                     if query not in peer:
                         peer[query] = mitsuba_trace(mi, dr, scene, o, d, query,
                                                     name == "coherent", args.repeats)
                     rate, peer_hits = peer[query]
-                    rates[(row, "prt")].append(prt[prt_kind])
                     rates[(row, "mitsuba")].append(rate)
-                    disagree[row] = check_agreement(row, flags[prt_kind], peer_hits)
+                    for who, kind in (("prt", prt_kind), ("obvhs", obvhs_kind)):
+                        if kind is not None:
+                            rates[(row, who)].append(prt[kind])
+                            disagree[row][who] = check_agreement(f"{row} ({who})",
+                                                                 flags[kind], peer_hits)
     print_table(rates, disagree, {"coherent": args.camera ** 2, "incoherent": args.rays}, args)
 
 

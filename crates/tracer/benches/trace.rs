@@ -28,17 +28,13 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
-use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
-use obvhs::ray::{Ray, RayHit};
-use obvhs::triangle::Triangle;
-use obvhs::BvhBuildParams;
 use prt_scene::{Material, Mesh};
-use prt_tracer::{test_util, Accel, AccelOptions, PinholeCamera, RenderSettings, Renderer};
+use prt_tracer::test_util::{self, PlainObvhs};
+use prt_tracer::{Accel, AccelOptions, PinholeCamera, RenderSettings, Renderer};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 use std::path::PathBuf;
-use std::time::Duration;
 
 fn bunny() -> Mesh {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes/meshes/bunny.obj");
@@ -86,51 +82,6 @@ fn camera_rays(eye: Vec3, target: Vec3, size: u32) -> Vec<(Vec3, Vec3)> {
             (eye, d)
         })
         .collect()
-}
-
-/// Plain obvhs: a CWBVH over the mesh's world-space triangles, in the BVH's primitive order.
-struct PlainObvhs {
-    bvh: CwBvh,
-    tris: Vec<Triangle>,
-}
-
-impl PlainObvhs {
-    fn new(mesh: &Mesh) -> Self {
-        let tris: Vec<Triangle> = mesh
-            .indices
-            .iter()
-            .map(|idx| {
-                let [v0, v1, v2] = idx.map(|i| mesh.positions[i as usize].into());
-                Triangle { v0, v1, v2 }
-            })
-            .collect();
-        let mut build_time = Duration::ZERO;
-        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut build_time);
-        let tris = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| tris[i as usize])
-            .collect();
-        Self { bvh, tris }
-    }
-
-    fn ray(origin: Vec3, dir: Vec3) -> Ray {
-        Ray::new_inf(origin.into(), dir.into())
-    }
-
-    fn closest_hit(&self, origin: Vec3, dir: Vec3) -> bool {
-        let mut hit = RayHit::none();
-        self.bvh
-            .ray_traverse(Self::ray(origin, dir), &mut hit, |r, id| {
-                self.tris[id].intersect(r)
-            })
-    }
-
-    fn occluded(&self, origin: Vec3, dir: Vec3) -> bool {
-        !self
-            .bvh
-            .ray_traverse_miss(Self::ray(origin, dir), |r, id| self.tris[id].intersect(r))
-    }
 }
 
 /// The three ray kinds of the `rays` group.

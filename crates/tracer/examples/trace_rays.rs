@@ -7,17 +7,22 @@
 //! ```
 //!
 //! `RAYS.f32` holds little-endian `f32`s, six per ray: origin x, y, z, then direction x, y, z
-//! (unit length). Each ray is traced with `tmax = ∞` as a closest-hit query
-//! ([`Accel::closest_hit`], which also builds the full hit record), as a closest-hit query in
-//! packets of [`PACKET`] consecutive rays ([`Accel::closest_hits`], as the renderer traces a
-//! pixel's camera rays; the same answers) and as an occlusion query ([`Accel::occluded`]),
-//! `REPEATS` times each over the whole batch in parallel on `THREADS` threads (rayon). One JSON
-//! line per kind (`closest`, `closest_packets`, `occluded`) goes to stdout with the fastest
-//! repeat's seconds and the rays per second; `HITS.u8` receives one byte per ray and kind, in
-//! that order (1 hit, 0 miss), so that the caller can check both tracers answered the same
-//! queries.
+//! (unit length). Each ray is traced with `tmax = ∞`, `REPEATS` times per kind over the whole
+//! batch in parallel on `THREADS` threads (rayon), by:
+//! - `closest`: [`Accel::closest_hit`], which also builds the full hit record;
+//! - `closest_packets`: [`Accel::closest_hits`] on packets of [`PACKET`] consecutive rays, as
+//!   the renderer traces a pixel's camera rays (the same answers);
+//! - `occluded`: [`Accel::occluded`];
+//! - `obvhs_closest`, `obvhs_occluded`: plain obvhs on the same triangles
+//!   ([`test_util::PlainObvhs`]: its own traversals and f32 triangle test), the library
+//!   `Accel` is built on.
+//!
+//! One JSON line per kind goes to stdout with the fastest repeat's seconds and the rays per
+//! second; `HITS.u8` receives one byte per ray and kind, in that order (1 hit, 0 miss), so
+//! that the caller can check that the tracers answered the same queries.
 
 use glam::{DMat4, Vec3};
+use prt_tracer::test_util::{self, PlainObvhs};
 use prt_tracer::{Accel, AccelOptions};
 use rayon::prelude::*;
 use std::path::Path;
@@ -117,6 +122,7 @@ fn run(args: &Args) -> Result<(), String> {
     let rays = read_rays(&args.rays)?;
     let accel = Accel::from_meshes(&loaded.meshes, AccelOptions::default())
         .map_err(|e| format!("{}: {e}", args.mesh))?;
+    let plain = PlainObvhs::new(&test_util::merge(&loaded.meshes, "all"));
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads)
         .build()
@@ -140,6 +146,8 @@ fn run(args: &Args) -> Result<(), String> {
                 "occluded",
                 one_by_one(&|o, d| accel.occluded(o, d, f32::INFINITY)),
             ),
+            ("obvhs_closest", one_by_one(&|o, d| plain.closest_hit(o, d))),
+            ("obvhs_occluded", one_by_one(&|o, d| plain.occluded(o, d))),
         ]
     });
     let hits: Vec<u8> = kinds

@@ -1,8 +1,13 @@
 //! Tiny shapes and scenes with known answers, shared by tests, benchmarks and examples.
 
 use glam::{DVec3, Vec3};
+use obvhs::cwbvh::{builder::build_cwbvh_from_tris, CwBvh};
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle;
+use obvhs::BvhBuildParams;
 use prt_scene::{Camera, Environment, Material, Mesh, RenderSettings, Rgb, Scene};
 use std::f32::consts::PI;
+use std::time::Duration;
 
 /// A UV sphere (`rings ≥ 2` latitude bands, `segments ≥ 3` longitude bands), outward winding.
 /// `smooth` gives radial vertex normals; otherwise every triangle has its own three vertices
@@ -171,5 +176,59 @@ pub fn scene(
         textures: Vec::new(),
         surface_inputs: Vec::new(),
         tangents: Vec::new(),
+    }
+}
+
+/// Plain obvhs, the reference for the tracer's speed: a CWBVH (`medium_build`) over a mesh's
+/// world-space triangles, in the BVH's primitive order, traversed by obvhs' own
+/// `ray_traverse` / `ray_traverse_miss` with its own f32 Möller–Trumbore test. Directions
+/// must not have `-0.0` components (obvhs bug A: such a ray misses; add `+ 0.0`).
+pub struct PlainObvhs {
+    bvh: CwBvh,
+    tris: Vec<Triangle>,
+}
+
+impl PlainObvhs {
+    /// Builds the BVH over `mesh`'s triangles.
+    #[must_use]
+    pub fn new(mesh: &Mesh) -> Self {
+        let tris: Vec<Triangle> = mesh
+            .indices
+            .iter()
+            .map(|idx| {
+                let [v0, v1, v2] = idx.map(|i| mesh.positions[i as usize].into());
+                Triangle { v0, v1, v2 }
+            })
+            .collect();
+        let mut build_time = Duration::ZERO;
+        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut build_time);
+        let tris = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
+        Self { bvh, tris }
+    }
+
+    fn ray(origin: Vec3, dir: Vec3) -> Ray {
+        Ray::new_inf(origin.into(), dir.into())
+    }
+
+    /// Whether the unbounded ray hits a triangle (closest-hit traversal).
+    #[must_use]
+    pub fn closest_hit(&self, origin: Vec3, dir: Vec3) -> bool {
+        let mut hit = RayHit::none();
+        self.bvh
+            .ray_traverse(Self::ray(origin, dir), &mut hit, |r, id| {
+                self.tris[id].intersect(r)
+            })
+    }
+
+    /// Whether the unbounded ray hits a triangle (any-hit traversal).
+    #[must_use]
+    pub fn occluded(&self, origin: Vec3, dir: Vec3) -> bool {
+        !self
+            .bvh
+            .ray_traverse_miss(Self::ray(origin, dir), |r, id| self.tris[id].intersect(r))
     }
 }
