@@ -10,7 +10,11 @@ Three batches on the mesh, as `cargo bench -p prt-tracer --bench trace -- rays` 
   view, from 2.5 bounding radii in front of the mesh and 0.3 above, row by row), closest hit;
 - `incoherent`: random rays (origins on a sphere of twice the bounding radius around the mesh's
   centre, aimed at random points within half the radius of it), closest hit;
-- `shadow`: the incoherent rays as occlusion queries (any hit), unbounded.
+- `shadow`: the incoherent rays as occlusion queries (any hit), unbounded;
+- `from the surface`: the rays a renderer's hit samples trace (and a bake's): from points drawn
+  uniformly by area on the mesh, moved 10⁻⁴ of the bounding radius off the surface along the
+  face normal, in cosine-distributed directions about it (a Lambert BRDF sample), as any-hit and
+  closest-hit queries.
 
 prt traces them with `examples/trace_rays.rs` (`Accel::closest_hit`, which also builds the full
 hit record with f64 barycentrics and normals, and `Accel::occluded`), one ray at a time per
@@ -49,6 +53,8 @@ ROWS = (
     ("coherent, prt in packets of 8", "coherent", "closest_packets", None, "closest"),
     ("incoherent", "incoherent", "closest", "obvhs_closest", "closest"),
     ("shadow", "incoherent", "occluded", "obvhs_occluded", "any"),
+    ("from the surface, any hit", "surface", "occluded", "obvhs_occluded", "any"),
+    ("from the surface, closest hit", "surface", "closest", "obvhs_closest", "closest"),
 )
 
 
@@ -62,6 +68,48 @@ def obj_positions(path):
     if not pts:
         sys.exit(f"{path}: no vertex positions")
     return np.array(pts)
+
+
+def obj_faces(path):
+    """The `f` lines of an OBJ file as an (m, 3) array of 0-based vertex indices (triangles;
+    `v/vt/vn` references keep their `v`)."""
+    faces = []
+    with open(path) as f:
+        for line in f:
+            if line.startswith("f "):
+                idx = [int(t.split("/")[0]) - 1 for t in line.split()[1:]]
+                if len(idx) != 3:
+                    sys.exit(f"{path}: only triangles are supported, not a {len(idx)}-gon")
+                faces.append(idx)
+    if not faces:
+        sys.exit(f"{path}: no faces")
+    return np.array(faces)
+
+
+def surface_rays(n, positions, faces, radius, seed=11):
+    """Rays leaving the mesh's surface: points uniform by area, moved `1e-4 · radius` along
+    their face normal, directions cosine-distributed about it."""
+    rng = np.random.default_rng(seed)
+    a, b, c = (positions[faces[:, k]] for k in range(3))
+    cross = np.cross(b - a, c - a)
+    area = np.linalg.norm(cross, axis=1)
+    keep = area > 0.0
+    a, b, c, cross, area = a[keep], b[keep], c[keep], cross[keep], area[keep]
+    pick = rng.choice(len(area), size=n, p=area / area.sum())
+    r1, r2 = np.sqrt(rng.uniform(0.0, 1.0, n))[:, None], rng.uniform(0.0, 1.0, n)[:, None]
+    p = a[pick] * (1.0 - r1) + b[pick] * (r1 * (1.0 - r2)) + c[pick] * (r1 * r2)
+    normal = cross[pick] / area[pick][:, None]
+    o = p + normal * (1e-4 * radius)
+    # Cosine-distributed direction in the frame (t, s, normal).
+    helper = np.where(np.abs(normal[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t = np.cross(helper, normal)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    s_ = np.cross(normal, t)
+    u, v = rng.uniform(0.0, 1.0, n), rng.uniform(0.0, 1.0, n)
+    r, phi = np.sqrt(v), 2.0 * math.pi * u
+    z = np.sqrt(np.maximum(0.0, 1.0 - v))
+    d = t * (r * np.cos(phi))[:, None] + s_ * (r * np.sin(phi))[:, None] + normal * z[:, None]
+    return o, d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
 def bounds_sphere(positions):
@@ -157,8 +205,9 @@ def print_table(rates, disagree, sizes, args):
     """Per row: best / median Mrays/s of each tracer over the rounds, and prt's and obvhs'
     time over Mitsuba's (of the best rounds / of the medians)."""
     print(f"Mrays/s on {os.path.basename(args.mesh)}, {args.rounds} rounds of the best of "
-          f"{args.repeats} passes (best / median round), {sizes['coherent']} camera and "
-          f"{sizes['incoherent']} random rays; load average {os.getloadavg()[0]:.2f}")
+          f"{args.repeats} passes (best / median round), {sizes['coherent']} camera rays, "
+          f"{sizes['incoherent']} random and as many surface rays; load average "
+          f"{os.getloadavg()[0]:.2f}")
     print("| rays | prt | plain obvhs | Mitsuba (Embree) | prt time / Mitsuba time | "
           "obvhs time / Mitsuba time | hit/miss disagreements with Mitsuba (prt, obvhs) |")
     print("|---|---|---|---|---|---|---|")
@@ -201,10 +250,12 @@ def main():
     mi.set_variant("llvm_ad_rgb")
     scene = mi.load_dict({"type": "scene",
                           "mesh": {"type": "obj", "filename": args.mesh, "face_normals": True}})
-    center, radius = bounds_sphere(obj_positions(args.mesh))
+    positions = obj_positions(args.mesh)
+    center, radius = bounds_sphere(positions)
     eye = center + np.array([0.0, 0.3 * radius, 2.5 * radius])
     batches = {"coherent": camera_rays(eye, center, args.camera),
-               "incoherent": random_rays(args.rays, center, radius)}
+               "incoherent": random_rays(args.rays, center, radius),
+               "surface": surface_rays(args.rays, positions, obj_faces(args.mesh), radius)}
     threads = os.cpu_count()
     rates = {(row[0], who): [] for row in ROWS for who in ("prt", "obvhs", "mitsuba")}
     disagree = {row[0]: {} for row in ROWS}
