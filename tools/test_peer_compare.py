@@ -210,6 +210,34 @@ class RayPeerProbe(unittest.TestCase):
         miss = np.linalg.norm(to_c - (to_c * d).sum(axis=1, keepdims=True) * d, axis=1)
         self.assertTrue(np.all(miss <= 0.5 * radius + 1e-9))
 
+    def test_surface_rays(self):
+        """On a unit right triangle in z = 0 (normal +z): origins 1e-4·r above it and inside it,
+        directions in the upper hemisphere with E[cos θ] = 2/3 (cosine-distributed)."""
+        positions = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        faces = np.array([[0, 1, 2]])
+        n = 20000
+        o, d = rp.surface_rays(n, positions, faces, radius=2.0, seed=5)
+        np.testing.assert_allclose(o[:, 2], 2e-4, rtol=1e-9)
+        self.assertTrue(np.all((o[:, 0] >= 0) & (o[:, 1] >= 0) & (o[:, 0] + o[:, 1] <= 1.0)))
+        np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0, rtol=1e-12)
+        self.assertTrue(np.all(d[:, 2] > 0.0))
+        # cos θ of a cosine-distributed direction has mean 2/3 and variance 1/18.
+        self.assertLess(abs(d[:, 2].mean() - 2.0 / 3.0), 5.0 * math.sqrt(1.0 / 18.0 / n))
+        # Area-uniform points: E[x] = 1/3 on this triangle, variance 1/18.
+        self.assertLess(abs(o[:, 0].mean() - 1.0 / 3.0), 5.0 * math.sqrt(1.0 / 18.0 / n))
+
+    def test_obj_faces(self):
+        """`v//vn` and `v/vt/vn` references keep their vertex index, 0-based; n-gons stop."""
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "m.obj")
+            with open(path, "w") as f:
+                f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1//1 2//2 3//3\nf 2/1/2 4/1/4 3/1/3\n")
+            np.testing.assert_array_equal(rp.obj_faces(path), [[0, 1, 2], [1, 3, 2]])
+            with open(path, "a") as f:
+                f.write("f 1 2 4 3\n")
+            with self.assertRaises(SystemExit):
+                rp.obj_faces(path)
+
     def test_ray_file(self):
         """Six little-endian f32 per ray, origin then direction, −0 written as +0."""
         o = np.array([[1.0, 2.0, 3.0]])
