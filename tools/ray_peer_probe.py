@@ -5,7 +5,8 @@ backend) on exactly the same rays and mesh, the two alternated in one run.
   tools/.venv/bin/python tools/ray_peer_probe.py [--mesh scenes/meshes/bunny.obj]
       [--rays 1048576] [--repeats 5] [--rounds 3] [--prt-example target/release/examples/trace_rays]
 
-Three batches on the mesh, as `cargo bench -p prt-tracer --bench trace -- rays` builds them:
+The batches on the mesh (the first three as `cargo bench -p prt-tracer --bench trace -- rays`
+builds them):
 - `coherent`: a pinhole camera's rays through the pixel centres of a square grid (40° field of
   view, from 2.5 bounding radii in front of the mesh and 0.3 above, row by row), closest hit;
 - `incoherent`: random rays (origins on a sphere of twice the bounding radius around the mesh's
@@ -56,34 +57,6 @@ ROWS = (
     ("from the surface, any hit", "surface", "occluded", "obvhs_occluded", "any"),
     ("from the surface, closest hit", "surface", "closest", "obvhs_closest", "closest"),
 )
-
-
-def obj_positions(path):
-    """The `v` lines of an OBJ file as an (n, 3) array."""
-    pts = []
-    with open(path) as f:
-        for line in f:
-            if line.startswith("v "):
-                pts.append([float(x) for x in line.split()[1:4]])
-    if not pts:
-        sys.exit(f"{path}: no vertex positions")
-    return np.array(pts)
-
-
-def obj_faces(path):
-    """The `f` lines of an OBJ file as an (m, 3) array of 0-based vertex indices (triangles;
-    `v/vt/vn` references keep their `v`)."""
-    faces = []
-    with open(path) as f:
-        for line in f:
-            if line.startswith("f "):
-                idx = [int(t.split("/")[0]) - 1 for t in line.split()[1:]]
-                if len(idx) != 3:
-                    sys.exit(f"{path}: only triangles are supported, not a {len(idx)}-gon")
-                faces.append(idx)
-    if not faces:
-        sys.exit(f"{path}: no faces")
-    return np.array(faces)
 
 
 def surface_rays(n, positions, faces, radius, seed=11):
@@ -193,11 +166,12 @@ def mitsuba_trace(mi, dr, scene, o, d, query, coherent, repeats):
     return len(o) / best / 1e6, np.array(hit, dtype=bool)
 
 
-def check_agreement(row, prt_hits, peer_hits):
-    """The number of rays on which the two disagree; stops above 0.1 % of the batch."""
-    disagree = int(np.count_nonzero(prt_hits != peer_hits))
-    if disagree * 1000 > len(prt_hits):
-        sys.exit(f"{row}: prt and Mitsuba disagree on {disagree} of {len(prt_hits)} rays")
+def check_agreement(row, hits, peer_hits):
+    """The number of rays on which a tracer's answers `hits` and Mitsuba's disagree; stops
+    above 0.1 % of the batch."""
+    disagree = int(np.count_nonzero(hits != peer_hits))
+    if disagree * 1000 > len(hits):
+        sys.exit(f"{row}: the answers and Mitsuba's disagree on {disagree} of {len(hits)} rays")
     return disagree
 
 
@@ -233,13 +207,16 @@ def print_table(rates, disagree, sizes, args):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--mesh", default=os.path.join(mc.ROOT, "scenes", "meshes", "bunny.obj"))
-    ap.add_argument("--rays", type=int, default=1 << 20, help="incoherent rays per batch")
+    ap.add_argument("--rays", type=int, default=1 << 20, help="rays in the random batch and in the surface batch")
     ap.add_argument("--camera", type=int, default=1024, help="camera grid size (square)")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--prt-example", default=os.path.join(
         mc.ROOT, "target", "release", "examples", "trace_rays"))
     args = ap.parse_args()
+    positions, faces = mc.read_obj(args.mesh)
+    if len(positions) == 0 or len(faces) == 0:
+        sys.exit(f"{args.mesh}: no triangles")
     if not os.path.exists(args.prt_example):
         sys.exit(f"{args.prt_example} is missing: cargo build --release -p prt-tracer "
                  "--example trace_rays")
@@ -250,12 +227,11 @@ def main():
     mi.set_variant("llvm_ad_rgb")
     scene = mi.load_dict({"type": "scene",
                           "mesh": {"type": "obj", "filename": args.mesh, "face_normals": True}})
-    positions = obj_positions(args.mesh)
     center, radius = bounds_sphere(positions)
     eye = center + np.array([0.0, 0.3 * radius, 2.5 * radius])
     batches = {"coherent": camera_rays(eye, center, args.camera),
                "incoherent": random_rays(args.rays, center, radius),
-               "surface": surface_rays(args.rays, positions, obj_faces(args.mesh), radius)}
+               "surface": surface_rays(args.rays, positions, faces, radius)}
     threads = os.cpu_count()
     rates = {(row[0], who): [] for row in ROWS for who in ("prt", "obvhs", "mitsuba")}
     disagree = {row[0]: {} for row in ROWS}

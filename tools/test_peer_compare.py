@@ -227,16 +227,16 @@ class RayPeerProbe(unittest.TestCase):
         self.assertLess(abs(o[:, 0].mean() - 1.0 / 3.0), 5.0 * math.sqrt(1.0 / 18.0 / n))
 
     def test_obj_faces(self):
-        """`v//vn` and `v/vt/vn` references keep their vertex index, 0-based; n-gons stop."""
+        """The OBJ reader the probe uses (`mitsuba_compare.read_obj`): `v//vn` and `v/vt/vn`
+        references keep their vertex index, 0-based, and a quad becomes a fan of two."""
         with tempfile.TemporaryDirectory() as tmp:
             path = os.path.join(tmp, "m.obj")
             with open(path, "w") as f:
-                f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1//1 2//2 3//3\nf 2/1/2 4/1/4 3/1/3\n")
-            np.testing.assert_array_equal(rp.obj_faces(path), [[0, 1, 2], [1, 3, 2]])
-            with open(path, "a") as f:
-                f.write("f 1 2 4 3\n")
-            with self.assertRaises(SystemExit):
-                rp.obj_faces(path)
+                f.write("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1//1 2//2 3//3\n"
+                        "f 2/1/2 4/1/4 3/1/3\nf 1 2 4 3\n")
+            verts, faces = mc.read_obj(path)
+        self.assertEqual(verts.shape, (4, 3))
+        np.testing.assert_array_equal(faces, [[0, 1, 2], [1, 3, 2], [0, 1, 3], [0, 3, 2]])
 
     def test_ray_file(self):
         """Six little-endian f32 per ray, origin then direction, −0 written as +0."""
