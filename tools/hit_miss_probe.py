@@ -3,7 +3,7 @@
 variants of it, timed side by side in one process, alternating the two renderers.
 
   tools/.venv/bin/python tools/hit_miss_probe.py [--prt target/release/prt] [--spp 256]
-      [--rounds 3] [--scalar] [--prt-arg=--split-lobes=none ...]
+      [--rounds 3] [--scalar] [--threads N] [--prt-arg=--split-lobes=none ...]
 
 - `suite`: the suite's sphere as `mitsuba_compare.py --suite` renders it (about a third of the
   camera samples hit the sphere, the rest see the environment directly);
@@ -16,7 +16,8 @@ Both renderers get the scene `mitsuba_compare.py` writes (same meshes, map, came
 `llvm_ad_rgb` with its `multijitter` sampler, the best peer of the suite, `max_depth` 2; prt
 `--sampler single`). Times are render only: prt's own printed render time, Mitsuba's
 `mi.render` after one warm-up render (JIT compilation excluded). Both use every core (Dr.Jit's
-default thread pool and prt's). With `--scalar`, Mitsuba's `scalar_rgb` variant too (the same
+default thread pool and prt's), or `--threads N` each (prt's `--threads`, Dr.Jit's
+`set_thread_count`): run it with 1 and with every core to compare how each renderer scales. With `--scalar`, Mitsuba's `scalar_rgb` variant too (the same
 scene and sampler, one sample at a time on every core, Embree for its rays as in `llvm_ad_rgb`),
 alternated with the other two: how much of the gap is Dr.Jit running many samples per
 instruction rather than the cost of one sample's work. Per variant and renderer the minimum and the median over the
@@ -75,6 +76,9 @@ def main():
                     help="one more argument for prt render (repeatable)")
     ap.add_argument("--scalar", action="store_true",
                     help="also time Mitsuba's scalar_rgb variant")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="threads for both renderers (default: every core): prt --threads, "
+                         "Dr.Jit's thread pool")
     args = ap.parse_args()
     work = os.path.join(args.work, "suite")
     os.makedirs(work, exist_ok=True)
@@ -94,6 +98,12 @@ def main():
         scenes[(name, "prt")] = toml
         for peer in peers:
             scenes[(name, peer)] = mitsuba_scene(mi, peer, spec, work, args)
+    if args.threads is not None:
+        # Only now: Mitsuba's EXR writing and scene loading wait on its thread pool, and hang
+        # with one thread (seen with 3.9.1).
+        import drjit as dr
+        dr.set_thread_count(args.threads)
+        args.prt_arg = args.prt_arg + ["--threads", str(args.threads)]
     times = {key: [] for key in scenes}
     for k in range(args.rounds):
         for name in VARIANTS:
@@ -124,8 +134,9 @@ def print_table(times, peers, args):
     n = args.width * args.height * args.spp
     ns = lambda xs: (min(xs) / n * 1e9, statistics.median(xs) / n * 1e9)
     heads = {"mitsuba": "Mitsuba llvm multijitter", "scalar": "Mitsuba scalar multijitter"}
+    threads = "every core" if args.threads is None else f"{args.threads} thread(s)"
     print(f"ns per sample, {args.width}x{args.height} at {args.spp} spp, {args.rounds} rounds "
-          f"(min / median); load average {os.getloadavg()[0]:.2f}")
+          f"(min / median), {threads}; load average {os.getloadavg()[0]:.2f}")
     cols = ["variant", "prt"]
     for peer in peers:
         cols += [heads[peer], f"prt / {heads[peer].rsplit(' ', 1)[0]}"]
