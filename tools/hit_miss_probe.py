@@ -136,7 +136,8 @@ def print_table(times, peers, args):
     heads = {"mitsuba": "Mitsuba llvm multijitter", "scalar": "Mitsuba scalar multijitter"}
     threads = "every core" if args.threads is None else f"{args.threads} thread(s)"
     print(f"ns per sample, {args.width}x{args.height} at {args.spp} spp, {args.rounds} rounds "
-          f"(min / median), {threads}; load average {os.getloadavg()[0]:.2f}")
+          f"(min / median), {threads}; load average {os.getloadavg()[0]:.2f}."
+          + mc.host_line(mc.host()))
     cols = ["variant", "prt"]
     for peer in peers:
         cols += [heads[peer], f"prt / {heads[peer].rsplit(' ', 1)[0]}"]

@@ -774,6 +774,33 @@ def z_png(path, a, var_a, b, var_b, scale_up=3):
     write_png(path, img ** 2.2, scale_up)  # undo the sRGB curve roughly: linear z / 8 as shown
 
 
+def host_simd(cpuinfo_text):
+    """The CPU model and the widest vector instruction set its flags list, from the text of
+    /proc/cpuinfo: Dr.Jit's LLVM backend compiles for the host, so its lanes per instruction
+    (16 f32 with AVX-512, 8 with AVX2) and hence the time-per-sample ratio depend on it."""
+    model, flags = None, set()
+    for line in cpuinfo_text.splitlines():
+        key, _, value = line.partition(":")
+        key = key.strip()
+        if key == "model name" and model is None:
+            model = value.strip()
+        elif key == "flags" and not flags:
+            flags = set(value.split())
+    simd = next((name for flag, name in (("avx512f", "AVX-512"), ("avx2", "AVX2"), ("avx", "AVX"),
+                                         ("sse2", "SSE2")) if flag in flags), None)
+    return {"model": model, "simd": simd, "fma": "fma" in flags}
+
+
+def host():
+    """This machine's CPU (`host_simd` of /proc/cpuinfo) and core count, for the report."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            info = host_simd(f.read())
+    except OSError:
+        info = {"model": None, "simd": None, "fma": None}
+    return {**info, "cores": os.cpu_count()}
+
+
 def loadavg():
     try:
         with open("/proc/loadavg") as f:
@@ -980,7 +1007,8 @@ def suite(args):
               "peers": peers, "llvm_library": llvm_library(),
               "reference": f"llvm_ad_rgb independent, {args.ref_factor} passes × {args.spp} spp, scene in "
                            "canonical placement",
-              "env_upsample_for_mitsuba": args.upsample, "loadavg_start": loadavg(), "scenes": {}}
+              "env_upsample_for_mitsuba": args.upsample, "host": host(), "loadavg_start": loadavg(),
+              "scenes": {}}
     t_start = time.time()
     for name in names:
         spec = specs[name]
@@ -1056,6 +1084,15 @@ def suite(args):
           f"end: {report['loadavg_end']}; {report['total_seconds'] / 60:.1f} min)")
 
 
+def host_line(h):
+    """The table's note on the host: time per sample against Mitsuba `llvm` depends on its
+    vector width."""
+    if not h:
+        return ""
+    return (f" Host: {h.get('model') or 'unknown CPU'}, {h.get('cores')} cores, widest SIMD "
+            f"{h.get('simd') or 'unknown'} (Dr.Jit's LLVM kernels use the host's full width).")
+
+
 def peer_label(k):
     return {"prt": "prt", "cycles": "Cycles"}.get(k, k.replace("_", " "))
 
@@ -1076,7 +1113,8 @@ def suite_table(report):
         "render of the same sampler, i.e. JIT compilation and scene loading excluded; Cycles: a render after "
         "a 1-spp warm-up with persistent data, i.e. BVH build and scene sync excluded). err = one render's "
         "relative RMS error on surface pixels from its two seeds, sqrt(mean((X₁−X₂)²)/2)/RMS(reference). "
-        "cost = s × err² (time at equal error, up to a constant); cost ratio < 1: prt is cheaper.",
+        "cost = s × err² (time at equal error, up to a constant); cost ratio < 1: prt is cheaper."
+        + host_line(report.get("host")),
         "",
         "| scene | B | " + " | ".join(f"{peer_label(k)} s / err" for k in methods)
         + " | time/sample prt/llvm | " + " | ".join(f"cost prt/{peer_label(k)}" for k in peers)

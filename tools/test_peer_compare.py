@@ -114,6 +114,20 @@ class Costs(unittest.TestCase):
             mc.parse_prt_render_seconds("nothing here")
 
 
+class Host(unittest.TestCase):
+    def test_widest_simd_from_cpuinfo(self):
+        text = ("processor\t: 0\nmodel name\t: AMD EPYC 7B13\nflags\t\t: fpu sse2 avx fma avx2\n\n"
+                "processor\t: 1\nmodel name\t: other\nflags\t\t: avx512f\n")
+        self.assertEqual(mc.host_simd(text), {"model": "AMD EPYC 7B13", "simd": "AVX2", "fma": True})
+        wide = mc.host_simd("model name : X\nflags : sse2 avx avx2 avx512f avx512bw\n")
+        self.assertEqual(wide["simd"], "AVX-512")
+        self.assertFalse(wide["fma"])
+        self.assertEqual(mc.host_simd(""), {"model": None, "simd": None, "fma": False})
+        line = mc.host_line({"model": "M", "cores": 2, "simd": "AVX2"})
+        self.assertIn("M, 2 cores, widest SIMD AVX2", line)
+        self.assertEqual(mc.host_line(None), "")
+
+
 class CyclesEnvironment(unittest.TestCase):
     def test_rolled_map_reads_the_same_texel(self):
         """For directions all over the sphere, Cycles' equirectangular lookup of the Blender
@@ -173,6 +187,7 @@ class HitMissProbe(unittest.TestCase):
         """Per variant, min and median in ns per sample and prt's ratio to each peer."""
         class Args:
             width, height, spp, rounds = 10, 10, 10, 3  # 1000 samples: 1 µs = 1 ns/sample
+            threads = 1
         times = {}
         for name in hm.VARIANTS:
             times[(name, "prt")] = [3e-6, 2e-6, 9e-6]  # min 2, median 3
