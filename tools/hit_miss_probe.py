@@ -17,7 +17,8 @@ Both renderers get the scene `mitsuba_compare.py` writes (same meshes, map, came
 `--sampler single`). Times are render only: prt's own printed render time, Mitsuba's
 `mi.render` after one warm-up render (JIT compilation excluded). Both use every core (Dr.Jit's
 default thread pool and prt's), or `--threads N` each (prt's `--threads`, Dr.Jit's
-`set_thread_count`): run it with 1 and with every core to compare how each renderer scales. With `--scalar`, Mitsuba's `scalar_rgb` variant too (the same
+`set_thread_count`): run it with 1 and with every core to compare how each renderer scales.
+With `--scalar`, Mitsuba's `scalar_rgb` variant too (the same
 scene and sampler, one sample at a time on every core, Embree for its rays as in `llvm_ad_rgb`),
 alternated with the other two: how much of the gap is Dr.Jit running many samples per
 instruction rather than the cost of one sample's work. Per variant and renderer the minimum and the median over the
