@@ -100,8 +100,8 @@ def main():
         for peer in peers:
             scenes[(name, peer)] = mitsuba_scene(mi, peer, spec, work, args)
     if args.threads is not None:
-        # Only now: Mitsuba's EXR writing and scene loading wait on its thread pool, and hang
-        # with one thread (seen with 3.9.1).
+        # Only now, after the scene files are written: Mitsuba 3.9.1's EXR writing
+        # (`write_env`) hung with a one-thread pool.
         import drjit as dr
         dr.set_thread_count(args.threads)
         args.prt_arg = args.prt_arg + ["--threads", str(args.threads)]

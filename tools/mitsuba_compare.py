@@ -795,10 +795,10 @@ def host():
     """This machine's CPU (`host_simd` of /proc/cpuinfo) and core count, for the report."""
     try:
         with open("/proc/cpuinfo") as f:
-            info = host_simd(f.read())
-    except OSError:
-        info = {"model": None, "simd": None, "fma": None}
-    return {**info, "cores": os.cpu_count()}
+            text = f.read()
+    except OSError:  # not Linux: model and SIMD unknown
+        text = ""
+    return {**host_simd(text), "cores": os.cpu_count()}
 
 
 def loadavg():
