@@ -54,6 +54,7 @@
 //!   primitive box is padded by `2^-17 · M` of its group (≥ 4 ulps of any coordinate) before the
 //!   build ([`AccelOptions::pad_boxes`]).
 
+use crate::box_nodes::BoxNodes;
 use crate::error::TracerError;
 use crate::traverse::{self, PACKET};
 use glam::{DVec3, Vec3, Vec3A};
@@ -216,6 +217,8 @@ struct Group {
     local: Vec<Triangle>,
     /// World-space triangles in BVH primitive order (what the exact tests use).
     world: Vec<[Vec3; 3]>,
+    /// The BVH's nodes with float boxes, for single rays (empty where they do not run).
+    box_nodes: BoxNodes,
     /// `(mesh, triangle)` of each BVH primitive slot.
     refs: Vec<(u32, u32)>,
     /// World position of the group space's origin.
@@ -690,12 +693,13 @@ impl Group {
             return;
         }
         let (local, start) = self.local_ray(ray, t0, best.t);
-        traverse::closest_sorted(
-            &self.bvh,
-            local,
-            |slot| self.consider(group, slot, ray, start, best, masks),
-            |slot| traverse::prefetch(&self.world[slot]),
-        );
+        let test = |slot| self.consider(group, slot, ray, start, best, masks);
+        let touch = |slot| traverse::prefetch(&self.world[slot]);
+        if self.box_nodes.is_empty() {
+            traverse::closest_sorted(&self.bvh, local, test, touch);
+        } else {
+            self.box_nodes.closest(&local, test, touch);
+        }
     }
 
     /// Whether anything in this group is hit with `t ≤ tmax`.
@@ -711,8 +715,12 @@ impl Group {
                 .any(|slot| self.blocking(slot, ray, start, tmax, masks) < tmax_local);
         }
         let (local, start) = self.local_ray(ray, t0, tmax);
-        traverse::any_leaves_first(&self.bvh, local, |slot| {
-            self.blocking(slot, ray, start, tmax, masks)
+        let blocking = |slot| self.blocking(slot, ray, start, tmax, masks);
+        if self.box_nodes.is_empty() {
+            return traverse::any_leaves_first(&self.bvh, local, blocking);
+        }
+        self.box_nodes.any(&local, |first, count| {
+            (first..first + count).any(|slot| blocking(slot) < local.tmax)
         })
     }
 
@@ -1001,6 +1009,7 @@ impl Accel {
         // rounding of the local coordinates (½ ulp ≪ pad).
         let pad_world = 2.0 * f64::from(pad.max(max_local * PAD_RELATIVE)) / scale;
         Group {
+            box_nodes: BoxNodes::of(&bvh),
             bvh,
             boxes,
             local,

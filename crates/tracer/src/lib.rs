@@ -32,6 +32,7 @@
 //!   formation), whose positions come from the shifted R2 sequences of [`sequence`].
 
 mod accel;
+pub mod box_nodes;
 mod camera;
 mod error;
 mod integrator;

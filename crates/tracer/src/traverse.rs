@@ -20,7 +20,9 @@
 //! and whole traversals against obvhs' own).
 //!
 //! **Own traversals of the same tree.** Two traversals here do not follow obvhs' loop, where
-//! its order costs time on a CPU: [`closest_sorted`] (single closest-hit rays) keeps every
+//! its order costs time on a CPU (`Accel` uses them for single rays where the CPU lacks FMA
+//! or a tree is too deep for [`crate::box_nodes`], whose float-box traversals follow the same
+//! two loops): [`closest_sorted`] (single closest-hit rays) keeps every
 //! accepted child on the stack with its entry distance and visits the nearest first,
 //! dropping entries beyond the hit found so far without loading their node (Embree-style;
 //! obvhs keeps groups of children without distances, ordered by the ray's octant, a GPU
