@@ -30,7 +30,7 @@ Suite mode (`--suite`): prt against the peers a user would pick, in one command,
 (plus `probe`, a mirror sphere that shows whether the environment lines up in every renderer):
   tools/.venv/bin/python tools/mitsuba_compare.py --suite [--spp 1024] [--table FILE.md]
       [--prt PATH] [--prt-sampler replicas|single] [--prt-env-sampling per-normal|compensated|luminance]
-      [--prt-split-lobes mirror|none|all]
+      [--prt-split-lobes mirror|none|all] [--timing-rounds N]
       [--scenes sphere,bunny_floor,mirror,far,millimetre,teapot] [--ref-factor 16]
       [--peers llvm_independent,llvm_multijitter,llvm_ldsampler,cycles]
 - peers: Mitsuba 3 `llvm_ad_rgb` with its `independent`, `multijitter` and `ldsampler` samplers
@@ -56,6 +56,10 @@ Suite mode (`--suite`): prt against the peers a user would pick, in one command,
   (JIT tracing + compilation excluded, reported as "first"; scene loading excluded), each
   variant in its own process; Cycles a render after a 1-spp warm-up with persistent data (scene
   sync and BVH build excluded; Cycles' own render/sync times from its EXR are in the JSON).
+  With `--timing-rounds N`, N more rounds per scene alternate one prt render and one render
+  of the fastest llvm sampler inside that sampler's Mitsuba process (after its warm-up): each
+  round's two renders see about the same machine, so the median of the rounds' time-per-sample
+  ratios is not moved by a drift between prt's runs and Mitsuba's (an extra table column).
 - error: each method renders seeds 0 and 1; E‖X₁ − X₂‖² = 2 Var, so one render's error is
   err = sqrt(mean((X₁ − X₂)²)/2) / RMS(reference) on surface pixels (prt depth AOV ≠ 0). The
   reference (llvm_ad_rgb, --ref-factor passes of --spp, cached in <work>/suite/refs by
@@ -178,6 +182,11 @@ def main():
                                     "goes next to it with the suffix .json")
     ap.add_argument("--ref-factor", type=int, default=16,
                     help="--suite: the reference is this many llvm_ad_rgb passes of --spp each")
+    ap.add_argument("--timing-rounds", type=int, default=0,
+                    help="--suite: after each scene's runs, N more rounds alternating one prt render and "
+                         "one render of the fastest llvm sampler inside the same Mitsuba process; the "
+                         "table adds the median of the per-round time-per-sample ratios (a drift of the "
+                         "machine between prt's runs and Mitsuba's cancels in each round)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)  # internal: one Mitsuba variant per process
     args = ap.parse_args()
     if args.worker:
@@ -608,7 +617,20 @@ def mitsuba_worker(job_path):
         a = np.array(img, dtype=np.float32)[..., :3]  # forces evaluation of a JIT variant
         return a, time.perf_counter() - t
 
-    if job["mode"] == "timed":
+    if job["mode"] == "paired":
+        # Load and warm up once, then alternate: one prt render (its own render time), one
+        # Mitsuba render. Mitsuba idles while prt runs, so each has the machine to itself.
+        scene = build_mitsuba_scene(mi, job["desc"], spp, job["sampler"])
+        out["sample_count"] = int(scene.sensors()[0].sampler().sample_count())
+        render(scene, job["warmup_seed"])
+        out["rounds"] = []
+        for k in range(job["rounds"]):
+            run = subprocess.run(job["prt_cmd"], capture_output=True, text=True)
+            if run.returncode != 0:
+                raise SystemExit(f"prt render failed: {run.stderr[-2000:]}")
+            _, secs = render(scene, k)
+            out["rounds"].append([parse_prt_render_seconds(run.stderr), secs])
+    elif job["mode"] == "timed":
         # Per sampler: load, one warm-up render (JIT tracing + compilation for llvm), then the
         # timed renders. Only mi.render is timed: scene loading and the warm-up are excluded.
         out["samplers"] = {}
@@ -861,6 +883,34 @@ def parse_prt_render_seconds(stderr):
     return float(m.group(1))
 
 
+def prt_render_cmd(args, toml, spec, seed, exr):
+    """The `prt render` command of the suite's timed renders."""
+    return [args.prt, "render", toml, "--spp", str(args.spp), "--bounces", str(spec["bounces"]),
+            "--seed", str(seed), "--sampler", args.prt_sampler, "--env-sampling", args.prt_env_sampling,
+            "--split-lobes", args.prt_split_lobes, "--quiet", "--out", exr]
+
+
+def paired_ratios(rounds, prt_spp, mitsuba_samples):
+    """Time per sample prt / Mitsuba of each alternated round (`rounds`: [prt s, Mitsuba s]), and
+    their median (the figure a drifting machine disturbs least: both renders of a round see
+    about the same machine)."""
+    ratios = [(p / prt_spp) / (m / mitsuba_samples) for p, m in rounds]
+    return ratios, float(np.median(ratios)) if ratios else None
+
+
+def run_paired_timing(args, work, name, spec, desc, peer):
+    """`args.timing_rounds` rounds of one prt render (seed 0, both threads) and one render of
+    Mitsuba `peer` (an llvm sampler), alternated inside one Mitsuba process after its warm-up."""
+    w = lambda f: os.path.join(work, f)
+    variant, sampler = MITSUBA_VARIANTS[peer.partition("_")[0]], peer.partition("_")[2]
+    cmd = prt_render_cmd(args, w(f"{name}.toml"), spec, SEEDS[0], w(f"{name}_prt_paired.exr"))
+    res = run_worker({"variant": variant, "mode": "paired", "spp": args.spp, "desc": desc,
+                      "sampler": sampler, "rounds": args.timing_rounds, "prt_cmd": cmd, "warmup_seed": 100},
+                     work, f"{name}_paired")
+    ratios, median = paired_ratios(res["rounds"], args.spp, res["sample_count"])
+    return {"peer": peer, "rounds": res["rounds"], "ratios": ratios, "median": median}
+
+
 def run_prt(args, work, name, spec):
     """prt at seeds 0 and 1: images, render seconds, whole-process seconds, seed 0's AOVs.
     The timed renders write no AOVs (as a user who does not need them renders; they cost about
@@ -872,10 +922,7 @@ def run_prt(args, work, name, spec):
     out = {"imgs": [], "seconds": [], "wall": []}
 
     def render(seed, exr, aovs):
-        cmd = [args.prt, "render", w(f"{name}.toml"), "--spp", str(args.spp), "--bounces",
-               str(spec["bounces"]), "--seed", str(seed), "--sampler", args.prt_sampler,
-               "--env-sampling", args.prt_env_sampling, "--split-lobes", args.prt_split_lobes,
-               "--quiet", "--out", exr] + (["--aovs"] if aovs else [])
+        cmd = prt_render_cmd(args, w(f"{name}.toml"), spec, seed, exr) + (["--aovs"] if aovs else [])
         t0 = time.perf_counter()
         run = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0
@@ -1055,6 +1102,8 @@ def suite(args):
             r["time_per_sample_prt_over_llvm"] = (r["methods"]["prt"]["seconds_per_sample"]
                                                   / r["methods"][fastest]["seconds_per_sample"])
             r["time_per_sample_llvm_sampler"] = fastest
+            if args.timing_rounds > 0:
+                r["time_per_sample_paired"] = run_paired_timing(args, work, name, spec, desc, fastest)
         if native_differs:
             r["native_reference_rel_l2"] = {m: rel_l2(nref, ref, masks[m]) for m in ("all", "surface")}
             r["bias_native_reference_vs_reference"] = {m: bias_stats(nref, nref_var, ref, ref_var, masks[m])
@@ -1103,6 +1152,7 @@ def suite_table(report):
     scenes = report["scenes"]
     methods = list(next(iter(scenes.values()))["methods"]) if scenes else []
     peers = [k for k in methods if k != "prt"]
+    paired = any("time_per_sample_paired" in r for r in scenes.values())
     lines = [
         f"{report['spp']} spp, {report['size'][0]}×{report['size'][1]}, seeds {report['seeds']}; reference: "
         f"{report['reference']}; prt's sampler: `--sampler {report.get('prt_sampler', 'replicas')}"
@@ -1117,13 +1167,17 @@ def suite_table(report):
         + host_line(report.get("host")),
         "",
         "| scene | B | " + " | ".join(f"{peer_label(k)} s / err" for k in methods)
-        + " | time/sample prt/llvm | " + " | ".join(f"cost prt/{peer_label(k)}" for k in peers)
+        + " | time/sample prt/llvm |" + (" time/sample prt/llvm, alternated rounds (median) |" if paired else "")
+        + " " + " | ".join(f"cost prt/{peer_label(k)}" for k in peers)
         + " | cost prt/best peer |",
-        "|---|---|" + "---|" * (len(methods) + 1 + len(peers) + 1),
+        "|---|---|" + "---|" * (len(methods) + 1 + int(paired) + len(peers) + 1),
     ]
     for name, r in scenes.items():
         mf = r["methods"]
         tps = f2(r["time_per_sample_prt_over_llvm"]) if "time_per_sample_prt_over_llvm" in r else "–"
+        if paired:
+            pr = r.get("time_per_sample_paired")
+            tps += f" | {f2(pr['median']) if pr and pr['median'] is not None else '–'}"
         lines.append(f"| {name} | {r['bounces']} | "
                      + " | ".join(f"{f2(mf[k]['seconds'])} / {mf[k]['err']:.4f}" for k in methods)
                      + f" | {tps} | " + " | ".join(f2(r["cost_ratio"][k]) for k in peers)
@@ -1149,6 +1203,11 @@ def suite_table(report):
         if "time_per_sample_prt_over_llvm" in r:
             extra.append(f"time per sample prt / {r['time_per_sample_llvm_sampler']}: "
                          f"{f2(r['time_per_sample_prt_over_llvm'])}")
+        if r.get("time_per_sample_paired"):
+            pr = r["time_per_sample_paired"]
+            extra.append(f"in {len(pr['rounds'])} alternated rounds against {peer_label(pr['peer'])} "
+                         f"(prt s / Mitsuba s: {', '.join(f'{a:.2f} / {b:.2f}' for a, b in pr['rounds'])}): "
+                         f"median {f2(pr['median'])}")
         extra.append(f"cost prt / best peer ({peer_label(r['best_peer'])}): {f2(r['cost_ratio_best_peer'])}")
         if "native_reference_rel_l2" in r:
             extra.append(f"Mitsuba's native-placement reference is {pct(r['native_reference_rel_l2']['surface'])} "

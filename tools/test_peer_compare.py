@@ -114,6 +114,36 @@ class Costs(unittest.TestCase):
             mc.parse_prt_render_seconds("nothing here")
 
 
+class PairedTiming(unittest.TestCase):
+    def test_ratios_and_median(self):
+        """Each round's ratio is prt's time per sample over Mitsuba's (Mitsuba's sample count
+        may differ from prt's spp), and the figure is their median."""
+        rounds = [[6.0, 4.0], [5.0, 5.0], [9.0, 3.0]]
+        ratios, median = mc.paired_ratios(rounds, 1024, 512)
+        self.assertEqual([round(x, 12) for x in ratios], [0.75, 0.5, 1.5])
+        self.assertEqual(median, 0.75)
+        self.assertEqual(mc.paired_ratios([], 1024, 1024), ([], None))
+
+    def test_common_drift_cancels(self):
+        """A machine that slows both renderers of a round by the same factor leaves every
+        round's ratio, and so the median, unchanged."""
+        slow = [1.0, 1.3, 0.8, 1.6]
+        rounds = [[6.0 * f, 4.0 * f] for f in slow]
+        ratios, median = mc.paired_ratios(rounds, 1024, 1024)
+        for r in ratios:
+            self.assertAlmostEqual(r, 1.5)
+        self.assertAlmostEqual(median, 1.5)
+
+    def test_prt_command(self):
+        class Args:
+            prt, spp, prt_sampler, prt_env_sampling, prt_split_lobes = "prt", 64, "single", "per-normal", "mirror"
+        cmd = mc.prt_render_cmd(Args, "s.toml", {"bounces": 2}, 1, "o.exr")
+        self.assertEqual(cmd[:3], ["prt", "render", "s.toml"])
+        for flag, value in (("--spp", "64"), ("--bounces", "2"), ("--seed", "1"), ("--sampler", "single"),
+                            ("--env-sampling", "per-normal"), ("--split-lobes", "mirror"), ("--out", "o.exr")):
+            self.assertEqual(cmd[cmd.index(flag) + 1], value)
+
+
 class Host(unittest.TestCase):
     def test_widest_simd_from_cpuinfo(self):
         text = ("processor\t: 0\nmodel name\t: AMD EPYC 7B13\nflags\t\t: fpu sse2 avx fma avx2\n\n"
