@@ -94,12 +94,6 @@ impl BoxNodes {
             avx2::closest(&self.0, ray, hit, touch);
         }
     }
-
-    /// Heap bytes of the decoded nodes.
-    #[must_use]
-    pub fn bytes(&self) -> usize {
-        self.0.len() * std::mem::size_of::<BoxNode>()
-    }
 }
 
 /// Whether this CPU runs the traversals (AVX2 and FMA).
