@@ -693,12 +693,10 @@ impl Group {
             return;
         }
         let (local, start) = self.local_ray(ray, t0, best.t);
-        let test = |slot| self.consider(group, slot, ray, start, best, masks);
+        let mut test = |slot| self.consider(group, slot, ray, start, best, masks);
         let touch = |slot| traverse::prefetch(&self.world[slot]);
-        if self.box_nodes.is_empty() {
+        if !self.box_nodes.closest(&local, &mut test, touch) {
             traverse::closest_sorted(&self.bvh, local, test, touch);
-        } else {
-            self.box_nodes.closest(&local, test, touch);
         }
     }
 
@@ -716,12 +714,11 @@ impl Group {
         }
         let (local, start) = self.local_ray(ray, t0, tmax);
         let blocking = |slot| self.blocking(slot, ray, start, tmax, masks);
-        if self.box_nodes.is_empty() {
-            return traverse::any_leaves_first(&self.bvh, local, blocking);
-        }
-        self.box_nodes.any(&local, |first, count| {
-            (first..first + count).any(|slot| blocking(slot) < local.tmax)
-        })
+        self.box_nodes
+            .any(&local, |first, count| {
+                (first..first + count).any(|slot| blocking(slot) < local.tmax)
+            })
+            .unwrap_or_else(|| traverse::any_leaves_first(&self.bvh, local, blocking))
     }
 
     /// The exact test of candidate `slot` for an occlusion query up to world `tmax` (with the

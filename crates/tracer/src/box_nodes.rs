@@ -74,25 +74,36 @@ impl BoxNodes {
     }
 
     /// Whether any leaf the ray reaches holds a hit: `leaf(first, count)` answers for the
-    /// leaf of slots `first..first + count`, and the first `true` ends the walk. The nodes
-    /// must not be empty.
-    pub fn any<F: FnMut(usize, usize) -> bool>(&self, ray: &Ray, leaf: F) -> bool {
-        assert!(!self.is_empty(), "BoxNodes::any on nodes not decoded");
+    /// leaf of slots `first..first + count`, and the first `true` ends the walk. `None` when
+    /// the nodes were not decoded (the caller walks the CWBVH instead).
+    pub fn any<F: FnMut(usize, usize) -> bool>(&self, ray: &Ray, leaf: F) -> Option<bool> {
+        if self.is_empty() {
+            return None;
+        }
         #[allow(unsafe_code)] // Non-empty nodes exist only where the CPU has AVX2 and FMA.
         unsafe {
-            avx2::any(&self.0, ray, leaf)
+            Some(avx2::any(&self.0, ray, leaf))
         }
     }
 
     /// Closest-hit traversal, nearest child first: `hit(slot)` tests a candidate and returns
     /// its ray-local distance (or `∞`), which shortens the ray; `touch(slot)` is told of a
-    /// leaf's slots when the leaf is pushed (a prefetch). The nodes must not be empty.
-    pub fn closest<F: FnMut(usize) -> f32, T: Fn(usize)>(&self, ray: &Ray, hit: F, touch: T) {
-        assert!(!self.is_empty(), "BoxNodes::closest on nodes not decoded");
+    /// leaf's slots when the leaf is pushed (a prefetch). Returns whether it ran: `false` when
+    /// the nodes were not decoded (the caller walks the CWBVH instead).
+    pub fn closest<F: FnMut(usize) -> f32, T: Fn(usize)>(
+        &self,
+        ray: &Ray,
+        hit: F,
+        touch: T,
+    ) -> bool {
+        if self.is_empty() {
+            return false;
+        }
         #[allow(unsafe_code)] // Non-empty nodes exist only where the CPU has AVX2 and FMA.
         unsafe {
             avx2::closest(&self.0, ray, hit, touch);
         }
+        true
     }
 }
 
@@ -184,12 +195,6 @@ fn decode(node: &CwBvhNode) -> BoxNode {
     out
 }
 
-/// The order in which a node's children come off the stack: child `p ^ octant` for `p`
-/// from 0 (obvhs' octant order for the ray's direction, nearest first by octant).
-fn octant(d: glam::Vec3A) -> u32 {
-    u32::from(d.x >= 0.0) << 2 | u32::from(d.y >= 0.0) << 1 | u32::from(d.z >= 0.0)
-}
-
 /// `mask` with bit `p` moved to bit `p ^ o` (`o < 8`): three conditional swaps.
 fn xor_permute(mask: u32, o: u32) -> u32 {
     let mut m = mask;
@@ -208,12 +213,11 @@ fn xor_permute(mask: u32, o: u32) -> u32 {
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)] // Intrinsics and `#[target_feature]` functions, called only after detection.
 mod avx2 {
-    use super::{octant, xor_permute, BoxNode, Ray, STACK};
-    use crate::traverse::NODE_TMIN;
+    use super::{xor_permute, BoxNode, Ray, STACK};
+    use crate::traverse::{octant_inverse, prefetch, Entry, NODE_TMIN};
     use std::arch::x86_64::{
         __m256, _mm256_cmp_ps, _mm256_fmadd_ps, _mm256_load_ps, _mm256_max_ps, _mm256_min_ps,
-        _mm256_movemask_ps, _mm256_set1_ps, _mm256_storeu_ps, _mm_prefetch, _CMP_LE_OQ,
-        _MM_HINT_T0,
+        _mm256_movemask_ps, _mm256_set1_ps, _mm256_storeu_ps, _CMP_LE_OQ,
     };
     use std::mem::MaybeUninit;
 
@@ -307,7 +311,7 @@ mod avx2 {
         mut leaf: F,
     ) -> bool {
         let slabs = Slabs::new(ray);
-        let order = octant(ray.direction);
+        let order = octant_inverse(ray.direction) as u32;
         let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
         stack[0].write(0);
         let mut len = 1;
@@ -337,28 +341,6 @@ mod avx2 {
         false
     }
 
-    /// Starts loading `node` into the cache (all four of its lines): a node's accepted
-    /// children are fetched together instead of one after another as they come off the stack.
-    #[inline]
-    #[target_feature(enable = "avx2,fma")]
-    fn prefetch(node: &BoxNode) {
-        let p = std::ptr::from_ref(node).cast::<i8>();
-        for line in 0..4 {
-            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line));
-        }
-    }
-
-    /// A stack entry of [`closest`]: an entry distance and a node index, or a leaf.
-    #[derive(Clone, Copy)]
-    struct Entry {
-        t: f32,
-        /// A node index, or [`LEAF`] | count << 27 | first slot.
-        what: u32,
-    }
-
-    /// Bit 31 of [`Entry::what`]: a leaf.
-    const LEAF: u32 = 1 << 31;
-
     /// [`super::BoxNodes::closest`].
     ///
     /// # Safety
@@ -383,9 +365,7 @@ mod avx2 {
             if e.t > tmax {
                 continue;
             }
-            if e.what & LEAF != 0 {
-                let first = (e.what & ((1 << 27) - 1)) as usize;
-                let count = ((e.what >> 27) & 0b111) as usize;
+            if let Some((first, count)) = e.slots() {
                 for slot in first..first + count {
                     tmax = tmax.min(hit(slot));
                 }
@@ -405,18 +385,22 @@ mod avx2 {
                 if !inner && node.count[c] == 0 {
                     continue;
                 }
-                let what = if inner {
+                // A node's accepted children are fetched together (all four lines of each)
+                // instead of one after another as they come off the stack.
+                let entry = if inner {
                     prefetch(&nodes[node.child[c] as usize]);
-                    node.child[c]
+                    Entry {
+                        t: t[c],
+                        what: node.child[c],
+                    }
                 } else {
                     let (first, count) = (node.child[c], u32::from(node.count[c]));
                     touch(first as usize);
                     if count > 1 {
                         touch((first + count - 1) as usize);
                     }
-                    LEAF | count << 27 | first
+                    Entry::leaf(t[c], first, count)
                 };
-                let entry = Entry { t: t[c], what };
                 // Insertion into the node's run of the stack, descending distance.
                 let mut i = len;
                 // SAFETY: slots `base..len` were written in this loop.

@@ -94,17 +94,61 @@ pub fn closest_sorted<F: FnMut(usize) -> f32, T: Fn(usize)>(
     closest(bvh, ray, hit);
 }
 
-/// Asks the CPU to start loading the cache line of `item` (a hint: no effect on results).
+/// Asks the CPU to start loading `item` into the cache, one prefetch per 64 bytes of it from
+/// its start (a hint: no effect on results).
 #[inline]
 pub fn prefetch<T>(item: &T) {
     #[cfg(target_arch = "x86_64")]
     #[allow(unsafe_code)] // SSE is part of x86-64; a prefetch never faults.
     unsafe {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        _mm_prefetch::<_MM_HINT_T0>(std::ptr::from_ref(item).cast::<i8>());
+        let p = std::ptr::from_ref(item).cast::<i8>();
+        for line in 0..std::mem::size_of::<T>().div_ceil(64).max(1) {
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line));
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = item;
+}
+
+/// A stack entry of the nearest-first traversals ([`closest_sorted`] and
+/// [`crate::box_nodes::BoxNodes::closest`]): a child's entry distance and what it is (bit 31
+/// set: a leaf, with its first primitive slot in bits 0..27 and its count in bits 27..30;
+/// clear: an inner node's index).
+#[derive(Clone, Copy)]
+pub(crate) struct Entry {
+    pub(crate) t: f32,
+    pub(crate) what: u32,
+}
+
+/// Bit 31 of [`Entry::what`]: a leaf.
+pub(crate) const LEAF: u32 = 1 << 31;
+
+impl Entry {
+    /// A leaf of `count` primitive slots from `first`, entered at `t`.
+    #[inline]
+    pub(crate) fn leaf(t: f32, first: u32, count: u32) -> Self {
+        Self {
+            t,
+            what: LEAF | count << 27 | first,
+        }
+    }
+
+    /// The slots `(first, count)` of a leaf entry; `None` for a node.
+    #[inline]
+    pub(crate) fn slots(self) -> Option<(usize, usize)> {
+        (self.what & LEAF != 0).then_some((
+            (self.what & ((1 << 27) - 1)) as usize,
+            ((self.what >> 27) & 0b111) as usize,
+        ))
+    }
+}
+
+/// The octant order obvhs' traversal gives a direction's children (`oct_inv4 & 7`): child
+/// `p ^ octant` comes `p`-th.
+#[inline]
+pub(crate) fn octant_inverse(d: Vec3A) -> usize {
+    usize::from(d.x >= 0.0) << 2 | usize::from(d.y >= 0.0) << 1 | usize::from(d.z >= 0.0)
 }
 
 /// Any-hit traversal: whether `hit` returns a distance below the ray's `tmax` for a candidate
@@ -195,14 +239,14 @@ pub fn node_hits(node: &obvhs::cwbvh::node::CwBvhNode, ray: &Ray, oct_inv4: u32)
 #[cfg(target_arch = "x86_64")]
 #[allow(unsafe_code)] // Intrinsics and `#[target_feature]` functions, called only after detection.
 mod avx2 {
-    use super::{CwBvh, Ray, UVec2, Vec3A, NODE_TMIN, PACKET};
+    use super::{octant_inverse, CwBvh, Entry, Ray, UVec2, Vec3A, NODE_TMIN, PACKET};
     use obvhs::cwbvh::node::{extract_byte64, CwBvhNode};
     use smallvec::SmallVec;
     use std::arch::x86_64::{
         __m256, _mm256_add_ps, _mm256_blendv_ps, _mm256_broadcast_ss, _mm256_cmp_ps,
         _mm256_cvtepi32_ps, _mm256_cvtepu8_epi32, _mm256_loadu_ps, _mm256_max_ps, _mm256_min_ps,
         _mm256_movemask_ps, _mm256_mul_ps, _mm256_set1_ps, _mm256_setzero_ps, _mm256_storeu_ps,
-        _mm256_sub_ps, _mm_loadl_epi64, _mm_prefetch, _CMP_LE_OQ, _CMP_LT_OQ, _MM_HINT_T0,
+        _mm256_sub_ps, _mm_loadl_epi64, _CMP_LE_OQ, _CMP_LT_OQ,
     };
 
     /// [`super::closest`] with the AVX2 node test.
@@ -242,18 +286,6 @@ mod avx2 {
         found
     }
 
-    /// A stack entry of [`closest_sorted`]: a child's entry distance and what it is (bit 31
-    /// set: a leaf, with its first primitive slot in bits 0..27 and its count in bits 27..30;
-    /// clear: an inner node's index).
-    #[derive(Clone, Copy)]
-    struct Entry {
-        t: f32,
-        what: u32,
-    }
-
-    /// Bit 31 of [`Entry::what`]: a leaf.
-    const LEAF: u32 = 1 << 31;
-
     /// [`super::closest_sorted`] with the AVX2 node test.
     ///
     /// # Safety
@@ -276,9 +308,7 @@ mod avx2 {
             if e.t > ray.tmax {
                 continue;
             }
-            if e.what & LEAF != 0 {
-                let first = (e.what & ((1 << 27) - 1)) as usize;
-                let count = ((e.what >> 27) & 0b111) as usize;
+            if let Some((first, count)) = e.slots() {
                 for slot in first..first + count {
                     let t = hit(slot);
                     if t < ray.tmax {
@@ -297,21 +327,20 @@ mod avx2 {
                 if node.is_child_empty(child) {
                     continue;
                 }
-                let what = if node.is_leaf(child) {
+                let entry = if node.is_leaf(child) {
                     let (first, count) = node.child_primitives(child);
                     touch(first as usize);
                     if count > 1 {
                         touch((first + count - 1) as usize);
                     }
-                    LEAF | (count << 27) | first
+                    Entry::leaf(tmin[child], first, count)
                 } else {
                     let index = node.child_node_index(child);
                     prefetch_node(bvh, index);
-                    index
-                };
-                let entry = Entry {
-                    t: tmin[child],
-                    what,
+                    Entry {
+                        t: tmin[child],
+                        what: index,
+                    }
                 };
                 // Insertion into the node's run of the stack, descending distance.
                 let mut i = stack.len();
@@ -376,9 +405,7 @@ mod avx2 {
     #[target_feature(enable = "avx2")]
     unsafe fn prefetch_node(bvh: &CwBvh, index: u32) {
         if let Some(node) = bvh.nodes.get(index as usize) {
-            let p = std::ptr::from_ref(node).cast::<i8>();
-            _mm_prefetch::<_MM_HINT_T0>(p);
-            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            super::prefetch(node);
         }
     }
 
@@ -616,11 +643,6 @@ mod avx2 {
             }
         }
         out
-    }
-
-    /// The octant order obvhs' traversal gives a direction's children (`oct_inv4 & 7`).
-    fn octant_inverse(d: Vec3A) -> usize {
-        usize::from(d.x >= 0.0) << 2 | usize::from(d.y >= 0.0) << 1 | usize::from(d.z >= 0.0)
     }
 
     /// [`super::closest_packet`] with the AVX2 packet node test.
