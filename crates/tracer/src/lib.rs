@@ -35,6 +35,7 @@ mod accel;
 pub mod box_nodes;
 mod camera;
 mod error;
+mod group_clip;
 mod integrator;
 pub mod output;
 pub mod points;
