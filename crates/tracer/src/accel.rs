@@ -11,9 +11,9 @@
 //! therefore relative to the group, i.e. to the object, not to the largest object of the scene.
 //! Rays visit the groups whose (f64) world boxes they cross, nearest first (the boxes are
 //! clipped four at a time where the CPU has AVX2, `group_clip`, with the scalar clip's
-//! numbers); a ray reaches a
-//! group's space starting at its box entry point (in f64), so the local origin is as precise
-//! as the group's own coordinates however far away the ray started.
+//! numbers); a ray reaches a group's space starting at its box entry point (in f64), so the
+//! local origin is as precise as the group's own coordinates however far away the ray
+//! started.
 //!
 //! **Exact triangle tests.** obvhs only *proposes* candidates: every ray/triangle test is done
 //! here in f64 on the world-space f32 vertices (exact in f64) with the world-space f32 ray
