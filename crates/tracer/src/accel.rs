@@ -1269,9 +1269,24 @@ impl Accel {
     ) {
         let g = &self.groups[gi];
         if g.direct {
-            for lane in 0..PACKET {
-                if t0[lane].is_some_and(|t| t <= best[lane].t) {
+            let todo = (0..PACKET).fold(0u8, |m, lane| {
+                let reaches = t0[lane].is_some_and(|t| t <= best[lane].t)
+                    && !g.slab.is_some_and(|s| s.turns_away(&world[lane]));
+                m | u8::from(reaches) << lane
+            });
+            if g.masked || todo.count_ones() < VECTOR_TESTS {
+                for lane in lanes_of(todo) {
                     g.closest(gi, &world[lane], 0.0, &mut best[lane], &self.masks);
+                }
+                return;
+            }
+            // Each triangle against all the lanes at once, as a BVH candidate is: the lanes
+            // get what `Group::closest` gets (the same tests, in slot order, each up to the
+            // lane's closest hit so far).
+            for (slot, tri) in g.world.iter().enumerate() {
+                let (hit, t) = lanes.hits(tri, best);
+                for lane in lanes_of(todo & hit) {
+                    g.accept(gi, slot, t[lane], 0.0, &mut best[lane]);
                 }
             }
             return;
