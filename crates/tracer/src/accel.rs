@@ -218,8 +218,10 @@ struct Group {
     boxes: Vec<PrimBox>,
     /// Group-space triangles in BVH primitive order (what the boxes bound).
     local: Vec<Triangle>,
-    /// World-space triangles in BVH primitive order (what the exact tests use).
+    /// World-space triangles in BVH primitive order.
     world: Vec<[Vec3; 3]>,
+    /// The same triangles as the exact tests read them: first vertex and edges in f64.
+    exact: Vec<ExactTri>,
     /// The BVH's nodes with float boxes, for single rays (empty where they do not run).
     box_nodes: BoxNodes,
     /// `(mesh, triangle)` of each BVH primitive slot.
@@ -315,6 +317,27 @@ impl Slab {
     }
 }
 
+/// A world triangle as the exact tests use it: its first vertex `a` and edges `e1 = b − a`,
+/// `e2 = c − a`, in f64 (the f32 vertices are exact in f64; the edges are the f64
+/// differences the test would form, computed once at build instead of on every test).
+#[derive(Clone, Copy, Debug)]
+struct ExactTri {
+    a: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+}
+
+impl ExactTri {
+    fn of(tri: &[Vec3; 3]) -> Self {
+        let [a, b, c] = tri.map(Vec3::as_dvec3);
+        Self {
+            a,
+            e1: b - a,
+            e2: c - a,
+        }
+    }
+}
+
 /// The ray of one query in f64 (exact copies of the caller's f32 values).
 #[derive(Clone, Copy)]
 struct WorldRay {
@@ -362,16 +385,15 @@ impl WorldRay {
     /// Exact-input Möller–Trumbore in f64: the distance to triangle `tri` if the ray meets it
     /// with `0 ≤ t ≤ tmax`.
     #[inline]
-    fn intersect(&self, tri: &[Vec3; 3], tmax: f64) -> Option<f64> {
+    fn intersect(&self, tri: &ExactTri, tmax: f64) -> Option<f64> {
         self.intersect_uv(tri, tmax).map(|(t, _, _)| t)
     }
 
     /// [`WorldRay::intersect`] with the barycentric weights `(u, v)` of the second and third
     /// vertex at the hit.
     #[inline]
-    fn intersect_uv(&self, tri: &[Vec3; 3], tmax: f64) -> Option<(f64, f64, f64)> {
-        let [a, b, c] = tri.map(Vec3::as_dvec3);
-        let (e1, e2) = (b - a, c - a);
+    fn intersect_uv(&self, tri: &ExactTri, tmax: f64) -> Option<(f64, f64, f64)> {
+        let (a, e1, e2) = (tri.a, tri.e1, tri.e2);
         let p = self.dir.cross(e2);
         let det = e1.dot(p);
         if det == 0.0 {
@@ -500,7 +522,7 @@ impl PacketRays {
     /// lanes that hit, and every lane's distance. The same operations in the same order as
     /// the scalar test, so the same lanes and the same distances.
     #[inline]
-    fn hits(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
+    fn hits(&self, tri: &ExactTri, best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
         #[cfg(target_arch = "x86_64")]
         if traverse::wide_node_test() {
             #[allow(unsafe_code)] // Runtime feature dispatch: AVX2 is present.
@@ -519,7 +541,7 @@ impl PacketRays {
     #[cfg(target_arch = "x86_64")]
     #[allow(unsafe_code)] // `#[target_feature]` and intrinsics, called only after detection.
     #[target_feature(enable = "avx2")]
-    unsafe fn hits_avx2(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
+    unsafe fn hits_avx2(&self, tri: &ExactTri, best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
         use std::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_NEQ_UQ};
         let m = self.quantities(tri);
         let tmax = Lanes(std::array::from_fn(|i| best[i].t));
@@ -535,7 +557,7 @@ impl PacketRays {
     }
 
     /// The body of [`PacketRays::hits`] without AVX2.
-    fn hits_lanes(&self, tri: &[Vec3; 3], best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
+    fn hits_lanes(&self, tri: &ExactTri, best: &[Best; PACKET]) -> (u8, [f64; PACKET]) {
         let m = self.quantities(tri);
         let within = (0..PACKET).fold(0, |w, i| w | u8::from(m.t.0[i] <= best[i].t) << i);
         let hit = m.det.mask(|d| d != 0.0)
@@ -549,9 +571,8 @@ impl PacketRays {
     /// The numbers of the scalar test ([`WorldRay::intersect_uv`]) for every lane, formed by
     /// the same operations in the same order.
     #[inline(always)]
-    fn quantities(&self, tri: &[Vec3; 3]) -> TestLanes {
-        let [a, b, c] = tri.map(Vec3::as_dvec3);
-        let (e1, e2) = (b - a, c - a);
+    fn quantities(&self, tri: &ExactTri) -> TestLanes {
+        let (a, e1, e2) = (tri.a, tri.e1, tri.e2);
         let s = |v: DVec3| [Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z)];
         let (a, e1, e2) = (s(a), s(e1), s(e2));
         let p = cross(self.dir, e2);
@@ -664,12 +685,12 @@ impl Group {
         masks: &Masks,
     ) -> f32 {
         let found = if self.masked {
-            match ray.intersect_uv(&self.world[slot], best.t) {
+            match ray.intersect_uv(&self.exact[slot], best.t) {
                 Some((t, u, v)) if self.covers(slot, u, v, masks) => Some(t),
                 _ => None,
             }
         } else {
-            ray.intersect(&self.world[slot], best.t)
+            ray.intersect(&self.exact[slot], best.t)
         };
         match found {
             Some(t) => self.accept(group, slot, t, start, best),
@@ -701,7 +722,7 @@ impl Group {
         }
         let (local, start) = self.local_ray(ray, t0, best.t);
         let mut test = |slot| self.consider(group, slot, ray, start, best, masks);
-        let touch = |slot| traverse::prefetch(&self.world[slot]);
+        let touch = |slot| traverse::prefetch(&self.exact[slot]);
         if !self.box_nodes.closest(&local, &mut test, touch) {
             traverse::closest_sorted(&self.bvh, local, test, touch);
         }
@@ -734,12 +755,12 @@ impl Group {
     #[inline]
     fn blocking(&self, slot: usize, ray: &WorldRay, start: f64, tmax: f64, masks: &Masks) -> f32 {
         let found = if self.masked {
-            match ray.intersect_uv(&self.world[slot], tmax) {
+            match ray.intersect_uv(&self.exact[slot], tmax) {
                 Some((t, u, v)) if self.covers(slot, u, v, masks) => Some(t),
                 _ => None,
             }
         } else {
-            ray.intersect(&self.world[slot], tmax)
+            ray.intersect(&self.exact[slot], tmax)
         };
         found.map_or(f32::INFINITY, |t| {
             (((t - start) * self.scale) as f32).max(0.0)
@@ -1006,6 +1027,7 @@ impl Accel {
             .iter()
             .map(|&i| world[i as usize])
             .collect();
+        let exact = world.iter().map(ExactTri::of).collect();
         let direct = world.len() <= options.direct_triangles;
         let slab = if direct { Slab::of(&world) } else { None };
         let refs = bvh
@@ -1022,6 +1044,7 @@ impl Accel {
             boxes,
             local,
             world,
+            exact,
             refs,
             centre,
             scale,
@@ -1283,7 +1306,7 @@ impl Accel {
             // Each triangle against all the lanes at once, as a BVH candidate is: the lanes
             // get what `Group::closest` gets (the same tests, in slot order, each up to the
             // lane's closest hit so far).
-            for (slot, tri) in g.world.iter().enumerate() {
+            for (slot, tri) in g.exact.iter().enumerate() {
                 let (hit, t) = lanes.hits(tri, best);
                 for lane in lanes_of(todo & hit) {
                     g.accept(gi, slot, t[lane], 0.0, &mut best[lane]);
@@ -1319,7 +1342,7 @@ impl Accel {
                 }
                 return;
             }
-            let (hit, t) = lanes.hits(&g.world[slot], best);
+            let (hit, t) = lanes.hits(&g.exact[slot], best);
             for lane in lanes_of(todo & hit) {
                 let t = g.accept(gi, slot, t[lane], start[lane], &mut best[lane]);
                 tmax[lane] = tmax[lane].min(t);
@@ -1453,7 +1476,10 @@ impl Accel {
             .map(|m| vec![false; m.indices.len()])
             .collect();
         for (gi, g) in self.groups.iter().enumerate() {
-            if g.world.len() != g.refs.len() || g.local.len() != g.refs.len() {
+            if g.world.len() != g.refs.len()
+                || g.local.len() != g.refs.len()
+                || g.exact.len() != g.refs.len()
+            {
                 return fail(format!("group {gi}: array lengths differ"));
             }
             for (slot, &(mesh, tri)) in g.refs.iter().enumerate() {
@@ -1472,6 +1498,11 @@ impl Accel {
                 let world = self.triangle(mesh, tri);
                 if g.world[slot] != world {
                     return fail(format!("group {gi} slot {slot} differs from its mesh"));
+                }
+                let e = ExactTri::of(&world);
+                let x = &g.exact[slot];
+                if (x.a, x.e1, x.e2) != (e.a, e.e1, e.e2) {
+                    return fail(format!("group {gi} slot {slot}: exact-test edges differ"));
                 }
                 let t = &g.local[slot];
                 for (k, s) in [t.v0, t.v1, t.v2].into_iter().enumerate() {
@@ -1541,7 +1572,9 @@ fn barycentrics_of_point(a0: DVec3, a1: DVec3, a2: DVec3, p: DVec3) -> (f64, f64
 
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
-    use super::{traverse, Accel, AccelOptions, Best, PacketRays, Vec3, WorldRay, PACKET};
+    use super::{
+        traverse, Accel, AccelOptions, Best, ExactTri, PacketRays, Vec3, WorldRay, PACKET,
+    };
     use crate::group_clip::RayQuad;
     use crate::test_util::quad;
     use glam::DVec3;
@@ -1762,13 +1795,14 @@ mod tests {
                 slot: None,
             });
             let lanes = PacketRays::new(&world);
-            let portable = lanes.hits_lanes(&tri, &best);
+            let exact = ExactTri::of(&tri);
+            let portable = lanes.hits_lanes(&exact, &best);
             #[allow(unsafe_code)] // AVX2 is present (checked above).
-            let wide = unsafe { lanes.hits_avx2(&tri, &best) };
+            let wide = unsafe { lanes.hits_avx2(&exact, &best) };
             assert_eq!(wide.0, portable.0, "lanes hit, {tri:?} {rays:?} {tmax:?}");
             hit_lanes += wide.0.count_ones() as usize;
             for (lane, ray) in world.iter().enumerate() {
-                let single = ray.intersect(&tri, best[lane].t);
+                let single = ray.intersect(&exact, best[lane].t);
                 let lane_hit = wide.0 & (1 << lane) != 0;
                 assert_eq!(
                     single.map(f64::to_bits),
