@@ -222,6 +222,9 @@ struct Group {
     world: Vec<[Vec3; 3]>,
     /// The same triangles as the exact tests read them: first vertex and edges in f64.
     exact: Vec<ExactTri>,
+    /// Each triangle's unit geometric normal, `normalize(e1 × e2)` in f64 rounded to f32 (or
+    /// zero for a degenerate triangle), as hit records report it.
+    normals: Vec<Vec3>,
     /// The BVH's nodes with float boxes, for single rays (empty where they do not run).
     box_nodes: BoxNodes,
     /// `(mesh, triangle)` of each BVH primitive slot.
@@ -335,6 +338,11 @@ impl ExactTri {
             e1: b - a,
             e2: c - a,
         }
+    }
+
+    /// The unit geometric normal `normalize(e1 × e2)` in f32 (zero if degenerate).
+    fn normal(&self) -> Vec3 {
+        self.e1.cross(self.e2).normalize_or_zero().as_vec3()
     }
 }
 
@@ -1027,7 +1035,8 @@ impl Accel {
             .iter()
             .map(|&i| world[i as usize])
             .collect();
-        let exact = world.iter().map(ExactTri::of).collect();
+        let exact: Vec<ExactTri> = world.iter().map(ExactTri::of).collect();
+        let normals = exact.iter().map(ExactTri::normal).collect();
         let direct = world.len() <= options.direct_triangles;
         let slab = if direct { Slab::of(&world) } else { None };
         let refs = bvh
@@ -1045,6 +1054,7 @@ impl Accel {
             local,
             world,
             exact,
+            normals,
             refs,
             centre,
             scale,
@@ -1405,9 +1415,9 @@ impl Accel {
         let m = &self.masks.meshes[mesh as usize];
         let [v0, v1, v2] = g.world[slot];
         // Bug B: barycentrics by Möller–Trumbore in f64 (u weights v1, v weights v2).
-        let (a0, a1, a2) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
+        let ExactTri { a: a0, e1, e2 } = g.exact[slot];
+        let (a1, a2) = (v1.as_dvec3(), v2.as_dvec3());
         let (o, d) = (ray.origin, ray.dir);
-        let (e1, e2) = (a1 - a0, a2 - a0);
         let pvec = d.cross(e2);
         let det = e1.dot(pvec);
         let (mut u, mut v) = if det.abs() > 0.0 {
@@ -1426,7 +1436,7 @@ impl Accel {
         }
         let w = 1.0 - u - v;
         let position = (a0 * w + a1 * u + a2 * v).as_vec3();
-        let ng = e1.cross(e2).normalize_or_zero().as_vec3();
+        let ng = g.normals[slot];
         let shading_normal = if m.normals.is_empty() {
             ng
         } else {
@@ -1479,6 +1489,7 @@ impl Accel {
             if g.world.len() != g.refs.len()
                 || g.local.len() != g.refs.len()
                 || g.exact.len() != g.refs.len()
+                || g.normals.len() != g.refs.len()
             {
                 return fail(format!("group {gi}: array lengths differ"));
             }
@@ -1501,7 +1512,7 @@ impl Accel {
                 }
                 let e = ExactTri::of(&world);
                 let x = &g.exact[slot];
-                if (x.a, x.e1, x.e2) != (e.a, e.e1, e.e2) {
+                if (x.a, x.e1, x.e2) != (e.a, e.e1, e.e2) || g.normals[slot] != e.normal() {
                     return fail(format!("group {gi} slot {slot}: exact-test edges differ"));
                 }
                 let t = &g.local[slot];
