@@ -49,8 +49,8 @@ pub mod traverse;
 mod vertex;
 
 pub use accel::{
-    offset_origin, point_offset, spawn_offset, Accel, AccelOptions, Hit, SHADOW_RAY_SHORTEN,
-    SPAWN_RELATIVE_OFFSET,
+    offset_origin, point_offset, spawn_offset, Accel, AccelOptions, Hit, FLAT_GROUPS,
+    SHADOW_RAY_SHORTEN, SPAWN_RELATIVE_OFFSET,
 };
 pub use camera::PinholeCamera;
 pub use error::TracerError;

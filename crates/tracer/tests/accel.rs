@@ -275,10 +275,13 @@ fn test05_bug_c_tiny_scene() {
         .closest_hit(o, Vec3::Z, f32::INFINITY)
         .expect("sphere at 4e-5");
     assert!((h2.t - 4e-5).abs() < 1e-10);
+    // Through obvhs' traversal as it is: no rescaling, and the quad in the sphere's BVH (a
+    // flat group of its own would be tested without a traversal).
     let raw = Accel::from_meshes(
         &meshes,
         AccelOptions {
             rescale: false,
+            flat_groups: false,
             ..AccelOptions::default()
         },
     )
@@ -826,4 +829,79 @@ fn test15_flat_groups_turn_away_rays_with_the_same_answers() {
         );
     }
     assert!(hits > 5_000, "{hits} hits");
+}
+
+/// Small flat meshes in groups of their own (`AccelOptions::flat_groups`, the default) give
+/// the answers of the same scene in one BVH: a sphere resting on a floor quad beside a wall
+/// quad, closest hits bit for bit (single rays and packets) and occlusion, from points on
+/// the floor, the wall and the sphere (where rays leave a flat group's slab) and from
+/// anywhere, with infinite and finite `tmax`. A scene of more than `FLAT_GROUPS` such quads
+/// keeps them with the rest.
+#[test]
+fn test16_flat_groups_give_the_answers_of_one_bvh() {
+    use prt_tracer::FLAT_GROUPS;
+    let floor = test_util::quad(
+        Vec3::new(-2.0, 0.0, -2.0),
+        Vec3::new(0.0, 0.0, 4.0),
+        Vec3::new(4.0, 0.0, 0.0),
+    );
+    let wall = test_util::quad(
+        Vec3::new(-2.0, 0.0, -1.5),
+        Vec3::new(4.0, 0.0, 0.0),
+        Vec3::new(0.0, 2.0, 0.0),
+    );
+    let sphere = test_util::uv_sphere(Vec3::new(0.2, 0.5, 0.1), 0.5, 24, 48, true);
+    let meshes = vec![floor.clone(), sphere.clone(), wall];
+    let split = accel(&meshes);
+    let joined = Accel::from_meshes(
+        &meshes,
+        AccelOptions {
+            flat_groups: false,
+            ..AccelOptions::default()
+        },
+    )
+    .unwrap();
+    assert_eq!((split.group_count(), joined.group_count()), (3, 1));
+    split.validate().unwrap();
+    let mut rng = Pcg64::seed_from_u64(16);
+    let (mut from_flat, mut blocked, mut hits) = (0, 0, 0);
+    for case in 0..30_000 {
+        let mut o = Vec3::new(0.0, 1.0, 0.0) + unit_dir(&mut rng) * rng.random_range(0.0f32..3.0);
+        let d = unit_dir(&mut rng);
+        if case % 2 == 1 {
+            // From a surface point: where a ray from `o` lands, spawned off it towards `d`.
+            if let Some(h) = joined.closest_hit(o, unit_dir(&mut rng), f32::INFINITY) {
+                from_flat += usize::from(h.mesh != 1);
+                o = h.spawn_origin(d);
+            }
+        }
+        let tmax = [f32::INFINITY, 0.5, 5.0][case % 3];
+        let want = joined.closest_hit(o, d, tmax);
+        assert_eq!(split.closest_hit(o, d, tmax), want, "case {case}");
+        hits += usize::from(want.is_some());
+        let b = joined.occluded(o, d, tmax);
+        assert_eq!(split.occluded(o, d, tmax), b, "case {case}");
+        blocked += usize::from(b);
+    }
+    for case in 0..2_000 {
+        let eye = Vec3::new(0.0, 1.5, 3.0) + unit_dir(&mut rng) * 0.5;
+        let dirs: Vec<Vec3> = (0..8)
+            .map(|_| (unit_dir(&mut rng) * 1.5 - eye).normalize())
+            .collect();
+        let (mut a, mut b) = (vec![None; 8], vec![None; 8]);
+        split.closest_hits(&[eye; 8], &dirs, f32::INFINITY, &mut a);
+        joined.closest_hits(&[eye; 8], &dirs, f32::INFINITY, &mut b);
+        assert_eq!(a, b, "packet {case}");
+    }
+    eprintln!("{from_flat} rays from the quads, {hits} hits, {blocked} blocked");
+    assert!(from_flat > 3_000, "{from_flat} rays from the quads");
+    assert!(hits > 5_000 && hits < 28_000, "{hits} hits");
+    assert!(blocked > 5_000 && blocked < 28_000, "{blocked} blocked");
+    // More small flat meshes than FLAT_GROUPS: they stay with the sphere.
+    let mut many = vec![sphere];
+    many.extend(
+        (0..=FLAT_GROUPS)
+            .map(|k| test_util::transformed(&floor, |p| p + Vec3::new(0.0, -0.1 * k as f32, 0.0))),
+    );
+    assert_eq!(accel(&many).group_count(), 1);
 }
