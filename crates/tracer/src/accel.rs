@@ -442,7 +442,7 @@ const DIRECT_TRIANGLES: usize = 4;
 ///
 /// Why: a floor quad sharing its object's BVH makes that BVH's root span the floor, and
 /// every ray leaving the floor tests the floor's two triangles in a leaf near the root. In a
-/// group of its own its slab turns those rays away first ([`Slab::turns_away`]), and the
+/// group of its own its slab turns those rays away first (`Slab::turns_away`), and the
 /// object's BVH is tight. With the group walk in AVX2 lanes and camera packets testing a
 /// direct group's triangles in lanes, it saves 5.0 / 2.7 / 5.6 % of the instructions per
 /// sample on `mirror` / `teapot` / `bunny_floor` (callgrind); it did not pay while the walk
@@ -861,16 +861,18 @@ fn mesh_bounds(mesh: &Mesh) -> Option<(DVec3, DVec3)> {
 /// [`FLAT_GROUPS`] of them and some other mesh has triangles; else none.
 fn small_flat_meshes(meshes: &[Mesh], direct: usize) -> Vec<usize> {
     let is_flat = |m: &Mesh| {
-        let tris: Vec<[Vec3; 3]> = m
-            .indices
-            .iter()
-            .map(|idx| idx.map(|i| m.positions[i as usize]))
-            .collect();
-        !tris.is_empty() && tris.len() <= direct && Slab::of(&tris).is_some()
+        (1..=direct).contains(&m.indices.len()) && {
+            let tris: Vec<[Vec3; 3]> = m
+                .indices
+                .iter()
+                .map(|idx| idx.map(|i| m.positions[i as usize]))
+                .collect();
+            Slab::of(&tris).is_some()
+        }
     };
     let flat: Vec<usize> = (0..meshes.len()).filter(|&m| is_flat(&meshes[m])).collect();
-    let others = (0..meshes.len()).any(|m| !flat.contains(&m) && !meshes[m].indices.is_empty());
-    if others && flat.len() <= FLAT_GROUPS {
+    let with_triangles = meshes.iter().filter(|m| !m.indices.is_empty()).count();
+    if flat.len() <= FLAT_GROUPS && with_triangles > flat.len() {
         flat
     } else {
         Vec::new()

@@ -416,6 +416,7 @@ mod avx2 {
 }
 
 #[cfg(not(target_arch = "x86_64"))]
+#[allow(unsafe_code)] // Stubs with the x86-64 traversals' signatures.
 mod avx2 {
     //! Never called: [`super::BoxNodes::of`] decodes nothing without AVX2.
     use super::{BoxNode, Ray};

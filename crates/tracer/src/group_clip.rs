@@ -13,8 +13,9 @@
 //! order (a subtraction, then a multiplication by the reciprocal, no fused multiply-add), and
 //! `min`/`max` keep the scalar ones' rule that a NaN operand (`0 · ∞`, an origin on a slab
 //! plane of a zero direction component) is dropped in favour of the other. So every lane's
-//! entry distance and verdict are the scalar [`Group`](crate::accel) entry's (`tests` below
-//! compare them on random and degenerate rays), and the renders are bit-identical.
+//! entry distance and verdict are the scalar group entry's (`accel.rs`'s unit test
+//! `group_clips_are_the_scalar_entries` compares them on random and degenerate rays), and
+//! the renders are bit-identical.
 
 use glam::DVec3;
 
@@ -156,6 +157,7 @@ fn usable() -> bool {
 }
 
 #[cfg(not(target_arch = "x86_64"))]
+#[allow(unsafe_code)] // Stubs with the x86-64 kernels' signatures.
 mod avx2 {
     use super::{Quad, RayQuad};
     use glam::DVec3;
