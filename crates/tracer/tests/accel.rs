@@ -769,19 +769,34 @@ fn test14_small_groups_tested_directly_give_the_bvh_answers() {
         blocked += usize::from(b);
     }
     // Packets of camera-like rays towards the floor.
-    for case in 0..500 {
-        let eye = Vec3::new(0.0, 1.0, 4.0) + unit_dir(&mut rng);
-        let dirs: Vec<Vec3> = (0..8)
-            .map(|_| (Vec3::new(0.0, -1.6, 0.0) + unit_dir(&mut rng) * 3.0 - eye).normalize())
-            .collect();
-        let (mut a, mut b) = (vec![None; 8], vec![None; 8]);
-        direct.closest_hits(&[eye; 8], &dirs, f32::INFINITY, &mut a);
-        bvh.closest_hits(&[eye; 8], &dirs, f32::INFINITY, &mut b);
-        assert_eq!(a, b, "packet {case}");
-    }
+    let (eye, floor) = (Vec3::new(0.0, 1.0, 4.0), Vec3::new(0.0, -1.6, 0.0));
+    same_camera_packets(&direct, &bvh, &mut rng, 500, (eye, 1.0), (floor, 3.0));
     eprintln!("{floor_hits} rays from the floor, {blocked} blocked");
     assert!(floor_hits > 2_000, "{floor_hits} rays from the floor");
     assert!(blocked > 2_000 && blocked < 18_000, "{blocked} blocked");
+}
+
+/// `cases` packets of eight camera-like rays, each from an eye within `eye.1` of `eye.0`
+/// towards points within `target.1` of `target.0`: `a` and `b` return the same hits, bit for
+/// bit.
+fn same_camera_packets(
+    a: &Accel,
+    b: &Accel,
+    rng: &mut Pcg64,
+    cases: usize,
+    eye: (Vec3, f32),
+    target: (Vec3, f32),
+) {
+    for case in 0..cases {
+        let from = eye.0 + unit_dir(rng) * eye.1;
+        let dirs: Vec<Vec3> = (0..8)
+            .map(|_| (target.0 + unit_dir(rng) * target.1 - from).normalize())
+            .collect();
+        let (mut got_a, mut got_b) = (vec![None; 8], vec![None; 8]);
+        a.closest_hits(&[from; 8], &dirs, f32::INFINITY, &mut got_a);
+        b.closest_hits(&[from; 8], &dirs, f32::INFINITY, &mut got_b);
+        assert_eq!(got_a, got_b, "packet {case}");
+    }
 }
 
 /// A flat group tested directly turns away rays that start outside its slab and leave it
@@ -883,16 +898,15 @@ fn test16_flat_groups_give_the_answers_of_one_bvh() {
         assert_eq!(split.occluded(o, d, tmax), b, "case {case}");
         blocked += usize::from(b);
     }
-    for case in 0..2_000 {
-        let eye = Vec3::new(0.0, 1.5, 3.0) + unit_dir(&mut rng) * 0.5;
-        let dirs: Vec<Vec3> = (0..8)
-            .map(|_| (unit_dir(&mut rng) * 1.5 - eye).normalize())
-            .collect();
-        let (mut a, mut b) = (vec![None; 8], vec![None; 8]);
-        split.closest_hits(&[eye; 8], &dirs, f32::INFINITY, &mut a);
-        joined.closest_hits(&[eye; 8], &dirs, f32::INFINITY, &mut b);
-        assert_eq!(a, b, "packet {case}");
-    }
+    let eye = Vec3::new(0.0, 1.5, 3.0);
+    same_camera_packets(
+        &split,
+        &joined,
+        &mut rng,
+        2_000,
+        (eye, 0.5),
+        (Vec3::ZERO, 1.5),
+    );
     eprintln!("{from_flat} rays from the quads, {hits} hits, {blocked} blocked");
     assert!(from_flat > 3_000, "{from_flat} rays from the quads");
     assert!(hits > 5_000 && hits < 28_000, "{hits} hits");
