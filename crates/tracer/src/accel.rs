@@ -1428,6 +1428,7 @@ impl Accel {
         // Any order gives the same answer: no sorting.
         let inv = DVec3::ONE / ray.dir;
         if self.boxes.is_wide() {
+            // A plain loop over the four bits: `lanes_of` here cost 42 instructions a sample.
             return (0..self.boxes.quads()).any(|q| {
                 let (mask, t) = self.boxes.ray_entries(q, ray.origin, inv, tmax);
                 (0..4).any(|k| {

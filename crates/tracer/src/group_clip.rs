@@ -64,7 +64,7 @@ impl GroupBoxes {
     /// The boxes `(lo, hi)` of the groups in order, if this CPU has AVX2; else an empty set
     /// ([`GroupBoxes::is_wide`] false).
     pub(crate) fn new(boxes: &[(DVec3, DVec3)]) -> Self {
-        if !usable() {
+        if !crate::traverse::wide_node_test() {
             return Self::default();
         }
         let empty = Quad {
@@ -131,28 +131,10 @@ impl GroupBoxes {
         tmax: [f64; 4],
     ) -> (u8, [f64; 4]) {
         assert!(group < self.len, "group {group} of {}", self.len);
-        let q = &self.quads[group / 4];
-        let k = group % 4;
-        let quad = Quad {
-            lo: q.lo.map(|row| [row[k]; 4]),
-            hi: q.hi.map(|row| [row[k]; 4]),
-        };
         #[allow(unsafe_code)] // Quads exist only where the CPU has AVX2.
         unsafe {
-            avx2::entries(&quad, rays, tmax)
+            avx2::entries(&self.quads[group / 4], group % 4, rays, tmax)
         }
-    }
-}
-
-/// Whether this CPU runs the four-lane clips.
-fn usable() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
     }
 }
 
@@ -163,7 +145,7 @@ mod avx2 {
     use glam::DVec3;
 
     /// Never called: no quads are built off x86-64.
-    pub(super) unsafe fn entries(_: &Quad, _: &RayQuad, _: [f64; 4]) -> (u8, [f64; 4]) {
+    pub(super) unsafe fn entries(_: &Quad, _: usize, _: &RayQuad, _: [f64; 4]) -> (u8, [f64; 4]) {
         unreachable!("four-lane clips only run on x86-64")
     }
 
@@ -212,22 +194,31 @@ mod avx2 {
     ) -> (u8, [f64; 4]) {
         let o = [origin.x, origin.y, origin.z].map(|c| _mm256_set1_pd(c));
         let inv = [inv.x, inv.y, inv.z].map(|c| _mm256_set1_pd(c));
-        clip(quad, o, inv, _mm256_set1_pd(tmax))
+        let lo = quad.lo.map(|row| _mm256_load_pd(row.as_ptr()));
+        let hi = quad.hi.map(|row| _mm256_load_pd(row.as_ptr()));
+        clip([lo, hi], o, inv, _mm256_set1_pd(tmax))
     }
 
-    /// Four rays against the box in every lane of `quad`: [`clip`] lane by lane.
+    /// Four rays against box `k` of `quad` (broadcast to every lane): [`clip`] lane by lane.
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn entries(quad: &Quad, ray: &RayQuad, tmax: [f64; 4]) -> (u8, [f64; 4]) {
+    pub(super) unsafe fn entries(
+        quad: &Quad,
+        k: usize,
+        ray: &RayQuad,
+        tmax: [f64; 4],
+    ) -> (u8, [f64; 4]) {
         let o = ray.origin.map(|row| _mm256_load_pd(row.as_ptr()));
         let inv = ray.inv.map(|row| _mm256_load_pd(row.as_ptr()));
-        clip(quad, o, inv, _mm256_loadu_pd(tmax.as_ptr()))
+        let lo = quad.lo.map(|row| _mm256_set1_pd(row[k]));
+        let hi = quad.hi.map(|row| _mm256_set1_pd(row[k]));
+        clip([lo, hi], o, inv, _mm256_loadu_pd(tmax.as_ptr()))
     }
 
-    /// Lane `k`: the ray of origin `o` and reciprocal direction `inv` (per axis) against box
-    /// `k` of `quad`, with the scalar clip's operations in its order: the origin inside the
+    /// Lane `k`: the ray of origin `o` and reciprocal direction `inv` (per axis) against the
+    /// box `[lo, hi]` of `bounds` in that lane, with the scalar clip's operations in its order: the origin inside the
     /// box gives `[0, ∞)`; otherwise `a = (lo − o)·inv`, `b = (hi − o)·inv`,
     /// `t0 = min(a_x, b_x) ⊔ min(a_y, b_y) ⊔ min(a_z, b_z)` (`⊔`: max), `t1` likewise; the
     /// box is entered if `t0 ≤ t1`, `t1 ≥ 0` and `t0 ≤ tmax`, at `max(t0, 0)`.
@@ -237,7 +228,7 @@ mod avx2 {
     #[inline]
     #[target_feature(enable = "avx2")]
     unsafe fn clip(
-        quad: &Quad,
+        bounds: [[__m256d; 3]; 2],
         o: [__m256d; 3],
         inv: [__m256d; 3],
         tmax: __m256d,
@@ -246,8 +237,7 @@ mod avx2 {
         let mut t0 = _mm256_setzero_pd();
         let mut t1 = _mm256_setzero_pd();
         for axis in 0..3 {
-            let lo = _mm256_load_pd(quad.lo[axis].as_ptr());
-            let hi = _mm256_load_pd(quad.hi[axis].as_ptr());
+            let (lo, hi) = (bounds[0][axis], bounds[1][axis]);
             let within = _mm256_and_pd(
                 _mm256_cmp_pd::<_CMP_GE_OQ>(o[axis], lo),
                 _mm256_cmp_pd::<_CMP_LE_OQ>(o[axis], hi),
