@@ -30,7 +30,7 @@ Suite mode (`--suite`): prt against the peers a user would pick, in one command,
 (plus `probe`, a mirror sphere that shows whether the environment lines up in every renderer):
   tools/.venv/bin/python tools/mitsuba_compare.py --suite [--spp 1024] [--table FILE.md]
       [--prt PATH] [--prt-sampler replicas|single] [--prt-env-sampling per-normal|compensated|luminance]
-      [--prt-split-lobes mirror|none|all] [--timing-rounds N]
+      [--prt-split-lobes delta|mirror|none|all] [--timing-rounds N]
       [--scenes sphere,bunny_floor,mirror,far,millimetre,teapot] [--ref-factor 16]
       [--peers llvm_independent,llvm_multijitter,llvm_ldsampler,cycles]
 - peers: Mitsuba 3 `llvm_ad_rgb` with its `independent`, `multijitter` and `ldsampler` samplers
@@ -163,10 +163,12 @@ def main():
                     help="prt's environment sampling density (`prt render --env-sampling`): "
                          "`per-normal` (its default, MIS compensation per shading normal), "
                          "`compensated` (one compensated table) or `luminance`")
-    ap.add_argument("--prt-split-lobes", choices=["mirror", "none", "all"], default="mirror",
-                    help="prt's lobe splitting (`prt render --split-lobes`): `mirror` (its default: "
-                         "diffuse-plus-mirror materials trace the mirror ray besides a diffuse "
-                         "sample), `none` (one lobe chosen at random, as the peers do) or `all`")
+    ap.add_argument("--prt-split-lobes", choices=["delta", "mirror", "none", "all"], default="delta",
+                    help="prt's lobe splitting (`prt render --split-lobes`): `delta` (its default: "
+                         "diffuse-plus-mirror materials follow the mirror ray at every vertex and "
+                         "the diffuse lobe as often as a lobe choice takes it), `mirror` (both "
+                         "lobes at every such vertex), `none` (one lobe chosen at random, as the "
+                         "peers do) or `all`")
     ap.add_argument("--variant", default="scalar_rgb")
     ap.add_argument("--upsample", type=int, default=16,
                     help="nearest-neighbour upsampling of the map for Mitsuba (FACTS.md says ×4; "

@@ -21,7 +21,7 @@ use crate::{Hit, Renderer};
 use glam::Vec3;
 use prt_shading::{
     chooses_lobe, eval, has_delta, is_pure_delta, luminance, pdf, sample, sample_cosine_hemisphere,
-    sample_lobe, split_pdf, splits, BsdfSample, Frame, SPLIT_LOBES,
+    sample_lobe, split_pdf, splits, BsdfSample, Frame, SplitLobe, SPLIT_LOBES,
 };
 
 /// A path of [`Mode::Path`] at a surface vertex: what it has gathered and what it carries.
@@ -75,6 +75,18 @@ struct Scatter {
     bs: BsdfSample,
 }
 
+/// How a vertex samples its material's lobes ([`Renderer::splits_at`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Split {
+    /// One lobe chosen at random.
+    No,
+    /// One sample of each lobe ([`Renderer::split`]).
+    Both,
+    /// The delta lobe always, the other as the random choice takes it
+    /// ([`Renderer::split_delta`]).
+    Delta,
+}
+
 /// MIS weight of strategy `a` against `b` (pdfs in solid angle).
 pub(crate) fn mis_weight(h: MisHeuristic, a: f32, b: f32) -> f32 {
     if a.is_infinite() {
@@ -125,14 +137,15 @@ impl Renderer<'_> {
     fn continue_path(&self, path: &mut PathState, s: &mut Sampler) {
         loop {
             let split = self.splits_at(path);
-            if let Some(r) = self.next_event(path, split, s) {
+            if let Some(r) = self.next_event(path, split == Split::Both, s) {
                 if !self.accel.occluded(r.origin, r.dir, f32::INFINITY) {
                     path.radiance += r.add;
                 }
             }
-            if split {
-                self.split(path, s);
-                return;
+            match split {
+                Split::No => {}
+                Split::Both => return self.split(path, s),
+                Split::Delta => return self.split_delta(path, s),
             }
             let Some(sc) = self.scatter(path, s) else {
                 return;
@@ -165,19 +178,29 @@ impl Renderer<'_> {
         }
     }
 
-    /// Whether the path's vertex takes one sample of each lobe of its material
-    /// ([`prt_shading::splits`]): one of the materials [`RenderSettings::split_lobes`] names,
-    /// within the first [`RenderSettings::split_depth`] vertices.
+    /// How the path's vertex samples the lobes of its material: more than one lobe
+    /// ([`prt_shading::splits`]) where it is one of the materials
+    /// [`RenderSettings::split_lobes`] names, within the first
+    /// [`RenderSettings::split_depth`] vertices; else one lobe chosen at random.
     ///
     /// [`RenderSettings::split_lobes`]: crate::RenderSettings::split_lobes
     /// [`RenderSettings::split_depth`]: crate::RenderSettings::split_depth
-    fn splits_at(&self, path: &PathState) -> bool {
-        let named = match self.settings.split_lobes {
-            SplitLobes::None => false,
-            SplitLobes::Mirror => has_delta(&path.v.mat),
-            SplitLobes::All => true,
+    fn splits_at(&self, path: &PathState) -> Split {
+        let how = match self.settings.split_lobes {
+            SplitLobes::None => Split::No,
+            SplitLobes::Mirror if has_delta(&path.v.mat) => Split::Both,
+            SplitLobes::Delta if has_delta(&path.v.mat) => Split::Delta,
+            SplitLobes::Mirror | SplitLobes::Delta => Split::No,
+            SplitLobes::All => Split::Both,
         };
-        named && path.indirect < self.settings.split_depth && splits(&path.v.mat, path.ns, path.wo)
+        if how != Split::No
+            && path.indirect < self.settings.split_depth
+            && splits(&path.v.mat, path.ns, path.wo)
+        {
+            how
+        } else {
+            Split::No
+        }
     }
 
     /// Lobe splitting at the path's vertex (`prt_shading`'s `split` module): one direction
@@ -189,21 +212,48 @@ impl Renderer<'_> {
     fn split(&self, path: &mut PathState, s: &mut Sampler) {
         let u = s.next_3d_tail();
         for lobe in SPLIT_LOBES {
-            let Some(bs) = sample_lobe(&path.v.mat, path.ns, path.wo, lobe, u) else {
-                continue;
-            };
-            let mut branch = PathState {
-                radiance: Vec3::ZERO,
-                ..*path
-            };
-            let mut s = s.clone();
-            if let Some(sc) = self.scattered(&mut branch, bs) {
-                if self.follow(&mut branch, &sc, &mut s) {
-                    self.continue_path(&mut branch, &mut s);
-                }
+            if let Some(bs) = sample_lobe(&path.v.mat, path.ns, path.wo, lobe, u) {
+                self.branch(path, bs, s);
             }
-            path.radiance += branch.radiance;
         }
+    }
+
+    /// The delta lobe taken out of the lobe choice at the path's vertex: its ray is followed
+    /// every time (weight `specular`), and the one-sample choice ([`prt_shading::sample`],
+    /// with the lobe number the vertex draws anyway) decides as it would unsplit whether the
+    /// diffuse lobe is followed too, with the weight and density it has there. The diffuse
+    /// lobe's estimate is then exactly the unsplit one's (so is its MIS weight against
+    /// next-event estimation), and the delta lobe's is its expectation over the choice: the
+    /// sum is unbiased.
+    fn split_delta(&self, path: &mut PathState, s: &mut Sampler) {
+        let u = s.next_3d();
+        let delta = sample_lobe(
+            &path.v.mat,
+            path.ns,
+            path.wo,
+            SplitLobe::Specular,
+            [u[1], u[2]],
+        );
+        let diffuse = sample(&path.v.mat, path.ns, path.wo, u).filter(|bs| !bs.is_delta);
+        for bs in [delta, diffuse].into_iter().flatten() {
+            self.branch(path, bs, s);
+        }
+    }
+
+    /// One branch of a split vertex: the path from BRDF sample `bs` of its vertex to its
+    /// end, from a copy of the sampler, its radiance added to the path's.
+    fn branch(&self, path: &mut PathState, bs: BsdfSample, s: &Sampler) {
+        let mut branch = PathState {
+            radiance: Vec3::ZERO,
+            ..*path
+        };
+        let mut s = s.clone();
+        if let Some(sc) = self.scattered(&mut branch, bs) {
+            if self.follow(&mut branch, &sc, &mut s) {
+                self.continue_path(&mut branch, &mut s);
+            }
+        }
+        path.radiance += branch.radiance;
     }
 
     /// Next-event estimation at the path's vertex: one environment sample, and the shadow

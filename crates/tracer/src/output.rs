@@ -114,6 +114,7 @@ pub fn metadata(out: &RenderOutput) -> Vec<(String, AttributeValue)> {
             AttributeValue::Text(Text::from(match s.split_lobes {
                 SplitLobes::None => "none",
                 SplitLobes::Mirror => "mirror",
+                SplitLobes::Delta => "delta",
                 SplitLobes::All => "all",
             })),
         ),

@@ -616,8 +616,8 @@ fn test09_compensated_environment_density_is_unbiased_and_less_noisy() {
 }
 
 /// Lobe splitting against one lobe chosen at random: the same image in expectation, with
-/// mirrors split (the default) and with every two-lobe material split, and a lower variance
-/// with the mirror split ([`assert_same_mean_lower_variance`], 48 seeds of each at 32 spp
+/// mirrors split, with their delta lobe always followed (the default) and with every
+/// two-lobe material split, and a lower variance with either way of splitting mirrors ([`assert_same_mean_lower_variance`], 48 seeds of each at 32 spp
 /// on 48×36 pixels, one bounce, so the first two vertices split). The scene's mirror sphere
 /// is half diffuse here (albedo 0.4, specular 0.5) so that both of its lobes matter; its
 /// Phong sphere is the glossy two-lobe material.
@@ -631,8 +631,10 @@ fn test10_lobe_splitting_is_unbiased_and_less_noisy() {
     let with = |split_lobes| move |s| RenderSettings { split_lobes, ..s };
     let none = seed_moments(&scene, with(SplitLobes::None), 32, 48);
     let mirror = seed_moments(&scene, with(SplitLobes::Mirror), 32, 48);
+    let delta = seed_moments(&scene, with(SplitLobes::Delta), 32, 48);
     let all = seed_moments(&scene, with(SplitLobes::All), 32, 48);
     assert_same_mean_lower_variance(&mirror, &none, 48, "mirrors split");
+    assert_same_mean_lower_variance(&delta, &none, 48, "mirrors' delta lobe always followed");
     assert_same_mean(&all, &none, 48, "every two-lobe material split");
     // Where no vertex splits (a pure mirror is one lobe; the Phong sphere is not a mirror),
     // the image is the unsplit estimator's bit for bit: splitting takes no numbers of its own.
@@ -648,5 +650,6 @@ fn test10_lobe_splitting_is_unbiased_and_less_noisy() {
         Renderer::new(&scene, s).unwrap().render().unwrap().radiance
     };
     assert_eq!(image(SplitLobes::Mirror), image(SplitLobes::None));
+    assert_eq!(image(SplitLobes::Delta), image(SplitLobes::None));
     assert_ne!(image(SplitLobes::All), image(SplitLobes::None));
 }
