@@ -219,6 +219,18 @@ pub(crate) fn local_pair(n: Vec3, wo: Vec3, wi: Vec3) -> Option<(Vec3, Vec3)> {
     (wo.z > 0.0 && wi.z > 0.0).then_some((wo, wi))
 }
 
+/// [`eval`] and [`pdf`] of one pair of directions, with one frame and one look at the
+/// material: what next-event estimation asks of a light sample's direction (the BRDF value,
+/// and the density BRDF sampling gives it for the MIS weight). `(0, 0)` when either
+/// direction is not strictly above the surface.
+#[must_use]
+pub fn eval_and_pdf(mat: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    local_pair(n, wo, wi).map_or((Vec3::ZERO, 0.0), |(wo, wi)| {
+        let p = parts(mat);
+        (eval_local(&p, wo, wi), pdf_local(&p, wo, wi))
+    })
+}
+
 /// Solid-angle pdf with which [`sample`] generates `wi` (non-delta part, including
 /// lobe-selection probabilities). Zero when either direction is below the surface.
 #[must_use]

@@ -67,7 +67,8 @@ mod split;
 mod warp;
 
 pub use bsdf::{
-    chooses_lobe, eval, has_delta, is_pure_delta, pdf, sample, specular_selection_probability,
+    chooses_lobe, eval, eval_and_pdf, has_delta, is_pure_delta, pdf, sample,
+    specular_selection_probability,
 };
 pub use bsdf_sample::BsdfSample;
 pub use distribution::{Distribution1D, Distribution2D};
@@ -76,7 +77,7 @@ pub use frame::Frame;
 pub use fresnel::{fresnel_amplitudes, fresnel_dielectric};
 pub use microfacet::{beckmann_d, sample_beckmann_half_vector};
 pub use pbr::{ggx_d, ggx_g1, pbr_terms, sample_ggx_visible_normal, MIN_ALPHA};
-pub use split::{sample_lobe, split_pdf, splits, SplitLobe, SPLIT_LOBES};
+pub use split::{eval_and_split_pdf, sample_lobe, split_pdf, splits, SplitLobe, SPLIT_LOBES};
 pub use warp::{
     cosine_hemisphere_pdf, invert_cosine_hemisphere, invert_uniform_hemisphere,
     invert_uniform_sphere, sample_cosine_hemisphere, sample_uniform_hemisphere,

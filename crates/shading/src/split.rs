@@ -24,7 +24,9 @@
 //! The price is a second ray and the path behind it, so renderers split only at the first
 //! vertices of a path (the tracer's `RenderSettings::split_lobes`).
 
-use crate::bsdf::{finish_sample, local_pair, parts, specular_selection_probability, Parts};
+use crate::bsdf::{
+    eval_local, finish_sample, local_pair, parts, specular_selection_probability, Parts,
+};
 use crate::bsdf_sample::BsdfSample;
 use crate::phong::reflect_z;
 use crate::{lambert, Frame};
@@ -71,6 +73,16 @@ fn split_pdf_local(p: &Parts, wo: Vec3, wi: Vec3) -> f32 {
 #[must_use]
 pub fn split_pdf(mat: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> f32 {
     local_pair(n, wo, wi).map_or(0.0, |(wo, wi)| split_pdf_local(&parts(mat), wo, wi))
+}
+
+/// [`crate::eval`] and [`split_pdf`] of one pair of directions with one frame (next-event
+/// estimation at a vertex that splits). `(0, 0)` when either direction is below the surface.
+#[must_use]
+pub fn eval_and_split_pdf(mat: &Material, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+    local_pair(n, wo, wi).map_or((Vec3::ZERO, 0.0), |(wo, wi)| {
+        let p = parts(mat);
+        (eval_local(&p, wo, wi), split_pdf_local(&p, wo, wi))
+    })
 }
 
 /// Draws `wi` from lobe `lobe` alone with two uniform numbers. The weight is

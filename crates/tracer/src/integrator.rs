@@ -20,8 +20,8 @@ use crate::vertex::Vertex;
 use crate::{Hit, Renderer};
 use glam::Vec3;
 use prt_shading::{
-    chooses_lobe, eval, has_delta, is_pure_delta, luminance, pdf, sample, sample_cosine_hemisphere,
-    sample_lobe, split_pdf, splits, BsdfSample, Frame, SplitLobe, SPLIT_LOBES,
+    chooses_lobe, eval_and_pdf, eval_and_split_pdf, has_delta, is_pure_delta, luminance, sample,
+    sample_cosine_hemisphere, sample_lobe, splits, BsdfSample, Frame, SplitLobe, SPLIT_LOBES,
 };
 
 /// A path of [`Mode::Path`] at a surface vertex: what it has gathered and what it carries.
@@ -273,15 +273,14 @@ impl Renderer<'_> {
         if !(es.pdf > 0.0 && cos > 0.0 && ng.dot(es.dir) > 0.0) {
             return None;
         }
-        let f = eval(&v.mat, ns, wo, es.dir);
+        let (f, brdf_pdf) = if split {
+            eval_and_split_pdf(&v.mat, ns, wo, es.dir)
+        } else {
+            eval_and_pdf(&v.mat, ns, wo, es.dir)
+        };
         if f == Vec3::ZERO {
             return None;
         }
-        let brdf_pdf = if split {
-            split_pdf(&v.mat, ns, wo, es.dir)
-        } else {
-            pdf(&v.mat, ns, wo, es.dir)
-        };
         let w = mis_weight(self.settings.mis, es.pdf, brdf_pdf);
         Some(ShadowRay {
             origin: v.spawn(ng, es.dir),
@@ -358,13 +357,12 @@ impl Renderer<'_> {
     /// escapes a vertex of shading normal `ns`: its radiance, MIS-weighted against
     /// environment sampling (at that normal) unless the lobe is a delta.
     fn escaped(&self, beta: Vec3, ns: Vec3, bs: &BsdfSample) -> Vec3 {
+        if bs.is_delta {
+            // Nothing else samples a delta direction: weight 1, no environment pdf needed.
+            return beta * self.env.radiance(bs.wi);
+        }
         let (l, env_pdf) = self.env.radiance_and_pdf_at(ns, bs.wi);
-        let w = if bs.is_delta {
-            1.0
-        } else {
-            mis_weight(self.settings.mis, bs.pdf, env_pdf)
-        };
-        beta * l * w
+        beta * l * mis_weight(self.settings.mis, bs.pdf, env_pdf)
     }
 
     fn li_unshadowed(&self, v: Vertex, wo: Vec3, s: &mut Sampler) -> Vec3 {
@@ -374,8 +372,8 @@ impl Renderer<'_> {
         if let Some(es) = self.env.sample_at(ns, s.next_2d()) {
             let cos = ns.dot(es.dir);
             if es.pdf > 0.0 && cos > 0.0 {
-                let f = eval(&v.mat, ns, wo, es.dir);
-                let w = mis_weight(h, es.pdf, pdf(&v.mat, ns, wo, es.dir));
+                let (f, brdf_pdf) = eval_and_pdf(&v.mat, ns, wo, es.dir);
+                let w = mis_weight(h, es.pdf, brdf_pdf);
                 radiance += f * es.radiance * (cos * w / es.pdf);
             }
         }
