@@ -24,7 +24,7 @@
 //! from memory, and `f32` tables (8.6 MB) took 1.12× the one-table sampler's time.
 
 use glam::DVec3;
-use prt_scene::envmap::latlong_direction;
+use prt_scene::envmap::{cell_index, latlong_direction};
 use std::f64::consts::PI;
 
 /// Normal bins per side of the octahedral map (`BIN_SIDE²` tables, about 4.3 MB for the
@@ -52,7 +52,7 @@ pub(crate) fn bin_of(d: DVec3) -> usize {
     if d.z < 0.0 {
         (x, y) = fold(x, y);
     }
-    let cell = |t: f64| (((t + 1.0) * 0.5 * BIN_SIDE as f64) as usize).min(BIN_SIDE - 1);
+    let cell = |t: f64| cell_index((t + 1.0) * 0.5 * BIN_SIDE as f64, BIN_SIDE);
     cell(y) * BIN_SIDE + cell(x)
 }
 
