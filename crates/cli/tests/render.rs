@@ -232,18 +232,20 @@ fn test04_env_sampling_flag() {
     }
 }
 
-/// `--split-lobes` and `--split-depth`: the header names them; the default splits only
-/// mirror materials, so on the default scene (a Lambert bunny on a Phong floor) it is `none`'s
-/// image bit for bit, while `all` splits the floor's two lobes and gives another image
-/// (the same in expectation: `prt-tracer`'s render test10). A bad choice is an error.
+/// `--split-lobes` and `--split-depth`: the header names them; the default (`delta`) and
+/// `mirror` split only mirror materials, so on the default scene (a Lambert bunny on a Phong
+/// floor) they are `none`'s image bit for bit, while `all` splits the floor's two lobes and
+/// gives another image (the same in expectation: `prt-tracer`'s render test10). A bad choice
+/// is an error.
 #[test]
 fn test05_split_lobes_flags() {
     let dir = tempfile::tempdir().unwrap();
     let args = ["--spp", "2", "--bounces", "1", "--seed", "7", "--quiet"];
     let mut reds = Vec::new();
     for (extra, name, depth) in [
-        (&[][..], "mirror", 2),
+        (&[][..], "delta", 2),
         (&["--split-lobes", "none"][..], "none", 2),
+        (&["--split-lobes", "mirror"][..], "mirror", 2),
         (
             &["--split-lobes", "all", "--split-depth", "1"][..],
             "all",
@@ -262,7 +264,8 @@ fn test05_split_lobes_flags() {
         reds[0], reds[1],
         "no mirror in the default scene: nothing splits"
     );
-    assert_ne!(reds[0], reds[2], "--split-lobes all splits the Phong floor");
+    assert_eq!(reds[2], reds[1], "--split-lobes mirror: nothing splits");
+    assert_ne!(reds[0], reds[3], "--split-lobes all splits the Phong floor");
     let stderr = render_default_fails(
         &["--split-lobes", "glossy", "--quiet"],
         &dir.path().join("bad.exr"),
