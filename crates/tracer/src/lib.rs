@@ -13,9 +13,10 @@
 //!   sampled (`prt_shading::sample`), and the two are combined with Veach's multiple importance
 //!   sampling (power heuristic by default, balance on request; Veach & Guibas 1995). Delta
 //!   (mirror) lobes take no MIS weight. At the first vertices of a path, diffuse-plus-mirror
-//!   materials follow a sample of each lobe instead of choosing one (lobe splitting,
-//!   [`SplitLobes`]; Veach's multi-sample MIS with the balance heuristic between the lobes;
-//!   glossy two-lobe materials on request). Bounces count as in CONVENTIONS.md (`-1`: unlimited
+//!   materials follow their mirror ray every time and their diffuse lobe as often as the
+//!   one-sample lobe choice takes it ([`SplitLobes::Delta`], the default), or a sample of each
+//!   lobe (lobe splitting, [`SplitLobes::Mirror`]; Veach's multi-sample MIS with the balance
+//!   heuristic between the lobes; glossy two-lobe materials on request). Bounces count as in CONVENTIONS.md (`-1`: unlimited
 //!   with Russian roulette). Modes: [`Mode::Path`], [`Mode::Unshadowed`],
 //!   [`Mode::AmbientOcclusion`]; and radiance at given points ([`Renderer::radiance_at_points`]).
 //! - glTF material inputs (issue 34): shading with the normal-mapped shading normal
