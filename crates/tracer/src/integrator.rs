@@ -187,11 +187,10 @@ impl Renderer<'_> {
     /// [`RenderSettings::split_depth`]: crate::RenderSettings::split_depth
     fn splits_at(&self, path: &PathState) -> Split {
         let how = match self.settings.split_lobes {
-            SplitLobes::None => Split::No,
             SplitLobes::Mirror if has_delta(&path.v.mat) => Split::Both,
             SplitLobes::Delta if has_delta(&path.v.mat) => Split::Delta,
-            SplitLobes::Mirror | SplitLobes::Delta => Split::No,
             SplitLobes::All => Split::Both,
+            _ => Split::No,
         };
         if how != Split::No
             && path.indirect < self.settings.split_depth

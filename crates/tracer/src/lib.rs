@@ -16,7 +16,8 @@
 //!   materials follow their mirror ray every time and their diffuse lobe as often as the
 //!   one-sample lobe choice takes it ([`SplitLobes::Delta`], the default), or a sample of each
 //!   lobe (lobe splitting, [`SplitLobes::Mirror`]; Veach's multi-sample MIS with the balance
-//!   heuristic between the lobes; glossy two-lobe materials on request). Bounces count as in CONVENTIONS.md (`-1`: unlimited
+//!   heuristic between the lobes; glossy two-lobe materials on request). Bounces count as in
+//!   CONVENTIONS.md (`-1`: unlimited
 //!   with Russian roulette). Modes: [`Mode::Path`], [`Mode::Unshadowed`],
 //!   [`Mode::AmbientOcclusion`]; and radiance at given points ([`Renderer::radiance_at_points`]).
 //! - glTF material inputs (issue 34): shading with the normal-mapped shading normal

@@ -617,8 +617,9 @@ fn test09_compensated_environment_density_is_unbiased_and_less_noisy() {
 
 /// Lobe splitting against one lobe chosen at random: the same image in expectation, with
 /// mirrors split, with their delta lobe always followed (the default) and with every
-/// two-lobe material split, and a lower variance with either way of splitting mirrors ([`assert_same_mean_lower_variance`], 48 seeds of each at 32 spp
-/// on 48×36 pixels, one bounce, so the first two vertices split). The scene's mirror sphere
+/// two-lobe material split, and a lower variance with either way of splitting mirrors
+/// ([`assert_same_mean_lower_variance`], 48 seeds of each at 32 spp on 48×36 pixels, one
+/// bounce, so the first two vertices split). The scene's mirror sphere
 /// is half diffuse here (albedo 0.4, specular 0.5) so that both of its lobes matter; its
 /// Phong sphere is the glossy two-lobe material.
 #[test]
